@@ -1,0 +1,41 @@
+"""Deterministic train/val/test splits from character IDs (or a split file)."""
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
+
+
+def split_of(character_id: str, fractions: dict[str, float] | None = None, salt: str = "") -> str:
+    """The split of a character: a fixed function of its ID (sha256 bucket), independent of order.
+
+    Args:
+        character_id: the stable ID, e.g. ``zoo/quadruped-0007``.
+        fractions: split name to fraction, summing to 1; default 80/10/10 train/val/test.
+        salt: changes the assignment for all IDs at once (for a reshuffled split).
+    """
+    fractions = fractions or DEFAULT_FRACTIONS
+    total = sum(fractions.values())
+    if abs(total - 1.0) > 1e-6:
+        raise ValueError(f"fractions: expected values summing to 1, got {total}")
+    h = int.from_bytes(hashlib.sha256((salt + character_id).encode()).digest()[:8], "big") / 2**64
+    acc = 0.0
+    for name, frac in fractions.items():
+        acc += frac
+        if h < acc:
+            return name
+    return list(fractions)[-1]
+
+
+def load_split_file(path: str | Path) -> dict[str, str]:
+    """Read a split file: JSON mapping split name to a list of character IDs; returns ID -> split."""
+    data = json.loads(Path(path).read_text())
+    out: dict[str, str] = {}
+    for split, ids in data.items():
+        for cid in ids:
+            if cid in out:
+                raise ValueError(f"{path}: character {cid!r} is in both {out[cid]!r} and {split!r}")
+            out[cid] = split
+    return out

@@ -1,0 +1,5 @@
+import sys
+
+from mimicbench.cli import main
+
+sys.exit(main())

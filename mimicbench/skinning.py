@@ -1,0 +1,68 @@
+"""Linear blend skinning (MimiCAT Eq. 1), NumPy.
+
+``v_i = sum_k W_ik (R(q_k) (vbar_i - cbar_k) + t_k)``: each keypoint's transform maps rest to
+posed; ``t_k`` is the posed position of keypoint k. Frames batch over leading dimensions.
+The torch twin is :mod:`mimicbench.skinning_torch`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from mimicbench.kinematics import array_to_transforms
+from mimicbench.quaternion import quat_to_matrix
+from mimicbench.validation import check_shape
+from mimicbench.weights import SparseWeights, as_dense
+
+
+def keypoint_affines(transforms: np.ndarray, rest_keypoints: np.ndarray) -> np.ndarray:
+    """Per-keypoint affine maps (..., K, 3, 4) ``[R_k | t_k - R_k cbar_k]`` from transforms (..., K, 7)."""
+    q, t = array_to_transforms(transforms)
+    rest = check_shape(rest_keypoints, (q.shape[-2], 3), "rest_keypoints").astype(np.float64)
+    r = quat_to_matrix(q)
+    offset = t - np.einsum("...kij,kj->...ki", r, rest)
+    return np.concatenate([r, offset[..., None]], axis=-1)
+
+
+def linear_blend_skinning(
+    rest_vertices: np.ndarray,
+    rest_keypoints: np.ndarray,
+    weights: np.ndarray | SparseWeights,
+    transforms: np.ndarray,
+) -> np.ndarray:
+    """Pose a mesh by linear blend skinning.
+
+    Args:
+        rest_vertices: (N, 3) rest vertices, metres.
+        rest_keypoints: (K, 3) joint head positions at rest, metres.
+        weights: dense (N, K) or :class:`SparseWeights`; rows sum to 1.
+        transforms: (..., K, 7) per-keypoint (q_w, q_x, q_y, q_z, t_x, t_y, t_z).
+
+    Returns:
+        (..., N, 3) float32 posed vertices.
+    """
+    verts = check_shape(rest_vertices, (None, 3), "rest_vertices").astype(np.float64)
+    a = keypoint_affines(transforms, rest_keypoints)  # (..., K, 3, 4)
+    homo = np.concatenate([verts, np.ones((verts.shape[0], 1))], axis=1)  # (N, 4)
+    if isinstance(weights, SparseWeights):
+        if weights.num_vertices != verts.shape[0]:
+            raise ValueError(f"weights: expected {verts.shape[0]} rows, got {weights.num_vertices}")
+        gathered = a[..., weights.indices, :, :]  # (..., N, J, 3, 4)
+        blended = np.einsum("nj,...njab->...nab", weights.values.astype(np.float64), gathered)
+    else:
+        w = as_dense(weights, a.shape[-3])
+        if w.shape[0] != verts.shape[0]:
+            raise ValueError(f"weights: expected {verts.shape[0]} rows, got {w.shape[0]}")
+        blended = np.einsum("nk,...kab->...nab", w, a)
+    return np.einsum("...nab,nb->...na", blended, homo).astype(np.float32)
+
+
+def posed_keypoints_from_vertices(posed_vertices: np.ndarray, weights) -> np.ndarray:
+    """Posed keypoints (..., K, 3) as the weight-averaged posed vertices (..., N, 3).
+
+    Keypoint k is ``sum_i W_ik v_i / sum_i W_ik``; a keypoint that owns no weight gets NaN.
+    """
+    w = as_dense(weights)
+    v = np.asarray(posed_vertices, dtype=np.float64)
+    total = w.sum(axis=0)  # (K,)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.einsum("nk,...nc->...kc", w, v) / total[:, None]

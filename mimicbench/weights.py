@@ -1,0 +1,91 @@
+"""Sparse skin weights: at most J influences a vertex, stored as fixed-width index/value arrays.
+
+``indices`` (N, J) int32 and ``values`` (N, J) float32; unused slots have value 0 (and any valid
+index, conventionally 0). Rows of ``values`` sum to 1. The dense form is (N, K) float.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MAX_INFLUENCES = 8
+
+
+@dataclass(frozen=True)
+class SparseWeights:
+    """Skin weights of N vertices over K keypoints, J influences a vertex at most.
+
+    Attributes:
+        indices: (N, J) int32 keypoint index of each influence.
+        values: (N, J) float32 weight of each influence; 0 marks an unused slot.
+        num_keypoints: K.
+    """
+
+    indices: np.ndarray
+    values: np.ndarray
+    num_keypoints: int
+
+    def __post_init__(self):
+        if self.indices.shape != self.values.shape or self.indices.ndim != 2:
+            raise ValueError(
+                f"SparseWeights: expected indices and values of one shape (N, J), got "
+                f"{self.indices.shape} and {self.values.shape}"
+            )
+        if self.indices.size and (self.indices.min() < 0 or self.indices.max() >= self.num_keypoints):
+            raise ValueError(
+                f"SparseWeights: indices must lie in [0, {self.num_keypoints}), got range "
+                f"[{self.indices.min()}, {self.indices.max()}]"
+            )
+
+    @property
+    def num_vertices(self) -> int:
+        return int(self.indices.shape[0])
+
+    def to_dense(self, dtype=np.float32) -> np.ndarray:
+        """Dense weights (N, K)."""
+        dense = np.zeros((self.num_vertices, self.num_keypoints), dtype=dtype)
+        rows = np.repeat(np.arange(self.num_vertices), self.indices.shape[1])
+        np.add.at(dense, (rows, self.indices.ravel()), self.values.ravel())
+        return dense
+
+    @classmethod
+    def from_dense(cls, dense: np.ndarray, max_influences: int = MAX_INFLUENCES,
+                   normalize: bool = True) -> "SparseWeights":
+        """Keep the ``max_influences`` largest weights of each row of dense (N, K), renormalised."""
+        dense = np.asarray(dense, dtype=np.float64)
+        if dense.ndim != 2:
+            raise ValueError(f"dense: expected shape (N, K), got {dense.shape}")
+        n, k = dense.shape
+        j = min(max_influences, k)
+        idx = np.argsort(-dense, axis=1, kind="stable")[:, :j]
+        val = np.take_along_axis(dense, idx, axis=1)
+        val = np.where(val > 0, val, 0.0)
+        idx = np.where(val > 0, idx, 0)
+        if normalize:
+            s = val.sum(axis=1, keepdims=True)
+            if (s <= 0).any():
+                raise ValueError(
+                    f"dense: {int((s <= 0).sum())} vertices have no positive weight; every vertex "
+                    "must be weighted"
+                )
+            val = val / s
+        if j < max_influences:
+            pad = max_influences - j
+            idx = np.pad(idx, ((0, 0), (0, pad)))
+            val = np.pad(val, ((0, 0), (0, pad)))
+        return cls(idx.astype(np.int32), val.astype(np.float32), k)
+
+    def row_sums(self) -> np.ndarray:
+        """Sum of each vertex's weights (N,)."""
+        return self.values.astype(np.float64).sum(axis=1)
+
+
+def as_dense(weights, num_keypoints: int | None = None) -> np.ndarray:
+    """Return weights (N, K) dense from a dense array or a :class:`SparseWeights`."""
+    if isinstance(weights, SparseWeights):
+        return weights.to_dense(np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim != 2 or (num_keypoints is not None and w.shape[1] != num_keypoints):
+        raise ValueError(f"weights: expected shape (N, {num_keypoints or 'K'}), got {w.shape}")
+    return w

@@ -1,0 +1,43 @@
+"""A motion clip of one character (table ``motions``)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from schemas.columns import Column
+
+TABLE = "motions"
+
+
+@dataclass
+class MotionRecord:
+    """One clip: per-frame per-keypoint transforms at ``fps`` frames per second.
+
+    ``transforms`` (F, K, 7) float32: unit quaternion (w, x, y, z) of bone k's world rotation
+    relative to rest, then the posed world position of keypoint k (metres). K and the bone order
+    are those of the character ``character_id``.
+    """
+
+    motion_id: str
+    character_id: str
+    name: str
+    split: str
+    fps: float
+    num_frames: int
+    num_joints: int
+    transforms: np.ndarray
+    source: str = ""
+
+    COLUMNS = (
+        Column("motion_id", "scalar", "string", doc="stable ID, `<character_id>/<clip name>`"),
+        Column("character_id", "scalar", "string", doc="the character whose skeleton the clip drives"),
+        Column("name", "scalar", "string", doc="clip name as authored (e.g. `Walk`) or generated (`gait`)"),
+        Column("split", "scalar", "string", doc="split of the character"),
+        Column("fps", "scalar", "float32", doc="frames per second"),
+        Column("num_frames", "scalar", "int32", doc="F"),
+        Column("num_joints", "scalar", "int32", doc="K"),
+        Column("transforms", "rows", "float32", 7, reshape=("num_frames", "num_joints", 7),
+               doc="(F*K, 7) stored, (F, K, 7) in memory: q_w, q_x, q_y, q_z, t_x, t_y, t_z per frame and keypoint"),
+        Column("source", "scalar", "string", doc="generator or file the clip came from"),
+    )

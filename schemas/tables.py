@@ -1,0 +1,35 @@
+"""The tables a dataset folder can hold, by name."""
+from __future__ import annotations
+
+from schemas.case import CaseRecord
+from schemas.character import CharacterRecord
+from schemas.columns import arrow_schema
+from schemas.motion import MotionRecord
+from schemas.pair import PairRecord
+from schemas.result import ResultRecord
+from schemas.status import StatusRecord
+
+RECORD_TYPES = {
+    "characters": CharacterRecord,
+    "motions": MotionRecord,
+    "pairs": PairRecord,
+    "cases": CaseRecord,
+    "status": StatusRecord,
+    "results": ResultRecord,
+}
+
+# Rows per Parquet row group: small for large per-row arrays, so one record reads on its own.
+ROW_GROUP_SIZE = {"characters": 8, "motions": 16, "pairs": 256, "cases": 256, "status": 4096, "results": 4096}
+
+
+def record_type(table: str) -> type:
+    """The record class of ``table``; raises KeyError naming the known tables."""
+    try:
+        return RECORD_TYPES[table]
+    except KeyError:
+        raise KeyError(f"unknown table {table!r}; expected one of {sorted(RECORD_TYPES)}") from None
+
+
+def schema_of(table: str):
+    """The versioned Arrow schema of ``table``."""
+    return arrow_schema(record_type(table).COLUMNS, table)
