@@ -123,7 +123,8 @@ def quat_from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     axis = np.asarray(axis, dtype=np.float64)
     axis = axis / np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-12)
     half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
-    return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1)
+    half, axis = np.broadcast_arrays(half, axis)
+    return np.concatenate([np.cos(half[..., :1]), np.sin(half) * axis], axis=-1)
 
 
 def quat_slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarray:
@@ -149,5 +150,7 @@ def quat_slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray | float) -> np.ndarra
 
 def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Geodesic angle (..., radians, in [0, pi]) between the rotations of quaternions a and b."""
-    dot = np.abs(np.sum(quat_normalize(a) * quat_normalize(b), axis=-1))
-    return 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
+    a = quat_normalize(np.asarray(a, dtype=np.float64))
+    b = quat_normalize(np.asarray(b, dtype=np.float64))
+    r = quat_multiply(quat_conjugate(a), b)  # atan2 form stays accurate for tiny angles
+    return 2.0 * np.arctan2(np.linalg.norm(r[..., 1:], axis=-1), np.abs(r[..., 0]))

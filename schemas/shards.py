@@ -72,13 +72,23 @@ def write_table(root, table: str, arrow: pa.Table, split: str, rows_per_shard: i
         raise ValueError(f"{table}: table schema differs from the contract:\n{arrow.schema}\nexpected:\n{expected}")
     arrow = arrow.replace_schema_metadata(expected.metadata)
     n = max(1, math.ceil(arrow.num_rows / max(1, rows_per_shard)))
+    # Write every shard under a temporary name first; rename only once all are complete.
+    temps: list[tuple[str, Path]] = []
+    try:
+        for i in range(n):
+            part = arrow.slice(i * rows_per_shard, rows_per_shard)
+            final = folder / shard_name(split, i, n)
+            temps.append((_write_parquet_temp(part, final, ROW_GROUP_SIZE.get(table, 1024)), final))
+    except BaseException:
+        for tmp, _ in temps:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        raise
     entries = []
-    for i in range(n):
-        part = arrow.slice(i * rows_per_shard, rows_per_shard)
-        final = folder / shard_name(split, i, n)
-        _write_parquet_atomic(part, final, ROW_GROUP_SIZE.get(table, 1024))
-        entries.append({"path": f"{table}/{final.name}", "split": split, "rows": part.num_rows,
-                        "sha256": sha256_of(final)})
+    for tmp, final in temps:
+        os.replace(tmp, final)
+        entries.append({"path": f"{table}/{final.name}", "split": split,
+                        "rows": pq.read_metadata(final).num_rows, "sha256": sha256_of(final)})
     manifest = load_manifest(root)
     tinfo = manifest["tables"].setdefault(table, {"shards": []})
     old = [s for s in tinfo["shards"] if s["split"] == split]
@@ -95,16 +105,16 @@ def write_table(root, table: str, arrow: pa.Table, split: str, rows_per_shard: i
     return entries
 
 
-def _write_parquet_atomic(table: pa.Table, final: Path, row_group_size: int) -> None:
+def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int) -> str:
+    """Write ``table`` to a temporary file beside ``final``; return its path (removed on error)."""
     fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent)
     os.close(fd)
     try:
         pq.write_table(table, tmp, row_group_size=row_group_size, compression="zstd")
-        os.replace(tmp, final)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        os.unlink(tmp)
         raise
+    return tmp
 
 
 def shard_entries(root, table: str, split: str | None = None) -> list[dict]:

@@ -1,0 +1,26 @@
+import json
+from collections import Counter
+
+import pytest
+
+from datagen.splits import load_split_file, split_of
+
+
+def test_split_is_a_function_of_the_id_with_stated_fractions():
+    ids = [f"zoo/humanoid-{i:04d}" for i in range(5000)]
+    first = [split_of(i) for i in ids]
+    assert first == [split_of(i) for i in reversed(ids)][::-1]
+    counts = Counter(first)
+    assert abs(counts["train"] / 5000 - 0.8) < 0.03 and abs(counts["test"] / 5000 - 0.1) < 0.02
+    assert split_of("assets/Fox", salt="a") in ("train", "val", "test")
+    with pytest.raises(ValueError, match="summing to 1"):
+        split_of("x", {"train": 0.5})
+
+
+def test_split_file(tmp_path):
+    p = tmp_path / "splits.json"
+    p.write_text(json.dumps({"train": ["a", "b"], "test": ["c"]}))
+    assert load_split_file(p) == {"a": "train", "b": "train", "c": "test"}
+    p.write_text(json.dumps({"train": ["a"], "test": ["a"]}))
+    with pytest.raises(ValueError, match="both"):
+        load_split_file(p)
