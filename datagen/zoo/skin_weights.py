@@ -2,7 +2,8 @@
 
 A vertex of bone b's capsule is weighted over b's neighbourhood: b, its parent and its children
 (apparel bones only for apparel capsules, so the body never follows a skirt). The weight of bone
-k is ``(d_k + eps)^-power`` with d_k the distance to k's segment (head to tail), then the 8
+k is ``(d_k + r_b / 2)^-power`` with d_k the distance to k's segment (head to tail) and r_b the
+capsule's mean radius (so a segment piercing the capsule's surface does not grab a sharp spot), then the 8
 largest are kept and the row normalised. Weights vary continuously over each capsule, blend
 about half and half at a joint, and every vertex is weighted.
 """
@@ -46,15 +47,14 @@ def skin_weights(skel: Skeleton, vertices: np.ndarray, owner: np.ndarray, power:
     idx = np.zeros((n, max_influences), np.int32)
     val = np.zeros((n, max_influences), np.float32)
     children = skel.children()
-    scale = float(np.median(np.maximum(skel.radius_head, skel.radius_tail)))
-    eps = 1e-3 * scale
     for k in range(skel.num_joints):
         rows = np.nonzero(owner == k)[0]
         if not len(rows):
             continue
         cand = np.array(neighbourhood(skel, k, children))
         d = point_segment_distance(vertices[rows], skel.heads[cand], skel.tails[cand])
-        w = (d + eps) ** (-power)
+        soft = 0.25 * (skel.radius_head[k] + skel.radius_tail[k]) * float(np.mean(skel.aspect[k]))
+        w = (d + soft) ** (-power)
         w[:, 0] *= 1.5  # the capsule's own bone leads where distances tie
         order = np.argsort(-w, axis=1, kind="stable")[:, :max_influences]
         top = np.take_along_axis(w, order, axis=1)
