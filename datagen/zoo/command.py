@@ -23,8 +23,9 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="dataset folder to write (created if missing)")
     p.add_argument("--characters", type=int, default=40, help="number of characters (default 40)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--categories", default=None,
-                   help="comma-separated subset of humanoid,quadruped,bird,fish,reptile,insect,apparel (default all)")
+    p.add_argument("--categories", nargs="+", default=None, metavar="CATEGORY",
+                   help="subset of humanoid quadruped bird fish reptile insect apparel, separated by spaces or "
+                   "commas (default all)")
     p.add_argument("--clips-per-character", type=int, default=3, help="clips per character (default 3)")
     p.add_argument("--export", default="", help="also write files: comma-separated of obj,bvh "
                    "(OUT/export/<character>.obj, OUT/export/<character>/<clip>.bvh)")
@@ -35,7 +36,7 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from datagen.zoo import build_zoo
 
-    cats = [c.strip() for c in args.categories.split(",") if c.strip()] if args.categories else None
+    cats = [c.strip() for arg in args.categories for c in arg.split(",") if c.strip()] if args.categories else None
     export = tuple(e.strip() for e in args.export.split(",") if e.strip())
     try:
         s = build_zoo(args.out, args.characters, seed=args.seed, categories=cats,
