@@ -42,18 +42,20 @@ def linear_blend_skinning(
     """
     verts = check_shape(rest_vertices, (None, 3), "rest_vertices").astype(np.float64)
     a = keypoint_affines(transforms, rest_keypoints)  # (..., K, 3, 4)
-    homo = np.concatenate([verts, np.ones((verts.shape[0], 1))], axis=1)  # (N, 4)
     if isinstance(weights, SparseWeights):
         if weights.num_vertices != verts.shape[0]:
             raise ValueError(f"weights: expected {verts.shape[0]} rows, got {weights.num_vertices}")
-        gathered = a[..., weights.indices, :, :]  # (..., N, J, 3, 4)
-        blended = np.einsum("nj,...njab->...nab", weights.values.astype(np.float64), gathered)
+        w = weights.to_csr()
     else:
         w = as_dense(weights, a.shape[-3])
         if w.shape[0] != verts.shape[0]:
             raise ValueError(f"weights: expected {verts.shape[0]} rows, got {w.shape[0]}")
-        blended = np.einsum("nk,...kab->...nab", w, a)
-    return np.einsum("...nab,nb->...na", blended, homo).astype(np.float32)
+    lead, k = a.shape[:-3], a.shape[-3]
+    # Blend the affine maps: (N, K) @ (K, lead*12), one sparse or dense matrix product.
+    flat = np.moveaxis(a.reshape(lead + (k, 12)), -2, 0).reshape(k, -1)
+    blended = np.moveaxis(np.asarray(w @ flat).reshape((verts.shape[0],) + lead + (3, 4)), 0, -3)
+    out = np.einsum("...nab,nb->...na", blended[..., :3], verts) + blended[..., 3]
+    return out.astype(np.float32)
 
 
 def posed_keypoints_from_vertices(posed_vertices: np.ndarray, weights) -> np.ndarray:

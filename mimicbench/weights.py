@@ -76,6 +76,19 @@ class SparseWeights:
             val = np.pad(val, ((0, 0), (0, pad)))
         return cls(idx.astype(np.int32), val.astype(np.float32), k)
 
+    def to_csr(self):
+        """The weights as a ``scipy.sparse.csr_matrix`` (N, K) float64 (cached)."""
+        cached = getattr(self, "_csr", None)
+        if cached is None:
+            from scipy.sparse import csr_matrix
+
+            n, j = self.indices.shape
+            rows = np.repeat(np.arange(n), j)
+            cached = csr_matrix((self.values.ravel().astype(np.float64), (rows, self.indices.ravel())),
+                                shape=(n, self.num_keypoints))
+            object.__setattr__(self, "_csr", cached)
+        return cached
+
     def row_sums(self) -> np.ndarray:
         """Sum of each vertex's weights (N,)."""
         return self.values.astype(np.float64).sum(axis=1)
