@@ -1,0 +1,39 @@
+"""``nearest_joint``: match joints by rest position, copy rotations.
+
+Rest keypoints of both characters are normalised to unit height (each by its own rest mesh),
+matched one-to-one by the Hungarian algorithm on Euclidean distance, and each matched target bone
+takes its source bone's global rotation; unmatched bones follow their parent. Positions come
+from forward kinematics on the target's skeleton.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.distance import cdist
+
+from baselines.posing import height_ratio, inherit_unmatched, pose_target, source_pose
+from benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.hungarian import hungarian_match
+from mimicbench.mesh import normalize_unit_height
+
+
+class NearestJoint(PoseTransferMethod):
+    metadata = MethodMetadata(name="nearest_joint", version="1", licence="MIT",
+                              description="Hungarian matching of unit-height rest joints")
+
+    def transfer(self, requests):
+        return [self._one(r) for r in requests]
+
+    @staticmethod
+    def _one(r):
+        q_src, t_src = source_pose(r)
+        ks = normalize_unit_height(r.source.keypoints, r.source.vertices)
+        kt = normalize_unit_height(r.target.keypoints, r.target.vertices)
+        pairs, _ = hungarian_match(cdist(ks, kt), maximize=False)
+        q = np.tile([1.0, 0.0, 0.0, 0.0], (len(kt), 1))
+        matched = np.zeros(len(kt), bool)
+        q[pairs[:, 1]] = q_src[pairs[:, 0]]
+        matched[pairs[:, 1]] = True
+        q = inherit_unmatched(q, matched, r.target.parents)
+        src_root = int(np.flatnonzero(r.source.parents < 0)[0])
+        disp = (t_src[src_root] - r.source.keypoints[src_root]) * height_ratio(r)
+        return pose_target(r.target, q, disp)

@@ -1,0 +1,98 @@
+"""``mimicbench bench cases|run|leaderboard``."""
+from __future__ import annotations
+
+import argparse
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("bench", help="benchmark pose-transfer methods: cases, run, leaderboard",
+                              description="Score pose-transfer methods on a dataset. Example:\n"
+                              "  mimicbench bench cases data/zoo\n"
+                              "  mimicbench bench run data/zoo --methods identity,name_copy --out results\n"
+                              "  mimicbench bench leaderboard results",
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="bench_command", metavar="STEP")
+    p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
+
+    c = sub.add_parser("cases", help="make deterministic h2h and cct cases (cases/ table)",
+                       description="Make benchmark cases from one split: h2h (humanoids sharing a skeleton, "
+                       "ground truth by forward kinematics) and cct (cross-category, scored by cycle consistency).")
+    c.add_argument("dataset")
+    c.add_argument("--split", default="test", help="characters to use: train, val, test or all (default test)")
+    c.add_argument("--h2h-pairs", type=int, default=100, help="ordered humanoid pairs (default 100)")
+    c.add_argument("--h2h-poses", type=int, default=20, help="poses per h2h pair (default 20)")
+    c.add_argument("--cct-pairs", type=int, default=300, help="cross-category pairs (default 300)")
+    c.add_argument("--cct-poses", type=int, default=10, help="poses per cct pair (default 10)")
+    c.add_argument("--seed", type=int, default=0)
+    c.set_defaults(func=run_cases)
+
+    r = sub.add_parser("run", help="run methods on the cases and store per-case results",
+                       description="Run registered methods on the dataset's cases. Rows go to "
+                       "OUT/<method>/<version>/; a re-run computes only missing cases. Under torchrun the "
+                       "cases are sharded by RANK/WORLD_SIZE, e.g.\n"
+                       "  torchrun --nproc-per-node 2 -m mimicbench bench run DATA --methods name_copy --out results",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    r.add_argument("dataset")
+    r.add_argument("--methods", required=True, help="comma-separated method names (see --list-methods)")
+    r.add_argument("--protocols", default="h2h,cct", help="comma-separated: h2h, cct (default both)")
+    r.add_argument("--out", default="results", help="results folder (default results)")
+    r.add_argument("--device", default="cpu", help="cpu or cuda[:i] (default cpu)")
+    r.add_argument("--batch-size", type=int, default=16)
+    r.add_argument("--retry-failed", action="store_true", help="also re-run cases whose stored row failed")
+    r.add_argument("--quiet", action="store_true", help="no progress bars")
+    r.set_defaults(func=run_run)
+
+    lb = sub.add_parser("leaderboard", help="write leaderboard.md/.csv/.json/.html from results",
+                        description="Aggregate RESULTS into a leaderboard (Markdown, CSV, JSON, HTML with plots). "
+                        "Methods with failed or missing cases show their counts and no average.")
+    lb.add_argument("results")
+    lb.add_argument("--out", default=None, help="folder for the files (default: RESULTS)")
+    lb.set_defaults(func=run_leaderboard)
+
+    ls = sub.add_parser("methods", help="list the registered methods")
+    ls.set_defaults(func=run_methods)
+
+
+def run_cases(args) -> int:
+    from benchmark.cases import build_cases, write_cases
+
+    cases = build_cases(args.dataset, args.split, args.h2h_pairs, args.h2h_poses, args.cct_pairs, args.cct_poses, args.seed)
+    counts = write_cases(args.dataset, cases, {"stage": "bench cases", **{k: v for k, v in vars(args).items() if k != "func"}})
+    print(f"cases in {args.dataset}: " + ", ".join(f"{p} {n}" for p, n in counts.items()))
+    if not any(counts.values()):
+        print("no cases: the split has no humanoid family (h2h) and no cross-category pairs (cct); try --split all")
+        return 1
+    return 0
+
+
+def run_run(args) -> int:
+    from benchmark.evaluator import run_benchmark
+    from benchmark.leaderboard import markdown_tables
+
+    summary = run_benchmark(args.dataset, [m.strip() for m in args.methods.split(",") if m.strip()],
+                            [p.strip() for p in args.protocols.split(",") if p.strip()], args.out, args.device,
+                            args.batch_size, progress=not args.quiet, retry_failed=args.retry_failed)
+    if summary["rank"] == 0:
+        print(markdown_tables(summary["aggregate"]))
+        print(f"{summary['computed']} cases computed ({summary['failed']} failed), {summary['skipped']} already "
+              f"done; results in {args.out}")
+    return 0
+
+
+def run_leaderboard(args) -> int:
+    from benchmark.leaderboard import markdown_tables, write_leaderboard
+    from benchmark.aggregate import aggregate
+
+    paths = write_leaderboard(args.results, args.out)
+    print(markdown_tables(aggregate(args.results)))
+    print("wrote " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
+def run_methods(args) -> int:
+    from benchmark.registry import available_methods, get_method
+
+    for name in available_methods():
+        md = get_method(name).metadata
+        print(f"{name:16s} v{md.version:6s} {md.licence:8s} {md.description}")
+    return 0

@@ -1,0 +1,66 @@
+"""The adapter API: one abstract class a pose-transfer method implements.
+
+Modelled on a small batch interface: requests in, one (Nt, 3) float32 array per request out, in
+the same order. ``setup(device)`` is called once before the first batch; the distributed hooks
+default to no-ops so single-process methods need nothing more.
+"""
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+from benchmark.request import TransferRequest
+
+
+@dataclass(frozen=True)
+class MethodMetadata:
+    """What the leaderboard shows about a method.
+
+    Attributes:
+        name: registry name (lowercase, ``[a-z0-9_]``).
+        version: results are stored per version; bump it when outputs change.
+        licence: SPDX identifier or free text.
+        needs_training: whether the method must be trained before it is evaluated.
+        citation: how to cite it (BibTeX or a reference line).
+        description: one line.
+    """
+
+    name: str
+    version: str
+    licence: str = "unknown"
+    needs_training: bool = False
+    citation: str = ""
+    description: str = ""
+    tags: tuple[str, ...] = field(default_factory=tuple)
+
+
+@runtime_checkable
+class PoseTransferLike(Protocol):
+    """Structural type of a method: anything with ``metadata`` and ``transfer``."""
+
+    metadata: MethodMetadata
+
+    def transfer(self, requests: Sequence[TransferRequest]) -> list[np.ndarray]: ...
+
+
+class PoseTransferMethod(abc.ABC):
+    """Base class of every method. Subclasses set ``metadata`` and implement :meth:`transfer`."""
+
+    metadata: MethodMetadata
+
+    def setup(self, device: str = "cpu") -> None:
+        """Load weights and move to ``device`` (``cpu`` or ``cuda[:i]``); called once."""
+
+    @abc.abstractmethod
+    def transfer(self, requests: Sequence[TransferRequest]) -> list[np.ndarray]:
+        """Return, for each request, the posed target vertices (Nt, 3) float32, in order."""
+
+    # Distributed hooks: called by the evaluator under torchrun; no-ops by default.
+    def on_distributed_init(self, rank: int, world_size: int) -> None:
+        """Called once per process after torch.distributed is initialised."""
+
+    def on_run_end(self) -> None:
+        """Called once per process after its last batch."""
