@@ -1,0 +1,152 @@
+"""Resampling to 5,000 faces with barycentric re-skinning."""
+import dataclasses
+import shutil
+
+import numpy as np
+import pytest
+import trimesh
+
+from datagen.resample import resample_character, resample_dataset
+from datagen.resample.clean import BadMesh, clean_mesh
+from datagen.resample.closest_point import closest_points, closest_points_brute_force
+from datagen.resample.quality import transfer_error_percent
+from datagen.resample.reskin import nearest_vertex_weights
+from mimicbench.cli import main
+from schemas.character import CharacterRecord
+from schemas.motion import MotionRecord
+from schemas.shards import read_records, write_records
+from schemas.validate import validate_dataset
+from tests.test_schemas import make_character
+
+
+def tube_record(tube, rings=24, cid="toy/tube"):
+    rec = make_character(tube, cid)
+    return dataclasses.replace(rec, apparel_vertex_mask=tube["vertices"][:, 1] > 0.7, meta=None)
+
+
+def bend_motion(record, frames=6):
+    from mimicbench.kinematics import forward_kinematics, transforms_to_array
+    from mimicbench.quaternion import quat_from_axis_angle
+
+    k = record.num_joints
+    angles = np.linspace(0, 0.8, frames)
+    local = np.tile([1.0, 0, 0, 0], (frames, k, 1))
+    local[:, 1:4] = quat_from_axis_angle(np.array([0, 0, 1.0]), angles)[:, None, :]
+    g, p = forward_kinematics(local, record.keypoints, record.parents)
+    return MotionRecord(f"{record.character_id}/bend", record.character_id, "bend", record.split, 30.0, frames, k,
+                        transforms_to_array(g, p))
+
+
+@pytest.mark.parametrize("backend", ["pymeshlab", "fast"])
+def test_coarse_tube_is_refined_to_target_with_valid_weights(tube, backend):
+    rec = tube_record(tube)
+    assert len(rec.faces) < 5000
+    out = resample_character(rec, [bend_motion(rec)], 5000, backend)
+    q = out.meta["resample"]
+    assert abs(q["faces_out"] - 5000) <= 50 and q["subdivisions"] >= 1
+    np.testing.assert_allclose(out.weight_values.sum(1), 1.0, atol=1e-5)
+    assert (out.weight_values > 0).sum(1).max() <= 8
+    assert q["hausdorff_pct"] < 1.0 and q["transfer_error_pct"] < 0.5
+    assert out.keypoints is rec.keypoints and out.bone_names == rec.bone_names
+    # the apparel mask follows the surface: new vertices above 0.7 m are apparel
+    assert out.apparel_vertex_mask[out.vertices[:, 1] > 0.75].all() and not out.apparel_vertex_mask[out.vertices[:, 1] < 0.65].any()
+
+
+def stretch_motion(record, frames=4):
+    """Bones pulled apart along their chain with a small twist: skin between rings must blend."""
+    from mimicbench.kinematics import transforms_to_array
+    from mimicbench.quaternion import quat_from_axis_angle
+
+    k = record.num_joints
+    q = quat_from_axis_angle(np.array([0, 1.0, 0]), np.linspace(0, 0.15, frames)[:, None] * np.arange(k)[None, :])
+    t = record.keypoints[None].astype(np.float64) + np.linspace(0, 0.06, frames)[:, None, None] * np.arange(k)[None, :, None] * [0, 1, 0]
+    return MotionRecord(f"{record.character_id}/stretch", record.character_id, "stretch", record.split, 30.0, frames,
+                        k, transforms_to_array(q, t))
+
+
+def test_barycentric_reskin_beats_nearest_vertex_on_a_refined_coarse_mesh():
+    from tests.toys import make_tube
+
+    coarse = tube_record(make_tube(rings=6, segments=8), cid="toy/coarse")
+    motion = stretch_motion(coarse)
+    out = resample_character(coarse, [motion], 2000, "pymeshlab")
+    assert out.meta["resample"]["subdivisions"] >= 2
+    clean = clean_mesh(coarse.vertices, coarse.faces, coarse.weights.to_dense(np.float64), coarse.apparel_vertex_mask)
+    new_v = out.vertices.astype(np.float64)
+    surface = closest_points(clean.vertices, clean.faces, new_v)
+    naive = nearest_vertex_weights(clean.weights, clean.vertices, new_v)
+    height = float(np.ptp(clean.vertices[:, 1]))
+    args = (coarse.keypoints, surface, motion.transforms, height)
+    ours = transfer_error_percent(clean.vertices, clean.faces, clean.weights, new_v, out.weights, *args)
+    theirs = transfer_error_percent(clean.vertices, clean.faces, clean.weights, new_v, naive, *args)
+    assert ours < 0.5 * theirs, (ours, theirs)
+
+
+def test_fast_closest_points_match_brute_force():
+    rng = np.random.default_rng(0)
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    # a decimated-style mesh with a few huge triangles next to small ones
+    v = np.concatenate([mesh.vertices, [[3.0, 0, 0], [0, 3.0, 0], [0, 0, 3.0]]])
+    f = np.concatenate([mesh.faces, [[len(mesh.vertices), len(mesh.vertices) + 1, len(mesh.vertices) + 2]]])
+    q = rng.normal(size=(400, 3)) * 1.5
+    fast, slow = closest_points(v, f, q, candidates=4), closest_points_brute_force(v, f, q)
+    np.testing.assert_allclose(fast.distances, slow.distances, atol=1e-12)
+    np.testing.assert_allclose(fast.barycentric.sum(1), 1.0)
+
+
+def test_cleaning_merges_duplicates_drops_degenerates_and_keeps_pieces():
+    a = trimesh.creation.icosphere(subdivisions=2)
+    b = trimesh.creation.icosphere(subdivisions=1)
+    v = np.concatenate([a.vertices, b.vertices + [3, 0, 0], a.vertices[:5]])  # 5 duplicate vertices
+    f = np.concatenate([a.faces, b.faces + len(a.vertices), [[0, 0, 1]], a.faces[:3]])
+    w = np.ones((len(v), 1))
+    c = clean_mesh(v, f, w, np.zeros(len(v)))
+    assert c.report["degenerate_faces"] == 1 and c.report["duplicate_faces"] == 3
+    assert c.report["kept_pieces"] == 2 and len(c.faces) == len(a.faces) + len(b.faces)
+
+
+@pytest.mark.parametrize("breakage,reason", [
+    ("nan", "NaN"), ("index", "faces index"), ("flat", "zero area"), ("unweighted", "no skin weight"), ("tiny", "at least 4"),
+])
+def test_bad_input_gets_a_status_row_and_others_are_written(tube, tmp_path, breakage, reason):
+    good = tube_record(tube, cid="toy/good")
+    bad = tube_record(tube, cid="toy/bad")
+    v, f, wv = bad.vertices.copy(), bad.faces.copy(), bad.weight_values.copy()
+    if breakage == "nan":
+        v[3] = np.nan
+    elif breakage == "index":
+        f[0, 0] = len(v) + 10
+    elif breakage == "flat":
+        v[:] = 0.0
+    elif breakage == "unweighted":
+        wv[7] = 0.0
+    elif breakage == "tiny":
+        f = f[:3]
+    bad = dataclasses.replace(bad, vertices=v, faces=f, weight_values=wv)
+    src = tmp_path / "in"
+    write_records(src, "characters", [good, bad], "train")
+    write_records(src, "motions", [bend_motion(good)], "train")
+    summary = resample_dataset(src, tmp_path / "out", backend="fast", progress=False)
+    assert summary["failed"] == 1
+    status = {s.asset: s for s in read_records(tmp_path / "out", "status", "resample")}
+    assert status["toy/bad"].status == "failed" and reason in status["toy/bad"].reason
+    assert [r.character_id for r in read_records(tmp_path / "out", "characters")] == ["toy/good"]
+    assert validate_dataset(tmp_path / "out") == []
+
+
+def test_zoo_dataset_resamples_resumes_and_validates(small_zoo, tmp_path, capsys):
+    out = tmp_path / "zoo5k"
+    assert main(["datagen", "resample", str(small_zoo), str(out), "--backend", "fast", "--quiet"]) == 0
+    chars = read_records(out, "characters")
+    assert len(chars) == len(read_records(small_zoo, "characters"))
+    humans = [c for c in chars if c.category == "humanoid"]
+    for c in chars:
+        q = c.meta["resample"]
+        assert abs(q["faces_out"] - 5000) <= 50 and q["faces_in"] > 5000
+        assert q["transfer_error_pct"] < 0.5
+        np.testing.assert_allclose(c.weight_values.sum(1), 1.0, atol=1e-5)
+    assert all(c.meta["resample"]["hausdorff_pct"] < 1.0 for c in humans)
+    assert len(read_records(out, "motions")) == len(read_records(small_zoo, "motions"))
+    again = resample_dataset(small_zoo, out, backend="fast", progress=False)
+    assert again["resampled"] == 0 and again["already_done"] == len(chars)
+    assert validate_dataset(out) == []
