@@ -54,6 +54,9 @@ def _plot_png(agg: dict, protocol: str) -> str:
             vals = [next((c[metric] for c in cats if c["method"] == m and c["category"] == k), None) for k in keys]
             xs = [i + mi * width for i in range(len(keys))]
             ax.bar(xs, [v if v is not None else 0 for v in vals], width, label=m)
+    els_values = [c["els"] for c in cats if c["els"] is not None]
+    if els_values:
+        axes[1].set_ylim(max(0.0, min(els_values) - 0.02), 1.0)
     for ax, title in zip(axes, ("PMD x100 (lower is better)", "ELS (1 is perfect)")):
         ax.set_xticks([i + 0.4 - width / 2 for i in range(len(keys))])
         ax.set_xticklabels(keys, rotation=30, ha="right", fontsize=7)
