@@ -122,3 +122,59 @@ def test_export_obj_and_bvh_reimport_in_blender(assets_dir, tmp_path, stem, clip
     posed = walk.transforms[4, :, 4:]  # Blender frame 5 is the clip's fifth frame
     # posed joints within 0.5% of height (BVH stores Euler angles; CesiumMan differs by up to 0.27%)
     np.testing.assert_allclose(to_y_up(res["posed"]), posed[order], atol=5e-3 * float(np.ptp(char.vertices[:, 1])))
+
+
+@pytest.mark.slow
+def test_fbx_exported_by_blender_ingests_like_its_glb(assets_dir, tmp_path):
+    fbx = tmp_path / "CesiumManFbx.fbx"
+    script = ("import bpy, sys\nbpy.ops.wm.read_factory_settings(use_empty=True)\n"
+              "bpy.ops.import_scene.gltf(filepath=sys.argv[-2])\n"
+              "bpy.ops.export_scene.fbx(filepath=sys.argv[-1], bake_anim=True, add_leaf_bones=False)\n")
+    subprocess.run([sys.executable, "-c", script, str(assets_dir / "glb" / "CesiumMan.glb"), str(fbx)], check=True,
+                   capture_output=True, timeout=300)
+    summary = ingest_assets([fbx], tmp_path / "out", progress=False)
+    assert summary["failed"] == 0
+    char = read_records(tmp_path / "out", "characters")[0]
+    assert char.num_joints == 19 and len(char.vertices) > 3000
+    meta = json.loads((tmp_path / "out" / ".ingest" / "CesiumManFbx.json").read_text())
+    d = np.load(tmp_path / "out" / ".ingest" / "CesiumManFbx.npz")
+    motion = read_records(tmp_path / "out", "motions")[0]
+    frames = d["clip0_eval_frames"]
+    pred = linear_blend_skinning(char.vertices, char.keypoints, char.weights, motion.transforms[frames])
+    err = np.linalg.norm(pred - d["clip0_eval_vertices"], axis=-1).max() / np.ptp(char.vertices[:, 1]) * 100
+    assert err < 0.1 and meta["clips"]
+
+
+@pytest.mark.slow
+def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested, tmp_path):
+    from benchmark.aggregate import aggregate
+    from benchmark.cases import build_cases, write_cases
+    from benchmark.evaluator import run_benchmark
+    from datagen.correspond import correspond_dataset
+    from datagen.resample import resample_dataset
+
+    src, _ = ingested
+    data = tmp_path / "assets5k"
+    summary = resample_dataset(src, data, backend="pymeshlab", progress=False)
+    assert summary["failed"] == 0
+    for c in read_records(data, "characters"):
+        if len(c.faces):
+            q = c.meta["resample"]
+            assert abs(q["faces_out"] - 5000) <= 50 and q["subdivisions"] >= 1, c.character_id
+            np.testing.assert_allclose(c.weight_values.sum(1), 1.0, atol=1e-5)
+    correspond_dataset(data, all_pairs=True, progress=False)
+    # the assets as humanoid (CesiumMan, Robot) vs animals, every split
+    import dataclasses
+    from schemas.shards import write_records
+
+    chars = read_records(data, "characters")
+    humanoid = {"assets/CesiumMan", "assets/RobotExpressive"}
+    chars = [dataclasses.replace(c, category="humanoid" if c.character_id in humanoid else c.category) for c in chars]
+    for split in {c.split for c in chars}:
+        write_records(data, "characters", [c for c in chars if c.split == split], split)
+    cases = build_cases(data, "all", cct_pairs=6, cct_poses=2)
+    assert cases["cct"]
+    write_cases(data, {"cct": cases["cct"]}, {})
+    run_benchmark(data, ["identity", "nearest_joint", "text_soft"], ("cct",), tmp_path / "res", progress=False)
+    entries = aggregate(tmp_path / "res")["protocols"]["cct"]
+    assert all(e["complete"] for e in entries), [e["first_error"] for e in entries]
