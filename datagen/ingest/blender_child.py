@@ -2,8 +2,8 @@
 
     python -m datagen.ingest.blender_child ASSET OUT.npz
 
-Writes ``OUT.npz`` (arrays) and ``OUT.json`` (status and names). Only bpy, numpy and the
-standard library are imported here: bpy must be loaded before libraries that bring their own
+Writes ``OUT.npz`` (arrays) and ``OUT.json`` (status and names). Only bpy, numpy, the
+standard library and mimicbench's NumPy quaternions are imported here: bpy must be loaded before libraries that bring their own
 Embree (pymeshlab), and a crash in Blender must not take the parent with it.
 
 Frames: Blender Z up is converted to the dataset's Y up, +Z forward by (x, y, z) -> (x, z, -y).
@@ -21,6 +21,8 @@ import time
 
 import bpy  # noqa: I001  (first, before anything that loads another Embree)
 import numpy as np
+
+from mimicbench.quaternion import matrix_to_quat  # numpy only
 
 C = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # Blender Z-up -> Y-up
 EVAL_FRAMES_PER_CLIP = 3
@@ -155,29 +157,9 @@ def _pose_transforms(arm, bones):
             r = u @ np.diag([1, 1, -1]) @ vt
         r = C @ r @ C.T
         head = C @ (posed[:3, 3])
-        out[k, :4] = _quat(r)
+        out[k, :4] = matrix_to_quat(r)
         out[k, 4:] = head
     return out
-
-
-def _quat(m):
-    from math import sqrt
-
-    t = m[0, 0] + m[1, 1] + m[2, 2]
-    if t > 0:
-        s = sqrt(t + 1.0) * 2
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.array(q)
-    return q / np.linalg.norm(q) * (1 if q[0] >= 0 else -1)
 
 
 def ingest_one(path: str, out_npz: str) -> dict:
