@@ -6,7 +6,21 @@ similarity S_cos, matched one-to-one by the Hungarian algorithm (M_hung) and sof
 (M_sink) in batches (:mod:`.batched`), for sampled or all pairs of each split (:mod:`.sampling`),
 and scored against the zoo's hidden bone roles (:mod:`.report`).
 """
-from datagen.correspond.canonical import canonicalize_bone_name, canonicalize_names
-from datagen.correspond.stage import correspond_dataset, correspondence_for_names
+from __future__ import annotations
 
-__all__ = ["canonicalize_bone_name", "canonicalize_names", "correspond_dataset", "correspondence_for_names"]
+import importlib
+
+_LAZY = {
+    "canonicalize_bone_name": "datagen.correspond.canonical",
+    "canonicalize_names": "datagen.correspond.canonical",
+    "correspond_dataset": "datagen.correspond.stage",
+    "correspondence_for_names": "datagen.correspond.stage",
+}
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str):
+    """Import the public functions on first use, so the CLI starts fast."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

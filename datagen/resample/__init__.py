@@ -5,7 +5,19 @@ or refines, :mod:`.closest_point` and :mod:`.reskin` carry the weights over by b
 interpolation, :mod:`.quality` measures Hausdorff distance and skinning transfer error,
 :mod:`.character` does one character and :mod:`.stage` a whole dataset.
 """
-from datagen.resample.character import resample_character
-from datagen.resample.stage import resample_dataset
+from __future__ import annotations
 
-__all__ = ["resample_character", "resample_dataset"]
+import importlib
+
+_LAZY = {
+    "resample_character": "datagen.resample.character",
+    "resample_dataset": "datagen.resample.stage",
+}
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str):
+    """Import the public functions on first use, so the CLI starts fast."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

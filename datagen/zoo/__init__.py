@@ -8,6 +8,16 @@ shards, manifest, CARD.md); ``mimicbench zoo`` is its command line. Modules, one
 """
 from __future__ import annotations
 
-from datagen.zoo.dataset import build_zoo
+import importlib
 
-__all__ = ["build_zoo"]
+_LAZY = {
+    "build_zoo": "datagen.zoo.dataset",
+}
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str):
+    """Import the public functions on first use, so the CLI starts fast."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
