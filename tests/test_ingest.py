@@ -178,3 +178,23 @@ def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested
     run_benchmark(data, ["identity", "nearest_joint", "text_soft"], ("cct",), tmp_path / "res", progress=False)
     entries = aggregate(tmp_path / "res")["protocols"]["cct"]
     assert all(e["complete"] for e in entries), [e["first_error"] for e in entries]
+
+
+@pytest.mark.slow
+def test_non_armature_modifiers_are_applied(assets_dir, tmp_path):
+    blend = tmp_path / "CesiumSubsurf.blend"
+    script = ("import bpy, sys\nbpy.ops.wm.read_factory_settings(use_empty=True)\n"
+              "bpy.ops.import_scene.gltf(filepath=sys.argv[-2])\n"
+              "mesh = [o for o in bpy.context.scene.objects if o.type == 'MESH'][0]\n"
+              "mesh.modifiers.new('smooth', 'SUBSURF').levels = 1\n"
+              "bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])\n")
+    subprocess.run([sys.executable, "-c", script, str(assets_dir / "glb" / "CesiumMan.glb"), str(blend)], check=True,
+                   capture_output=True, timeout=300)
+    assert ingest_assets([blend], tmp_path / "out", progress=False)["failed"] == 0
+    char = read_records(tmp_path / "out", "characters")[0]
+    assert len(char.vertices) > 3273 and any("smooth" in m for m in char.meta["ingest"]["applied_modifiers"])
+    d = np.load(tmp_path / "out" / ".ingest" / "CesiumSubsurf.npz")
+    motion = read_records(tmp_path / "out", "motions")[0]
+    pred = linear_blend_skinning(char.vertices, char.keypoints, char.weights, motion.transforms[d["clip0_eval_frames"]])
+    err = np.linalg.norm(pred - d["clip0_eval_vertices"], axis=-1).max() / np.ptp(char.vertices[:, 1]) * 100
+    assert err < 0.1

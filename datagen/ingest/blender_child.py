@@ -8,7 +8,8 @@ Embree (pymeshlab), and a crash in Blender must not take the parent with it.
 
 Frames: Blender Z up is converted to the dataset's Y up, +Z forward by (x, y, z) -> (x, z, -y).
 Bones: the armature's deform bones, parents before children. Rest mesh: every mesh deformed by
-that armature, in world space at the rest pose, shape keys at their basis, triangulated.
+that armature (skinned, or rigidly attached to a bone), other modifiers applied ahead of the
+armature, in world space at the rest pose, shape keys at their basis, triangulated.
 Clips: every action, sampled at each frame of its range at the scene frame rate; per bone the
 world rotation relative to rest and the posed head position.
 """
@@ -38,8 +39,28 @@ def _import(path: str) -> None:
         bpy.ops.import_anim.bvh(filepath=path, update_scene_fps=True, update_scene_duration=True)
     elif ext == ".obj":
         bpy.ops.wm.obj_import(filepath=path)
+    elif ext == ".blend":
+        bpy.ops.wm.open_mainfile(filepath=path, load_ui=False, use_scripts=False)
     else:
-        raise ValueError(f"unsupported file type {ext!r}; expected .glb, .gltf, .fbx, .bvh or .obj")
+        raise ValueError(f"unsupported file type {ext!r}; expected .glb, .gltf, .fbx, .bvh, .obj or .blend")
+
+
+def _apply_other_modifiers(objs) -> list[str]:
+    """Apply every non-armature modifier into the mesh data, moved ahead of the armature first
+    (so the stored rest mesh and weights are what the armature deforms). Returns what was applied;
+    a modifier Blender refuses to apply (for example on a mesh with shape keys) is reported."""
+    done = []
+    for obj in objs:
+        bpy.context.view_layer.objects.active = obj
+        for mod in [m for m in obj.modifiers if m.type != "ARMATURE"]:
+            name = mod.name
+            try:
+                bpy.ops.object.modifier_move_to_index(modifier=name, index=0)
+                bpy.ops.object.modifier_apply(modifier=name)
+                done.append(f"{obj.name}:{name}")
+            except RuntimeError as exc:
+                done.append(f"{obj.name}:{name} NOT applied ({str(exc).strip()[:80]})")
+    return done
 
 
 def _deform_bones(arm):
@@ -178,6 +199,7 @@ def ingest_one(path: str, out_npz: str) -> dict:
     index = {n: i for i, n in enumerate(names)}
     parents = np.array([_deform_parent(b, index) for b in bones], np.int32)
     meshes = _meshes_of(arm)
+    applied = _apply_other_modifiers(meshes)
     for obj in meshes:  # morph targets at their basis: LBS has no shape keys
         if obj.data.shape_keys:
             for kb in obj.data.shape_keys.key_blocks:
@@ -219,7 +241,8 @@ def ingest_one(path: str, out_npz: str) -> dict:
         clips.append({"name": action.name, "frames": len(frames), "fps": fps})
     np.savez_compressed(out_npz, **arrays)
     return {"status": "ok", "reason": "", "bone_names": names, "clips": clips,
-            "blender": bpy.app.version_string, "meshes": [o.name for o in meshes]}
+            "blender": bpy.app.version_string, "meshes": [o.name for o in meshes],
+            "applied_modifiers": applied}
 
 
 def main() -> int:

@@ -6,7 +6,7 @@ import argparse
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ) through Blender into a dataset",
+        "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ, .blend) through Blender into a dataset",
         description="Import each asset with Blender (bpy) in its own child process with a timeout: rest mesh "
         "(all skinned meshes of the armature merged, triangulated, Y up), deform bones, skin weights and every "
         "animation clip as per-frame transforms that reproduce Blender's own deformation by linear blend "

@@ -80,7 +80,8 @@ def records_from_cache(asset: Path, cache: Path, category: str) -> tuple[Charact
         parents=d["parents"].astype(np.int32), bone_names=meta["bone_names"], weight_indices=w.indices,
         weight_values=w.values, apparel_vertex_mask=np.zeros(len(verts), bool), apparel_bone_mask=np.zeros(k, bool),
         bone_roles=None, skeleton_id=None, height=height,
-        meta={"ingest": {"blender": meta.get("blender"), "meshes": meta.get("meshes"), "clips": meta["clips"]}})
+        meta={"ingest": {"blender": meta.get("blender"), "meshes": meta.get("meshes"), "clips": meta["clips"],
+                         "applied_modifiers": meta.get("applied_modifiers", [])}})
     motions = []
     for ci, clip in enumerate(meta["clips"]):
         t = d[f"clip{ci}_transforms"]
