@@ -58,7 +58,11 @@ def run(args) -> int:
         step("zoo", lambda: build_zoo(zoo, args.characters, seed=args.seed, clips_per_character=3))
     step("resample to 5,000 faces", lambda: resample_dataset(zoo, data, faces=5000, backend="fast", jobs=1))
     if not has_table(data, "pairs"):
-        step("correspondences (MiniLM)", lambda: correspond_dataset(data, all_pairs=True, encoder="minilm"))
+        corr = step("correspondences (MiniLM)", lambda: correspond_dataset(data, all_pairs=True, encoder="minilm",
+                                                                          progress=False))
+        agree = corr["report"]["humanoid_cross_style_agreement"]
+        print(f"   {sum(corr['pairs'].values())} pairs; humanoid bones matched to the same role across naming "
+              f"styles: {'n/a' if agree is None else f'{agree:.0%}'} (details: {data}/correspond_report.json)")
     if not has_table(data, "cases"):
         def make_cases():
             cases = build_cases(data, "test", h2h_pairs=100, h2h_poses=args.h2h_poses, cct_pairs=args.cct_pairs,
