@@ -28,7 +28,10 @@ def test_four_humanoid_styles_reach_one_vocabulary(style):
 
 @pytest.mark.parametrize("raw,expected", [
     ("Wing.L", "left wing"), ("wing_l_02", "left wing 2"), ("FrontLeg2.R", "right front leg 2"),
-    ("Tail01", "tail 1"), ("左腕", "left 腕"), ("J_Bip_L_UpperArm", "left upper arm"), ("DEF-forearm.R", "right forearm"),
+    ("Tail01", "tail 1"), ("左腕", "left arm"), ("右ひじ", "right elbow"),
+    ("左足首", "left ankle"), ("左人指１", "left index 1"), ("l_hand", "left hand"), ("Hand_R", "right hand"),
+    ("CC_Base_L_Upperarm", "left upper arm"), ("Bip001 R Calf", "right shin"), ("mixamorig:LeftArm", "left arm"),
+    ("upper_arm.L", "left upper arm"), ("Bip01 L UpperArm", "left upper arm"), ("b_LeftUpperArm_09", "left upper arm"), ("J_Bip_L_UpperArm", "left upper arm"), ("DEF-forearm.R", "right forearm"),
     ("Armature|mixamorig:RightHandIndex2", "right index 2"), ("Bip01 R Finger12", "right index 3"),
     ("upperarm_l", "left upper arm"), ("Neck.001", "neck 1"),
 ])
@@ -40,6 +43,19 @@ def test_chains_are_numbered_from_one_across_styles():
     assert canonicalize_names(["Tail", "Tail.001", "Tail.002"]) == ["tail 1", "tail 2", "tail 3"]
     assert canonicalize_names(["Tail01", "Tail02", "Tail03"]) == ["tail 1", "tail 2", "tail 3"]
     assert canonicalize_names(["Neck", "Neck1", "Head"]) == ["neck 1", "neck 2", "head"]
+    assert canonicalize_names(["上半身", "上半身2", "首"]) == ["upper body 1", "upper body 2", "neck"]
+
+
+def test_export_indices_are_dropped_but_segment_numbers_kept():
+    exported = ["Hips_000", "Spine_001", "Spine1_002", "LeftUpLeg_003", "LeftLeg_004", "Tail01_005"]
+    assert canonicalize_names(exported) == ["hips", "spine 1", "spine 2", "left thigh", "left shin", "tail 1"]
+    # numbers that are not the bone indices, or one chain numbered throughout, are segment numbers
+    b_style = ["b_Thorax_00", "b_LeftLeg1_1_01", "b_LeftLeg1_2_02", "b_Skirt2_1_03"]
+    assert canonicalize_names(b_style) == ["thorax", "left leg 1 1", "left leg 1 2", "skirt 2 1"]
+    assert canonicalize_names(["hips", "tail_01", "tail_02"]) == ["hips", "tail 1", "tail 2"]
+    assert canonicalize_names(["tail_00", "tail_01", "tail_02"]) == ["tail 0", "tail 1", "tail 2"]
+    assert canonicalize_names(["leg_l_01_01", "leg_l_01_02", "leg_l_02_01"]) == ["left leg 1 1", "left leg 1 2",
+                                                                                   "left leg 2 1"]
 
 
 def glb_joint_names(path):

