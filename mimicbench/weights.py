@@ -56,17 +56,43 @@ class SparseWeights:
         dense = np.asarray(dense, dtype=np.float64)
         if dense.ndim != 2:
             raise ValueError(f"dense: expected shape (N, K), got {dense.shape}")
-        n, k = dense.shape
-        j = min(max_influences, k)
-        idx = np.argsort(-dense, axis=1, kind="stable")[:, :j]
-        val = np.take_along_axis(dense, idx, axis=1)
+        columns = np.broadcast_to(np.arange(dense.shape[1]), dense.shape)
+        return cls._from_rows(columns, dense, dense.shape[1], max_influences, normalize)
+
+    @classmethod
+    def from_csr(cls, matrix, max_influences: int = MAX_INFLUENCES, normalize: bool = True) -> "SparseWeights":
+        """The same as ``from_dense(matrix.toarray())`` for a scipy sparse (N, K) matrix, without
+        the dense (N, K) array: duplicates are summed, then each row keeps its largest weights."""
+        from scipy.sparse import csr_matrix
+
+        m = csr_matrix(matrix, dtype=np.float64, copy=True)
+        m.sum_duplicates()
+        n, k = m.shape
+        counts = np.diff(m.indptr)
+        width = max(int(counts.max(initial=0)), 1)
+        rows = np.repeat(np.arange(n), counts)
+        slot = np.arange(m.nnz) - m.indptr[rows]
+        values = np.zeros((n, width))
+        columns = np.zeros((n, width), np.int64)
+        values[rows, slot] = m.data
+        columns[rows, slot] = m.indices
+        return cls._from_rows(columns, values, k, max_influences, normalize)
+
+    @classmethod
+    def _from_rows(cls, columns: np.ndarray, values: np.ndarray, k: int, max_influences: int,
+                   normalize: bool) -> "SparseWeights":
+        """Top ``max_influences`` of candidate (column, value) rows (N, C), columns ascending per row."""
+        j = min(max_influences, values.shape[1])
+        order = np.argsort(-values, axis=1, kind="stable")[:, :j]
+        val = np.take_along_axis(values, order, axis=1)
+        idx = np.take_along_axis(columns, order, axis=1)
         val = np.where(val > 0, val, 0.0)
         idx = np.where(val > 0, idx, 0)
         if normalize:
             s = val.sum(axis=1, keepdims=True)
             if (s <= 0).any():
                 raise ValueError(
-                    f"dense: {int((s <= 0).sum())} vertices have no positive weight; every vertex "
+                    f"weights: {int((s <= 0).sum())} vertices have no positive weight; every vertex "
                     "must be weighted"
                 )
             val = val / s
@@ -75,6 +101,10 @@ class SparseWeights:
             idx = np.pad(idx, ((0, 0), (0, pad)))
             val = np.pad(val, ((0, 0), (0, pad)))
         return cls(idx.astype(np.int32), val.astype(np.float32), k)
+
+    def take(self, rows: np.ndarray) -> "SparseWeights":
+        """The weights of the vertices ``rows`` (an index or boolean array), in that order."""
+        return SparseWeights(self.indices[rows], self.values[rows], self.num_keypoints)
 
     def to_csr(self):
         """The weights as a ``scipy.sparse.csr_matrix`` (N, K) float64 (cached)."""

@@ -12,6 +12,7 @@ from datagen.resample.closest_point import closest_points, closest_points_brute_
 from datagen.resample.quality import transfer_error_percent
 from datagen.resample.reskin import nearest_vertex_weights
 from mimicbench.cli import main
+from mimicbench.weights import SparseWeights
 from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 from schemas.shards import read_records, write_records
@@ -71,7 +72,7 @@ def test_barycentric_reskin_beats_nearest_vertex_on_a_refined_coarse_mesh():
     motion = stretch_motion(coarse)
     out = resample_character(coarse, [motion], 2000, "pymeshlab")
     assert out.meta["resample"]["subdivisions"] >= 2
-    clean = clean_mesh(coarse.vertices, coarse.faces, coarse.weights.to_dense(np.float64), coarse.apparel_vertex_mask)
+    clean = clean_mesh(coarse.vertices, coarse.faces, coarse.weights, coarse.apparel_vertex_mask)
     new_v = out.vertices.astype(np.float64)
     surface = closest_points(clean.vertices, clean.faces, new_v)
     naive = nearest_vertex_weights(clean.weights, clean.vertices, new_v)
@@ -89,9 +90,31 @@ def test_fast_closest_points_match_brute_force():
     v = np.concatenate([mesh.vertices, [[3.0, 0, 0], [0, 3.0, 0], [0, 0, 3.0]]])
     f = np.concatenate([mesh.faces, [[len(mesh.vertices), len(mesh.vertices) + 1, len(mesh.vertices) + 2]]])
     q = rng.normal(size=(400, 3)) * 1.5
-    fast, slow = closest_points(v, f, q, candidates=4), closest_points_brute_force(v, f, q)
+    fast, slow = closest_points(v, f, q), closest_points_brute_force(v, f, q)
     np.testing.assert_allclose(fast.distances, slow.distances, atol=1e-12)
+    np.testing.assert_allclose(fast.points, slow.points, atol=1e-9)
     np.testing.assert_allclose(fast.barycentric.sum(1), 1.0)
+    assert (fast.barycentric >= 0).all()
+    # the barycentric coordinates rebuild the point inside its face
+    np.testing.assert_allclose(np.einsum("qc,qcd->qd", fast.barycentric, v[f[fast.faces]]), fast.points, atol=1e-9)
+
+
+def test_hausdorff_matches_meshlabs_filter_sampling_every_vertex():
+    import pymeshlab
+
+    from datagen.resample.quality import hausdorff_percent
+    from datagen.resample.simplify import decimate
+
+    mesh = trimesh.creation.capsule(height=1.0, radius=0.2, count=[24, 24])
+    v, f = decimate(mesh.vertices, mesh.faces, 300, "fast")
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=mesh.vertices, face_matrix=mesh.faces.astype(np.int32)))
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f.astype(np.int32)))
+    there = ms.get_hausdorff_distance(sampledmesh=0, targetmesh=1, samplevert=True, samplenum=len(mesh.vertices))["max"]
+    back = ms.get_hausdorff_distance(sampledmesh=1, targetmesh=0, samplevert=True, samplenum=len(v))["max"]
+    ours = hausdorff_percent(mesh.vertices, mesh.faces, v, f, 1.4)
+    assert ours > 0
+    np.testing.assert_allclose(ours, max(there, back) / 1.4 * 100, rtol=1e-4)
 
 
 def test_cleaning_merges_duplicates_drops_degenerates_and_keeps_pieces():
@@ -99,7 +122,7 @@ def test_cleaning_merges_duplicates_drops_degenerates_and_keeps_pieces():
     b = trimesh.creation.icosphere(subdivisions=1)
     v = np.concatenate([a.vertices, b.vertices + [3, 0, 0], a.vertices[:5]])  # 5 duplicate vertices
     f = np.concatenate([a.faces, b.faces + len(a.vertices), [[0, 0, 1]], a.faces[:3]])
-    w = np.ones((len(v), 1))
+    w = SparseWeights.from_dense(np.ones((len(v), 1)))
     c = clean_mesh(v, f, w, np.zeros(len(v)))
     assert c.report["degenerate_faces"] == 1 and c.report["duplicate_faces"] == 3
     assert c.report["kept_pieces"] == 2 and len(c.faces) == len(a.faces) + len(b.faces)

@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 import torch
 
 from mimicbench.kinematics import forward_kinematics, transforms_to_array
@@ -73,3 +74,21 @@ def test_sparse_weights_invariants_and_round_trip():
     top = np.sort(dense, axis=1)[:, -8:]
     kept = np.sort(sw.to_dense() * dense.sum(1, keepdims=True), axis=1)[:, -8:]
     np.testing.assert_allclose(kept / kept.sum(1, keepdims=True), top / top.sum(1, keepdims=True), rtol=1e-5)
+
+
+def test_sparse_weights_from_csr_equals_from_dense():
+    from scipy.sparse import random as sparse_random
+
+    rng = np.random.default_rng(1)
+    m = sparse_random(200, 40, density=0.2, random_state=rng, format="coo")
+    m.data = np.round(m.data, 1) + 0.05  # ties between weights, resolved by column like from_dense
+    empty = np.setdiff1d(np.arange(200), m.row)
+    # duplicate entries are summed, as the dense form would hold them; empty rows get one weight
+    rows, cols = np.r_[m.row, m.row[:30], empty], np.r_[m.col, m.col[:30], np.zeros(len(empty), int)]
+    dup = type(m)((np.r_[m.data, m.data[:30], np.ones(len(empty))], (rows, cols)), shape=m.shape)
+    dense = dup.toarray()
+    a, b = SparseWeights.from_csr(dup), SparseWeights.from_dense(dense)
+    np.testing.assert_array_equal(a.indices, b.indices)
+    np.testing.assert_array_equal(a.values, b.values)
+    with pytest.raises(ValueError, match="no positive weight"):
+        SparseWeights.from_csr(type(m)(np.zeros((3, 4))))

@@ -35,8 +35,7 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
     Raises:
         datagen.resample.clean.BadMesh: the input mesh cannot be resampled (the reason says why).
     """
-    dense = record.weights.to_dense(np.float64)
-    clean = clean_mesh(record.vertices, record.faces, dense, record.apparel_vertex_mask)
+    clean = clean_mesh(record.vertices, record.faces, record.weights, record.apparel_vertex_mask)
     new_v, new_f, refined = resample_to(clean.vertices, clean.faces, faces, backend)
     surface = closest_points(clean.vertices, clean.faces, new_v)
     weights = interpolate_weights(clean.weights, clean.faces, surface)
@@ -46,7 +45,7 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
     quality = {
         "faces_in": int(len(record.faces)), "faces_out": int(len(new_f)), "backend": backend,
         "subdivisions": int(refined), "clean": clean.report,
-        "hausdorff_pct": hausdorff_percent(clean.vertices, clean.faces, new_v, new_f, height),
+        "hausdorff_pct": hausdorff_percent(clean.vertices, clean.faces, new_v, new_f, height, surface),
         "transfer_error_pct": transfer_error_percent(clean.vertices, clean.faces, clean.weights, new_v, weights,
                                                      record.keypoints, surface, frames, height),
         "frames_measured": int(len(frames)),

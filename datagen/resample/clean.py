@@ -12,6 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from mimicbench.weights import SparseWeights
 
 
 class BadMesh(ValueError):
@@ -24,19 +28,19 @@ class CleanMesh:
 
     Attributes:
         vertices: (N, 3) float64. faces: (M, 3) int64.
-        weights: (N, K) float64 dense skin weights, rows sum to 1.
+        weights: skin weights of the N vertices, rows sum to 1.
         apparel: (N,) float64 apparel mask (0 or 1).
         report: counts of what was removed.
     """
 
     vertices: np.ndarray
     faces: np.ndarray
-    weights: np.ndarray
+    weights: SparseWeights
     apparel: np.ndarray
     report: dict = field(default_factory=dict)
 
 
-def check_mesh(vertices: np.ndarray, faces: np.ndarray, weights: np.ndarray) -> None:
+def check_mesh(vertices: np.ndarray, faces: np.ndarray, weights: SparseWeights) -> None:
     """Raise :class:`BadMesh` naming the first problem of the input."""
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise BadMesh(f"vertices: expected shape (N, 3), got {vertices.shape}")
@@ -46,43 +50,64 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, weights: np.ndarray) -> 
         raise BadMesh(f"expected at least 4 triangles, got faces of shape {faces.shape}")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise BadMesh(f"faces index vertices in [{faces.min()}, {faces.max()}], but there are {len(vertices)} vertices")
+    if weights.num_vertices != len(vertices):
+        raise BadMesh(f"weights: expected {len(vertices)} rows, got {weights.num_vertices}")
     area = trimesh.triangles.area(vertices[faces])
     if not (area > 0).any():
         raise BadMesh("every face has zero area")
-    unweighted = weights.sum(axis=1) <= 1e-8
+    unweighted = weights.row_sums() <= 1e-8
     if unweighted.any():
         raise BadMesh(f"{int(unweighted.sum())} vertices have no skin weight")
 
 
-def clean_mesh(vertices, faces, weights, apparel, min_piece_area: float = 1e-6) -> CleanMesh:
+def _merge_duplicates(v: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """(first, inverse): the first vertex of each group of equal positions (up to 1e-9 of
+    ``scale``), in their original order, and each vertex's group."""
+    key = np.ascontiguousarray(np.round(v / (scale * 1e-9)).astype(np.int64))
+    _, first, inverse = np.unique(key.view(np.dtype((np.void, 24))).ravel(), return_index=True,
+                                  return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return first[order], rank[inverse.reshape(-1)]
+
+
+def piece_labels(faces: np.ndarray, num_vertices: int) -> np.ndarray:
+    """(M,) label of each face's connected piece (faces sharing a vertex are connected)."""
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
+    graph = coo_matrix((np.ones(len(edges), np.int8), (edges[:, 0], edges[:, 1])), shape=(num_vertices, num_vertices))
+    _, labels = connected_components(graph, directed=False)
+    return labels[faces[:, 0]]
+
+
+def clean_mesh(vertices, faces, weights: SparseWeights, apparel, min_piece_area: float = 1e-6) -> CleanMesh:
     """Clean a mesh; ``min_piece_area`` is the smallest piece kept, as a share of the total area."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
-    w = np.asarray(weights, np.float64)
-    check_mesh(v, f, w)
+    check_mesh(v, f, weights)
     report = {"vertices_in": int(len(v)), "faces_in": int(len(f))}
-    # merge duplicate vertices (exact positions up to 1e-9 of the size); keep the first's data
     scale = float(np.ptp(v, axis=0).max()) or 1.0
-    key = np.round(v / (scale * 1e-9)).astype(np.int64)
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
+    first, inverse = _merge_duplicates(v, scale)
     report["merged_vertices"] = int(len(v) - len(first))
-    v, w, app = v[first], w[first], np.asarray(apparel, np.float64)[first]
+    v, app = v[first], np.asarray(apparel, np.float64)[first]
     f = inverse[f]
     degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
-    degenerate |= trimesh.triangles.area(v[f]) <= 1e-14 * scale * scale
+    area = trimesh.triangles.area(v[f])
+    degenerate |= area <= 1e-14 * scale * scale
     report["degenerate_faces"] = int(degenerate.sum())
-    f = f[~degenerate]
-    _, unique_idx = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+    f, area = f[~degenerate], area[~degenerate]
+    corners = np.ascontiguousarray(np.sort(f, axis=1))
+    _, unique_idx = np.unique(corners.view(np.dtype((np.void, 24))).ravel(), return_index=True)
     report["duplicate_faces"] = int(len(f) - len(unique_idx))
-    f = f[np.sort(unique_idx)]
-    mesh = trimesh.Trimesh(v, f, process=False)
-    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(f))
-    area = mesh.area_faces
+    keep = np.sort(unique_idx)
+    f, area = f[keep], area[keep]
+    labels = piece_labels(f, len(v))
     piece_area = np.bincount(labels, weights=area)
-    small = piece_area < min_piece_area * area.sum()
+    used_pieces = np.unique(labels)
+    small = np.zeros(len(piece_area), bool)
+    small[used_pieces] = piece_area[used_pieces] < min_piece_area * area.sum()
     report["removed_pieces"] = int(small.sum())
-    report["kept_pieces"] = int((~small).sum())
+    report["kept_pieces"] = int(len(used_pieces) - small.sum())
     f = f[~small[labels]]
     if len(f) < 4:
         raise BadMesh(f"only {len(f)} faces are left after cleaning")
@@ -90,4 +115,4 @@ def clean_mesh(vertices, faces, weights, apparel, min_piece_area: float = 1e-6) 
     remap = np.full(len(v), -1, np.int64)
     remap[used] = np.arange(len(used))
     report["unused_vertices"] = int(len(v) - len(used))
-    return CleanMesh(v[used], remap[f], w[used], app[used], report)
+    return CleanMesh(v[used], remap[f], weights.take(first[used]), app[used], report)

@@ -7,16 +7,24 @@ largest and renormalised. The apparel mask is interpolated the same way (kept wh
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import csr_matrix
 
 from datagen.resample.closest_point import SurfacePoints
 from mimicbench.weights import MAX_INFLUENCES, SparseWeights
 
 
-def interpolate_weights(dense_weights: np.ndarray, faces: np.ndarray, surface: SurfacePoints) -> SparseWeights:
-    """Weights (N', 8) for new vertices from original dense weights (N, K) on original faces (M, 3)."""
-    corners = faces[surface.faces]  # (N', 3)
-    w = np.einsum("qc,qck->qk", surface.barycentric, dense_weights[corners])
-    return SparseWeights.from_dense(w, MAX_INFLUENCES)
+def barycentric_matrix(faces: np.ndarray, surface: SurfacePoints, num_vertices: int) -> csr_matrix:
+    """(Q, N) sparse matrix whose row q holds query q's barycentric coordinates at the three
+    corners of its closest face: ``B @ x`` interpolates per-vertex data x (N, ...) at the points."""
+    corners = faces[surface.faces]  # (Q, 3)
+    rows = np.repeat(np.arange(len(corners)), 3)
+    return csr_matrix((surface.barycentric.ravel(), (rows, corners.ravel())), shape=(len(corners), num_vertices))
+
+
+def interpolate_weights(weights: SparseWeights, faces: np.ndarray, surface: SurfacePoints) -> SparseWeights:
+    """Weights of the new vertices (Q, 8) from the original weights (N, K) on original faces (M, 3)."""
+    b = barycentric_matrix(faces, surface, weights.num_vertices)
+    return SparseWeights.from_csr(b @ weights.to_csr(), MAX_INFLUENCES)
 
 
 def interpolate_mask(mask: np.ndarray, faces: np.ndarray, surface: SurfacePoints) -> np.ndarray:
@@ -25,9 +33,9 @@ def interpolate_mask(mask: np.ndarray, faces: np.ndarray, surface: SurfacePoints
     return np.einsum("qc,qc->q", surface.barycentric, np.asarray(mask, np.float64)[corners]) >= 0.5
 
 
-def nearest_vertex_weights(dense_weights: np.ndarray, old_vertices: np.ndarray, new_vertices: np.ndarray) -> SparseWeights:
+def nearest_vertex_weights(weights: SparseWeights, old_vertices: np.ndarray, new_vertices: np.ndarray) -> SparseWeights:
     """The naive reskin the tests compare against: copy the nearest original vertex's weights."""
     from scipy.spatial import cKDTree
 
     _, idx = cKDTree(old_vertices).query(new_vertices)
-    return SparseWeights.from_dense(dense_weights[idx], MAX_INFLUENCES)
+    return weights.take(idx)
