@@ -1,12 +1,21 @@
 """Resampling to 5,000 faces: this stage (pymeshlab and fast backends) against Blender's route
-(Decimate modifier + Data Transfer of vertex groups, face-interpolated), on zoo characters.
+(Decimate modifier + Data Transfer of vertex groups, face-interpolated), on zoo characters at
+their own resolution (11k-26k triangles) and subdivided once (4x, like dense artist meshes).
 
-Prints seconds per character for each route, both routes' skinning transfer errors (% of
-height, on frames of the characters' own clips), and the speed ratio last. Blender runs in a
-child process (``benchmarks/resample_blender_child.py``); its time is measured inside Blender,
-excluding the import of the data.
+Two timings per route, in seconds per character:
+- work: Blender's two modifiers applied, against this stage's clean + decimate + closest points
+  + barycentric reskin;
+- record to record: what a stage pays to turn a character record into a resampled one. For
+  Blender: build the mesh and its vertex groups, the modifiers, read coordinates, triangles and
+  weights back (the fastest bpy calls: ``foreach_set``/``foreach_get``, one ``VertexGroup.add``
+  per influence). For this stage: ``resample_character``, quality report (Hausdorff and
+  transfer error) included.
+Blender runs in one child process (``benchmarks/resample_blender_child.py``); its start-up and
+the loading of the arrays are not counted. Both routes' outputs are scored the same way against
+the original mesh: skinning transfer error (% of height, on frames of the characters' own
+clips) and vertex-sampled Hausdorff distance (% of height). The ratios are printed last.
 
-    python benchmarks/resample.py [--characters 8]
+    python benchmarks/resample.py [--characters 8] [--faces 5000]
 """
 from __future__ import annotations
 
@@ -20,19 +29,85 @@ from pathlib import Path
 import numpy as np
 
 
+def subdivided(record):
+    """The character with every triangle split into four; weights interpolated at the midpoints."""
+    import dataclasses
+
+    import trimesh
+
+    from mimicbench.weights import SparseWeights
+
+    v, f, attr = trimesh.remesh.subdivide(record.vertices.astype(np.float64), record.faces,
+                                          vertex_attributes={"w": record.weights.to_dense(np.float64)})
+    w = SparseWeights.from_dense(attr["w"])
+    mask = np.zeros(len(v), bool)
+    return dataclasses.replace(record, vertices=v.astype(np.float32), faces=f.astype(np.int32),
+                               weight_indices=w.indices, weight_values=w.values, apparel_vertex_mask=mask)
+
+
+def score(record, motions, v, f, weights):
+    """(transfer error, Hausdorff), % of height, of a resampled mesh against the original."""
+    from datagen.resample.character import sample_frames
+    from datagen.resample.closest_point import closest_points
+    from datagen.resample.quality import hausdorff_percent, transfer_error_percent
+
+    old_v = record.vertices.astype(np.float64)
+    height = float(np.ptp(old_v[:, 1]))
+    surface = closest_points(old_v, record.faces, v)
+    err = transfer_error_percent(old_v, record.faces, record.weights, v, weights, record.keypoints, surface,
+                                 sample_frames(motions), height)
+    return err, hausdorff_percent(old_v, record.faces, v, f, height, surface)
+
+
+def run_ours(chars, motions, faces, backend):
+    """Seconds per character (work, record to record), mean transfer error and Hausdorff."""
+    from datagen.resample.character import resample_character
+    from datagen.resample.clean import clean_mesh
+    from datagen.resample.closest_point import closest_points
+    from datagen.resample.reskin import interpolate_weights
+    from datagen.resample.simplify import resample_to
+
+    start = time.perf_counter()
+    for c in chars:
+        clean = clean_mesh(c.vertices, c.faces, c.weights, c.apparel_vertex_mask)
+        v, f, _ = resample_to(clean.vertices, clean.faces, faces, backend)
+        interpolate_weights(clean.weights, clean.faces, closest_points(clean.vertices, clean.faces, v))
+    work = (time.perf_counter() - start) / len(chars)
+    start = time.perf_counter()
+    out = [resample_character(c, motions[c.character_id], faces, backend) for c in chars]
+    record = (time.perf_counter() - start) / len(chars)
+    scores = [score(c, motions[c.character_id], o.vertices.astype(np.float64), o.faces, o.weights)
+              for c, o in zip(chars, out)]
+    return work, record, *np.mean(scores, axis=0)
+
+
+def run_blender(chars, motions, faces, tmp):
+    """The same for Blender's route, in a child process."""
+    from mimicbench.weights import SparseWeights
+
+    arrays = {"count": len(chars), "target": faces}
+    for i, c in enumerate(chars):
+        arrays[f"v{i}"], arrays[f"f{i}"] = c.vertices.astype(np.float64), c.faces
+        arrays[f"wi{i}"], arrays[f"wv{i}"] = c.weight_indices, c.weight_values
+    np.savez(tmp / "in.npz", **arrays)
+    child = Path(__file__).with_name("resample_blender_child.py")
+    subprocess.run([sys.executable, str(child), str(tmp / "in.npz"), str(tmp / "out.npz")], check=True,
+                   capture_output=True, timeout=3600)
+    res = np.load(tmp / "out.npz")
+    scores = []
+    for i, c in enumerate(chars):
+        w = res[f"w{i}"]
+        w = SparseWeights.from_dense(w + 1e-12 * (w.sum(1, keepdims=True) <= 0))
+        scores.append(score(c, motions[c.character_id], res[f"v{i}"], res[f"f{i}"], w))
+    return float(res["modifier_seconds"].mean()), float(res["route_seconds"].mean()), *np.mean(scores, axis=0)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--characters", type=int, default=8)
     ap.add_argument("--faces", type=int, default=5000)
     args = ap.parse_args()
-    from datagen.resample.character import resample_character, sample_frames
-    from datagen.resample.clean import clean_mesh
-    from datagen.resample.closest_point import closest_points
-    from datagen.resample.reskin import interpolate_weights
-    from datagen.resample.simplify import resample_to
-    from datagen.resample.quality import transfer_error_percent
     from datagen.zoo import build_zoo
-    from mimicbench.weights import SparseWeights
     from schemas.shards import read_records
 
     tmp = Path(tempfile.mkdtemp(prefix="mimicbench-resample-"))
@@ -41,44 +116,18 @@ def main() -> None:
     motions = {}
     for m in read_records(tmp / "zoo", "motions"):
         motions.setdefault(m.character_id, []).append(m)
-
-    ours, full = {}, {}
-    for backend in ("pymeshlab", "fast"):
-        start = time.perf_counter()
-        for c in chars:  # the same work as Blender's route: clean, simplify, re-skin (no quality report)
-            clean = clean_mesh(c.vertices, c.faces, c.weights.to_dense(np.float64), c.apparel_vertex_mask)
-            v, f, _ = resample_to(clean.vertices, clean.faces, args.faces, backend)
-            interpolate_weights(clean.weights, clean.faces, closest_points(clean.vertices, clean.faces, v))
-        core = (time.perf_counter() - start) / len(chars)
-        start = time.perf_counter()
-        out = [resample_character(c, motions[c.character_id], args.faces, backend) for c in chars]
-        full[backend] = (time.perf_counter() - start) / len(chars)
-        ours[backend] = (core, float(np.mean([o.meta["resample"]["transfer_error_pct"] for o in out])))
-
-    arrays = {"count": len(chars), "target": args.faces}
-    for i, c in enumerate(chars):
-        arrays[f"v{i}"], arrays[f"f{i}"], arrays[f"w{i}"] = c.vertices.astype(float), c.faces, c.weights.to_dense()
-    np.savez(tmp / "in.npz", **arrays)
-    child = Path(__file__).with_name("resample_blender_child.py")
-    subprocess.run([sys.executable, str(child), str(tmp / "in.npz"), str(tmp / "out.npz")], check=True,
-                   capture_output=True, timeout=1800)
-    res = np.load(tmp / "out.npz")
-    errors = []
-    for i, c in enumerate(chars):
-        v, f, w = res[f"v{i}"], res[f"f{i}"], res[f"w{i}"]
-        w = w / np.maximum(w.sum(1, keepdims=True), 1e-12)
-        surface = closest_points(c.vertices.astype(float), c.faces, v)
-        errors.append(transfer_error_percent(c.vertices.astype(float), c.faces, c.weights.to_dense(np.float64), v,
-                                             SparseWeights.from_dense(np.maximum(w, 1e-12)), c.keypoints, surface,
-                                             sample_frames(motions[c.character_id]), float(np.ptp(c.vertices[:, 1]))))
-    blender = (float(res["seconds"].mean()), float(np.mean(errors)))
-    for name, (sec, err) in (("blender decimate+data transfer", blender), ("mimicbench pymeshlab", ours["pymeshlab"]),
-                             ("mimicbench fast", ours["fast"])):
-        print(f"{name:32s} {sec:7.3f} s/character   transfer error {err:.3f} % of height")
-    print(f"(with the quality report, Hausdorff and transfer error: pymeshlab {full['pymeshlab']:.3f}, "
-          f"fast {full['fast']:.3f} s/character)")
-    print(f"ratio blender / pymeshlab: {blender[0] / ours['pymeshlab'][0]:.2f}x; blender / fast: "
-          f"{blender[0] / ours['fast'][0]:.2f}x")
+    print(f"{'meshes':18s} {'route':32s} {'work s':>8s} {'record s':>9s} {'transfer %':>11s} {'Hausdorff %':>12s}")
+    ratios = []
+    for label, group in (("zoo", chars), ("zoo x4", [subdivided(c) for c in chars])):
+        label = f"{label} ({int(np.mean([len(c.faces) for c in group]) / 1000)}k tris)"
+        rows = {"blender decimate+data transfer": run_blender(group, motions, args.faces, tmp)}
+        for backend in ("pymeshlab", "fast"):
+            rows[f"mimicbench {backend}"] = run_ours(group, motions, args.faces, backend)
+        for name, (work, record, err, haus) in rows.items():
+            print(f"{label:18s} {name:32s} {work:8.3f} {record:9.3f} {err:11.3f} {haus:12.3f}")
+        blender, fast = rows["blender decimate+data transfer"], rows["mimicbench fast"]
+        ratios.append(f"{label}: work {blender[0] / fast[0]:.1f}x, record to record {blender[1] / fast[1]:.1f}x")
+    print("ratio blender / mimicbench fast (seconds per character): " + "; ".join(ratios))
 
 
 if __name__ == "__main__":

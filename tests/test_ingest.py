@@ -155,13 +155,18 @@ def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested
 
     src, _ = ingested
     data = tmp_path / "assets5k"
-    summary = resample_dataset(src, data, backend="pymeshlab", progress=False)
-    assert summary["failed"] == 0
-    for c in read_records(data, "characters"):
-        if len(c.faces):
+    for backend in ("pymeshlab", "fast"):  # the default backend's output feeds the rest
+        out = data.with_name(f"assets5k-{backend}") if backend != "fast" else data
+        summary = resample_dataset(src, out, backend=backend, progress=False)
+        assert summary["failed"] == 0
+        resampled = [c for c in read_records(out, "characters") if len(c.faces)]
+        assert len(resampled) == 5  # every glTF asset has a mesh (the BVH has none)
+        for c in resampled:
             q = c.meta["resample"]
             assert abs(q["faces_out"] - 5000) <= 50 and q["subdivisions"] >= 1, c.character_id
+            assert q["hausdorff_pct"] < 1.0, (backend, c.character_id, q["hausdorff_pct"])
             np.testing.assert_allclose(c.weight_values.sum(1), 1.0, atol=1e-5)
+            assert (c.weight_values > 0).sum(1).max() <= 8
     correspond_dataset(data, all_pairs=True, progress=False)
     # the assets as humanoid (CesiumMan, Robot) vs animals, every split
     import dataclasses

@@ -25,7 +25,7 @@ def sample_frames(motions, count: int = SAMPLED_FRAMES) -> np.ndarray:
 
 
 def resample_character(record: CharacterRecord, motions: list, faces: int = 5000,
-                       backend: str = "pymeshlab") -> CharacterRecord:
+                       backend: str = "fast") -> CharacterRecord:
     """A copy of ``record`` with its mesh resampled to ``faces`` faces and weights re-skinned.
 
     Keypoints, bone names, parents, roles and motions are untouched. ``meta["resample"]`` records

@@ -24,8 +24,15 @@ class SurfacePoints:
 
 
 def _finish(triangles: np.ndarray, queries: np.ndarray, face: np.ndarray, point: np.ndarray) -> SurfacePoints:
-    bary = trimesh.triangles.points_to_barycentric(triangles[face], point)
-    bary = np.clip(np.nan_to_num(bary, nan=1.0 / 3.0), 0.0, 1.0)
+    corners = triangles[face]  # (Q, 3, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bary = trimesh.triangles.points_to_barycentric(corners, point)
+    # a degenerate triangle (a segment or a point) has no barycentric frame: take its nearest corner
+    bad = ~np.isfinite(bary).all(axis=1)
+    if bad.any():
+        nearest = np.argmin(np.linalg.norm(corners[bad] - point[bad, None, :], axis=2), axis=1)
+        bary[bad] = np.eye(3)[nearest]
+    bary = np.clip(bary, 0.0, 1.0)
     bary /= bary.sum(axis=1, keepdims=True)
     return SurfacePoints(point, np.linalg.norm(point - queries, axis=1), face, bary)
 

@@ -12,13 +12,16 @@ def register(subparsers) -> None:
         "interpolation at the closest point of the original surface, and record the face counts, Hausdorff "
         "distance and skinning transfer error (percent of height) in meta['resample']. Motions are copied "
         "unchanged. A re-run into the same OUT_DATASET resumes. Example:\n"
-        "  mimicbench datagen resample data/zoo data/zoo5k --backend fast",
+        "  mimicbench datagen resample data/zoo data/zoo5k\n\n"
+        "Backends: fast (default; fast-simplification, the quadric error metric with a low aggressiveness) "
+        "and pymeshlab (MeshLab's quadric edge collapse). On the zoo, fast is 4x faster and keeps the "
+        "Hausdorff distance lower (mean 0.38 vs 0.61 % of height); see benchmarks/resample.py.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("in_dataset")
     p.add_argument("out_dataset")
     p.add_argument("--faces", type=int, default=5000, help="target face count (default 5000)")
-    p.add_argument("--backend", choices=("pymeshlab", "fast"), default="pymeshlab",
-                   help="pymeshlab (MeshLab quadric edge collapse) or fast (fast-simplification)")
+    p.add_argument("--backend", choices=("fast", "pymeshlab"), default="fast",
+                   help="fast (fast-simplification, default) or pymeshlab (MeshLab's quadric edge collapse)")
     p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)

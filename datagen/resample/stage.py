@@ -37,7 +37,7 @@ def _copy_table(src: Path, dst: Path, table: str) -> None:
     save_manifest(dst, m_dst)
 
 
-def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "pymeshlab", jobs: int = 1,
+def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
                      progress: bool = True) -> dict:
     """Resample every character of ``in_dir`` into ``out_dir`` (a re-run keeps finished ones).
 
