@@ -23,8 +23,8 @@ class SurfacePoints:
     barycentric: np.ndarray
 
 
-def _finish(triangles: np.ndarray, queries: np.ndarray, face: np.ndarray, point: np.ndarray) -> SurfacePoints:
-    corners = triangles[face]  # (Q, 3, 3)
+def _finish(corners: np.ndarray, queries: np.ndarray, face: np.ndarray, point: np.ndarray) -> SurfacePoints:
+    """SurfacePoints from each query's closest face (Q,), its corners (Q, 3, 3) and closest point (Q, 3)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         bary = trimesh.triangles.points_to_barycentric(corners, point)
     # a degenerate triangle (a segment or a point) has no barycentric frame: take its nearest corner
@@ -55,7 +55,7 @@ def closest_points(vertices: np.ndarray, faces: np.ndarray, queries: np.ndarray)
     if len(q) == 0:
         return SurfacePoints(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 3)))
     _, face, point = igl.point_mesh_squared_distance(q, v, f)
-    return _finish(v[f], q, face, point)
+    return _finish(v[f[face]], q, face, point)
 
 
 def closest_points_brute_force(vertices, faces, queries) -> SurfacePoints:
@@ -70,4 +70,4 @@ def closest_points_brute_force(vertices, faces, queries) -> SurfacePoints:
         d = np.linalg.norm(p - queries, axis=1)
         better = d < best_d
         best_d[better], best_f[better], best_p[better] = d[better], fi, p[better]
-    return _finish(triangles, queries, best_f, best_p)
+    return _finish(triangles[best_f], queries, best_f, best_p)

@@ -29,8 +29,8 @@ def interpolate_weights(weights: SparseWeights, faces: np.ndarray, surface: Surf
 
 def interpolate_mask(mask: np.ndarray, faces: np.ndarray, surface: SurfacePoints) -> np.ndarray:
     """A per-vertex 0/1 mask (N,) carried to the new vertices: interpolated, kept where >= 0.5."""
-    corners = faces[surface.faces]
-    return np.einsum("qc,qc->q", surface.barycentric, np.asarray(mask, np.float64)[corners]) >= 0.5
+    mask = np.asarray(mask, np.float64)
+    return barycentric_matrix(faces, surface, len(mask)) @ mask >= 0.5
 
 
 def nearest_vertex_weights(weights: SparseWeights, old_vertices: np.ndarray, new_vertices: np.ndarray) -> SparseWeights:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-BACKENDS = ("pymeshlab", "fast")
+BACKENDS = ("fast", "pymeshlab")
 
 # MeshLab's quadric edge collapse, every parameter spelled out: pymeshlab keeps a filter's last
 # parameters for the next call in the same process, so a default left out is not a default.
