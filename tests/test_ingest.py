@@ -146,7 +146,7 @@ def test_fbx_exported_by_blender_ingests_like_its_glb(assets_dir, tmp_path):
 
 
 @pytest.mark.slow
-def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested, tmp_path):
+def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested, assets_dir, tmp_path):
     from benchmark.aggregate import aggregate
     from benchmark.cases import build_cases, write_cases
     from benchmark.evaluator import run_benchmark
@@ -160,10 +160,13 @@ def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested
         summary = resample_dataset(src, out, backend=backend, progress=False)
         assert summary["failed"] == 0
         resampled = [c for c in read_records(out, "characters") if len(c.faces)]
-        assert len(resampled) == 5  # every glTF asset has a mesh (the BVH has none)
+        # every glTF asset has a mesh (the BVH has none)
+        assert len(resampled) == len(list((assets_dir / "glb").glob("*.glb")))
         for c in resampled:
             q = c.meta["resample"]
-            assert abs(q["faces_out"] - 5000) <= 50 and q["subdivisions"] >= 1, c.character_id
+            assert abs(q["faces_out"] - 5000) <= 50, c.character_id
+            if q["faces_in"] < 4950:  # most assets are smaller than 5k faces and are refined first
+                assert q["subdivisions"] >= 1, (c.character_id, q)
             assert q["hausdorff_pct"] < 1.0, (backend, c.character_id, q["hausdorff_pct"])
             np.testing.assert_allclose(c.weight_values.sum(1), 1.0, atol=1e-5)
             assert (c.weight_values > 0).sum(1).max() <= 8
