@@ -3,14 +3,26 @@
 Each sub-command lives in its own module exposing ``register(subparsers)``, which adds a parser
 whose ``func`` default takes the parsed arguments and returns an exit code. Modules import their
 heavy dependencies inside ``func``, so ``mimicbench --help`` stays fast.
+
+User errors (:class:`~mimicbench.errors.UserError` and its subclasses such as ``DatasetError``,
+a missing file, a ``ValueError`` from an argument check) print ``mimicbench: error: ...`` and exit
+with status 2; ``--debug`` (anywhere on the command line, or ``MIMICBENCH_DEBUG=1``) shows the
+traceback instead. ``--no-verify`` (or ``MIMICBENCH_VERIFY=0``) skips the sha256 check of every
+shard read, for speed on trusted data.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from mimicbench import __version__
+from mimicbench.errors import UserError
+
+# Exceptions that mean "the user asked for something impossible", not "mimicbench has a bug".
+USER_ERRORS = (UserError, FileNotFoundError, FileExistsError, NotADirectoryError, IsADirectoryError,
+               PermissionError, ValueError)
 
 # (group, module): group None puts the command at the top level.
 COMMAND_MODULES = (
@@ -45,11 +57,42 @@ Run `mimicbench COMMAND --help` for each command's options.
 """
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with the toolkit's error line: ``mimicbench: error: ...`` and exit status 2."""
+
+    def error(self, message: str):
+        self.print_usage(sys.stderr)
+        self.exit(2, f"mimicbench: error: {message}\n")
+
+
+GLOBAL_FLAGS = (
+    ("--debug", "show the Python traceback of an error instead of the one-line message"),
+    ("--no-verify", "skip the sha256 check of each shard read (faster on large trusted data; sizes are "
+                    "still checked); same as MIMICBENCH_VERIFY=0"),
+)
+
+
+def _add_global_flags(parser: argparse.ArgumentParser, top: bool) -> None:
+    """Add --debug and --no-verify to ``parser``; sub-commands accept them too (after their name)."""
+    for flag, text in GLOBAL_FLAGS:
+        parser.add_argument(flag, action="store_true", help=text,
+                            default=False if top else argparse.SUPPRESS)
+
+
+def _subparsers_of(parser: argparse.ArgumentParser):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in dict.fromkeys(action.choices.values()):
+                yield sub
+                yield from _subparsers_of(sub)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="mimicbench", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--version", action="version", version=f"mimicbench {__version__}")
+    _add_global_flags(parser, top=True)
     top = parser.add_subparsers(dest="command", metavar="COMMAND")
     groups: dict[str, argparse._SubParsersAction] = {}
     for group, module_name in COMMAND_MODULES:
@@ -63,12 +106,17 @@ def build_parser() -> argparse.ArgumentParser:
                 gp.set_defaults(func=lambda args, gp=gp: (gp.print_help(), 2)[1])
             target = groups[group]
         module.register(target)
+    for sub in _subparsers_of(parser):
+        _add_global_flags(sub, top=False)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.no_verify:
+        os.environ["MIMICBENCH_VERIFY"] = "0"  # child processes (workers) inherit it
+    debug = args.debug or os.environ.get("MIMICBENCH_DEBUG", "") not in ("", "0")
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
@@ -77,6 +125,20 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted; work already written is kept, re-run to resume", file=sys.stderr)
         return 130
+    except USER_ERRORS as exc:
+        if debug:
+            raise
+        print(f"mimicbench: error: {error_text(exc)}", file=sys.stderr)
+        print("(run with --debug for the traceback)", file=sys.stderr)
+        return 2
+
+
+def error_text(exc: BaseException) -> str:
+    """One line (or a few) for the user: the message, with the file for OS errors."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return f"{exc.filename}: {exc.strerror or exc}"
+    text = str(exc) or type(exc).__name__
+    return text if isinstance(exc, (UserError, ValueError)) else f"{type(exc).__name__}: {text}"
 
 
 if __name__ == "__main__":  # pragma: no cover

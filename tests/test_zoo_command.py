@@ -26,12 +26,15 @@ def test_comma_separated_categories_and_unknown_category(tmp_path, capsys):
     assert main(["zoo", "--out", str(out), "--characters", "2", "--categories", "bird,reptile", "--quiet"]) == 0
     assert sorted(c.category for c in read_records(out, "characters")) == ["bird", "reptile"]
     assert main(["zoo", "--out", str(out), "--characters", "2", "--categories", "dragon", "--quiet"]) == 2
-    assert "unknown ['dragon']" in capsys.readouterr().out
+    assert "mimicbench: error: categories: unknown ['dragon']" in capsys.readouterr().err
 
 
 def test_unknown_export_format_is_refused(tmp_path, capsys):
-    assert main(["zoo", "--out", str(tmp_path / "z"), "--characters", "1", "--export", "fbx", "--quiet"]) == 2
-    assert "fbx" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        main(["zoo", "--out", str(tmp_path / "z"), "--characters", "1", "--export", "fbx", "--quiet"])
+    assert exc.value.code == 2
+    assert "mimicbench: error: argument --export: unknown 'fbx'" in capsys.readouterr().err
+    assert not (tmp_path / "z").exists()
 
 
 def test_help_teaches_with_an_example(capsys):

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from mimicbench.argtypes import nonnegative_int, positive_float, positive_int
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -16,14 +18,16 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("dataset")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--pairs", type=int, default=None, help="ordered pairs to sample per split (default: all)")
+    g.add_argument("--pairs", type=positive_int, default=None,
+                   help="ordered pairs to sample per split, >= 1 (default: all)")
     g.add_argument("--all-pairs", action="store_true", help="every ordered pair within each split")
     p.add_argument("--encoder", choices=("minilm", "clip"), default="minilm")
     p.add_argument("--clip-model", default="ViT-B-32", help="open_clip model name (default ViT-B-32)")
     p.add_argument("--clip-pretrained", default=None,
                    help="open_clip pretrained tag (downloads) or a local checkpoint file (offline)")
-    p.add_argument("--temperature", type=float, default=None, help="Sinkhorn temperature T (default 0.1)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--temperature", type=positive_float, default=None,
+                   help="Sinkhorn temperature T, > 0 (default 0.1)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="pair sampling seed, >= 0 (default 0)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)
 
@@ -33,7 +37,7 @@ def run(args) -> int:
     from datagen.correspond.stage import correspond_dataset
 
     summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder,
-                                 args.temperature or DEFAULT_TEMPERATURE, args.seed, args.clip_model,
+                                 DEFAULT_TEMPERATURE if args.temperature is None else args.temperature, args.seed, args.clip_model,
                                  args.clip_pretrained, progress=not args.quiet)
     print(f"pairs written: {summary['pairs']} with {summary['encoder']} in {summary['seconds']:.1f} s "
           f"(report: {args.dataset}/correspond_report.json)")

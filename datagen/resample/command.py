@@ -3,6 +3,10 @@ from __future__ import annotations
 
 import argparse
 
+from mimicbench.argtypes import int_in, positive_int
+
+MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -19,10 +23,11 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("in_dataset")
     p.add_argument("out_dataset")
-    p.add_argument("--faces", type=int, default=5000, help="target face count (default 5000)")
+    p.add_argument("--faces", type=int_in(MIN_FACES), default=5000,
+                   help=f"target face count, >= {MIN_FACES} (default 5000)")
     p.add_argument("--backend", choices=("fast", "pymeshlab"), default="fast",
                    help="fast (fast-simplification, default) or pymeshlab (MeshLab's quadric edge collapse)")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    p.add_argument("--jobs", type=positive_int, default=1, help="worker processes, >= 1 (default 1)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)
 

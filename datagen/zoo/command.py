@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from mimicbench.argtypes import comma_choices, nonnegative_int, positive_int
+
 DESCRIPTION = """\
 Generate procedural rigged, skinned and animated characters of every kind (humanoid, quadruped,
 bird, fish, reptile or snake, insect or spider, humanoid with apparel chains), with bone names
@@ -21,13 +23,14 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("zoo", help="generate procedural rigged, animated characters (the offline default dataset)",
                               description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, help="dataset folder to write (created if missing)")
-    p.add_argument("--characters", type=int, default=40, help="number of characters (default 40)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--characters", type=positive_int, default=40, help="number of characters, >= 1 (default 40)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed, >= 0 (default 0)")
     p.add_argument("--categories", nargs="+", default=None, metavar="CATEGORY",
                    help="subset of humanoid quadruped bird fish reptile insect apparel, separated by spaces or "
                    "commas (default all)")
-    p.add_argument("--clips-per-character", type=int, default=3, help="clips per character (default 3)")
-    p.add_argument("--export", default="", help="also write files: comma-separated of obj,bvh "
+    p.add_argument("--clips-per-character", type=positive_int, default=3, help="clips per character, >= 1 (default 3)")
+    p.add_argument("--export", type=comma_choices(("obj", "bvh")), default=(),
+                   help="also write files: comma-separated of obj,bvh "
                    "(OUT/export/<character>.obj, OUT/export/<character>/<clip>.bvh)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -37,13 +40,8 @@ def run(args: argparse.Namespace) -> int:
     from datagen.zoo import build_zoo
 
     cats = [c.strip() for arg in args.categories for c in arg.split(",") if c.strip()] if args.categories else None
-    export = tuple(e.strip() for e in args.export.split(",") if e.strip())
-    try:
-        s = build_zoo(args.out, args.characters, seed=args.seed, categories=cats,
-                      clips_per_character=args.clips_per_character, export=export, progress=not args.quiet)
-    except ValueError as exc:
-        print(f"error: {exc}")
-        return 2
+    s = build_zoo(args.out, args.characters, seed=args.seed, categories=cats,
+                  clips_per_character=args.clips_per_character, export=tuple(args.export), progress=not args.quiet)
     for f in s["failures"]:
         print(f"  FAILED {f}")
     cats_txt = ", ".join(f"{k} {v}" for k, v in s["by_category"].items())
