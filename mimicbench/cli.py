@@ -33,6 +33,7 @@ COMMAND_MODULES = (
     ("datagen", "datagen.ingest.command"),
     (None, "benchmark.command"),
     (None, "benchmark.demo"),
+    (None, "datagen.render.command"),
 )
 
 GROUP_HELP = {
@@ -52,6 +53,7 @@ Typical flow:
   mimicbench bench run data/zoo5k --methods identity,name_copy --out results
   mimicbench bench leaderboard results              Markdown, CSV, JSON and HTML
   mimicbench validate data/zoo5k                    check shards against manifest.json
+  mimicbench render data/zoo zoo/bird-0001 --out bird.png   a character through Blender
 
 Run `mimicbench COMMAND --help` for each command's options.
 """

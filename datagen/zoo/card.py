@@ -53,3 +53,52 @@ def render_card(stats: dict, config: dict, splits: dict[str, int], family: int) 
               config["split_rule"], "",
               "Hidden bone roles (`bone_roles`) are ground truth for correspondences only, never a method input.", ""]
     return "\n".join(lines)
+
+
+SHEET_BEGIN, SHEET_END = "<!-- contact-sheet -->", "<!-- /contact-sheet -->"
+
+
+def contact_sheet_section(rel_path: str | None, note: str = "") -> str:
+    """The CARD.md block that shows the contact sheet (or says why there is none)."""
+    body = f"![every character at rest]({rel_path})" if rel_path else f"No contact sheet: {note}"
+    extra = f"\n\n{note}" if rel_path and note else ""
+    return f"{SHEET_BEGIN}\n## Characters\n\n{body}{extra}\n{SHEET_END}\n"
+
+
+def add_contact_sheet(dataset, characters=None, timeout: float | None = None) -> dict:
+    """Render ``DATASET/card/contact_sheet.png`` through Blender and show it in ``DATASET/CARD.md``.
+
+    Any card (the zoo's, the ingest's) can call this after writing CARD.md: the section between
+    the ``contact-sheet`` markers is replaced (or appended), so calling it again is harmless. When
+    Blender is missing or fails, the card says so and nothing already written is lost.
+
+    Args:
+        dataset: dataset folder holding CARD.md (created if missing) and the characters table.
+        characters: CharacterRecords to show instead of reading the table.
+
+    Returns:
+        ``{"path": Path | None, "error": str | None}``.
+    """
+    from pathlib import Path
+
+    from datagen.render.contact_sheet import DEFAULT_PATH, write_contact_sheet
+    from datagen.render.render import RenderError
+    from schemas.manifest import atomic_write_bytes
+
+    root = Path(dataset)
+    try:
+        path, error = write_contact_sheet(root, root / DEFAULT_PATH, characters, timeout=timeout), None
+        section = contact_sheet_section(DEFAULT_PATH.as_posix(), "Rendered with Blender's Workbench engine "
+                                        "(`mimicbench render DATASET --contact-sheet`); each panel is framed on its own.")
+    except (RenderError, ValueError) as exc:
+        path, error = None, str(exc)
+        section = contact_sheet_section(None, error)
+    card = root / "CARD.md"
+    text = card.read_text() if card.exists() else ""
+    if SHEET_BEGIN in text and SHEET_END in text:
+        head, rest = text.split(SHEET_BEGIN, 1)
+        text = head + section + rest.split(SHEET_END, 1)[1].lstrip("\n")
+    else:
+        text = text.rstrip("\n") + ("\n\n" if text else "") + section
+    atomic_write_bytes(card, text.encode())
+    return {"path": path, "error": error}

@@ -33,6 +33,8 @@ def register(subparsers) -> None:
                    help="also write files: comma-separated of obj,bvh "
                    "(OUT/export/<character>.obj, OUT/export/<character>/<clip>.bvh)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--no-contact-sheet", action="store_true",
+                   help="skip rendering OUT/card/contact_sheet.png (Blender) for CARD.md")
     p.set_defaults(func=run)
 
 
@@ -44,6 +46,11 @@ def run(args: argparse.Namespace) -> int:
                   clips_per_character=args.clips_per_character, export=tuple(args.export), progress=not args.quiet)
     for f in s["failures"]:
         print(f"  FAILED {f}")
+    if not args.no_contact_sheet:
+        from datagen.zoo.card import add_contact_sheet
+
+        sheet = add_contact_sheet(args.out)
+        print(f"contact sheet: {sheet['path'] or 'not rendered: ' + sheet['error']}")
     cats_txt = ", ".join(f"{k} {v}" for k, v in s["by_category"].items())
     print(f"zoo: {s['characters']} characters ({cats_txt}), {s['motions']} clips, {s['frames']} frames; "
           f"joints {s['joints'][0]}-{s['joints'][2]}, faces {s['faces'][0]}-{s['faces'][2]}; "
