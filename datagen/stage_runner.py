@@ -4,6 +4,8 @@ A stage is a plain function ``item -> result``. :func:`run_stage` calls it for e
 this process, or in a process pool with ``jobs > 1``), shows a progress bar, and returns the
 results of the items that succeeded together with one :class:`~schemas.status.StatusRecord` per
 item. An exception in one item fails that item only; the reason names the exception.
+``on_done`` sees each result as soon as it is ready (in completion order), so a stage can write
+finished work incrementally instead of holding everything until the end.
 """
 from __future__ import annotations
 
@@ -34,6 +36,7 @@ def run_stage(
     name_of: Callable[[Any], str] = str,
     jobs: int = 1,
     progress: bool = True,
+    on_done: Callable[[int, bool, Any], None] | None = None,
 ) -> tuple[list[Any], list[StatusRecord]]:
     """Apply ``fn`` to each item; return (results in item order, status records).
 
@@ -44,19 +47,28 @@ def run_stage(
         name_of: the asset name of an item, for the status records.
         jobs: worker processes; 1 runs in this process.
         progress: show a progress bar.
+        on_done: called in this process as ``on_done(index, ok, result)`` when an item finishes
+            (``result`` None for a failed item).
     """
+    if jobs < 1:
+        raise ValueError(f"jobs: expected >= 1, got {jobs}")
     outcomes: list[tuple[bool, Any, str, float] | None] = [None] * len(items)
     bar = tqdm(total=len(items), desc=stage, unit="item", disable=not progress)
-    if jobs <= 1:
+
+    def finished(i: int, outcome) -> None:
+        outcomes[i] = outcome
+        bar.update(1)
+        if on_done is not None:
+            on_done(i, outcome[0], outcome[1])
+
+    if jobs == 1:
         for i, item in enumerate(items):
-            outcomes[i] = _call(fn, item)
-            bar.update(1)
+            finished(i, _call(fn, item))
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futures = {pool.submit(_call, fn, item): i for i, item in enumerate(items)}
             for fut in as_completed(futures):
-                outcomes[futures[fut]] = fut.result()
-                bar.update(1)
+                finished(futures[fut], fut.result())
     bar.close()
     results, statuses = [], []
     for item, (ok, result, reason, seconds) in zip(items, outcomes):

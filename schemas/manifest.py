@@ -1,4 +1,16 @@
-"""manifest.json: schema version, shards with row counts and sha256, and the configs that built them."""
+"""manifest.json: schema version, shards with row counts, sizes and sha256, configs, completeness.
+
+Readers use :func:`load_manifest`, which refuses a folder with no manifest, an unparseable one or
+one of an unknown schema major version (a missing manifest is never read as an empty dataset).
+Writers that may start a new dataset use :func:`load_manifest_for_write`, which returns an empty
+manifest for a new folder but refuses to take over a manifest it cannot read or of another major
+version. A stage that writes over several steps marks the dataset incomplete first
+(:func:`mark_incomplete`) and complete at the end (:func:`mark_complete`): a killed run leaves
+``"complete": false`` behind, which ``validate`` and the readers report.
+
+Files are written under a temporary name, fsynced and renamed into place, with the permissions a
+plain ``open()`` would give under the user's umask (``mkstemp`` alone would leave them 0600).
+"""
 from __future__ import annotations
 
 import hashlib
@@ -7,7 +19,8 @@ import os
 import tempfile
 from pathlib import Path
 
-from schemas.version import SCHEMA_VERSION
+from schemas.errors import DatasetError
+from schemas.version import SCHEMA_VERSION, is_compatible, newer
 
 MANIFEST = "manifest.json"
 
@@ -25,20 +38,115 @@ def sha256_of(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
 
 
 def empty_manifest() -> dict:
-    return {"format": "mimicbench-dataset", "schema_version": SCHEMA_VERSION, "tables": {}, "configs": {}}
+    return {"format": "mimicbench-dataset", "schema_version": SCHEMA_VERSION, "complete": True,
+            "tables": {}, "configs": {}}
+
+
+def _parse(path: Path) -> dict:
+    try:
+        manifest = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{path}: not valid JSON ({exc})") from exc
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("tables", {}), dict):
+        raise DatasetError(f"{path}: expected a JSON object with a 'tables' object")
+    version = manifest.get("schema_version")
+    if not isinstance(version, str) or not is_compatible(version):
+        raise DatasetError(f"{path}: unknown schema version {version!r}, expected {SCHEMA_VERSION!r} (this "
+                           f"mimicbench reads {SCHEMA_VERSION.split('.')[0]}.x; use a matching mimicbench version)")
+    manifest.setdefault("tables", {})
+    manifest.setdefault("configs", {})
+    return manifest
 
 
 def load_manifest(root: str | os.PathLike) -> dict:
-    """Read ``root/manifest.json``; a missing manifest is an empty one."""
+    """Read ``root/manifest.json`` for reading the dataset.
+
+    Raises:
+        DatasetError: ``root`` is not a folder, has no manifest.json (not a dataset), or the
+            manifest is not valid JSON or of an unknown schema major version.
+    """
+    root = Path(root)
+    path = root / MANIFEST
+    if not root.is_dir():
+        raise DatasetError(f"{root}: no such dataset folder")
+    if not path.is_file():
+        raise DatasetError(f"{path}: missing, so {root} is not a dataset (expected the output of zoo, "
+                           f"datagen ingest or datagen resample)")
+    return _parse(path)
+
+
+def load_manifest_for_write(root: str | os.PathLike) -> dict:
+    """The manifest to update when writing into ``root``: an empty one for a new dataset.
+
+    Raises:
+        DatasetError: an existing manifest is unreadable or of another schema major version (it
+            is never silently replaced).
+    """
     path = Path(root) / MANIFEST
     if not path.exists():
         return empty_manifest()
-    with open(path) as f:
-        return json.load(f)
+    manifest = _parse(path)
+    manifest["schema_version"] = newer(manifest["schema_version"], SCHEMA_VERSION)
+    return manifest
+
+
+def is_complete(manifest: dict) -> bool:
+    """False while a stage that writes in steps has not finished (manifests without the key: True)."""
+    return manifest.get("complete", True) is not False
+
+
+def incomplete_reason(root, manifest: dict) -> str:
+    stage = (manifest.get("pending") or {}).get("stage", "a stage")
+    return (f"{Path(root) / MANIFEST}: the dataset is incomplete ({stage} started writing it and did not "
+            f"finish); re-run {stage} to resume")
+
+
+def mark_incomplete(root: str | os.PathLike, stage: str, config: dict | None = None) -> dict:
+    """Record that ``stage`` is writing ``root`` (``complete: false``); returns the saved manifest."""
+    manifest = load_manifest_for_write(root)
+    manifest["complete"] = False
+    manifest["pending"] = {"stage": stage, **({"config": config} if config is not None else {})}
+    save_manifest(root, manifest)
+    return manifest
+
+
+def mark_complete(root: str | os.PathLike) -> None:
+    """Record that the stage writing ``root`` finished (``complete: true``)."""
+    manifest = load_manifest_for_write(root)
+    manifest["complete"] = True
+    manifest.pop("pending", None)
+    save_manifest(root, manifest)
+
+
+def current_umask() -> int:
+    """The process umask (read without changing it where /proc allows)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def chmod_like_open(path: str | os.PathLike) -> None:
+    """Give a file made by ``mkstemp`` (mode 0600) the mode ``open()`` would: 0666 minus the umask."""
+    os.chmod(path, 0o666 & ~current_umask())
+
+
+def fsync_file(path: str | os.PathLike) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then rename it into place."""
+    """Write ``data`` to a temporary file beside ``path`` (fsynced, umask mode), then rename it into place."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -47,6 +155,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        chmod_like_open(tmp)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -1,8 +1,14 @@
 """Write and read a dataset's Parquet shards: ``{table}/{split}-{i:05d}-of-{n:05d}.parquet``.
 
-Each shard is written under a temporary name and renamed when complete, then the manifest is
-updated (also atomically); so a killed run leaves no half shard under a final name and a
-manifest that still describes the data that was complete before.
+Each shard is written under a temporary name, fsynced and renamed when complete (with the
+user's umask), then the manifest is updated (also atomically); so a killed run leaves no half
+shard under a final name and a manifest that still describes the data that was complete before.
+
+Every read checks what the manifest promises before trusting a shard: the path stays inside the
+dataset, the size and sha256 match (the hash once per process per file; ``verify=False`` or
+``MIMICBENCH_VERIFY=0`` skips the hash), the schema version is known, the row count matches.
+A missing manifest, a table the manifest does not list, or a dataset marked incomplete is an
+error (:class:`DatasetError`, naming the file), never an empty result.
 """
 from __future__ import annotations
 
@@ -17,16 +23,18 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
-from schemas.manifest import load_manifest, save_manifest, sha256_of
+from schemas.errors import DatasetError
+from schemas.integrity import entry_path, remember_sha256, verify_shard
+from schemas.manifest import (chmod_like_open, fsync_file, incomplete_reason, is_complete, load_manifest,
+                              load_manifest_for_write, save_manifest, sha256_of)
 from schemas.tables import ROW_GROUP_SIZE, record_type, schema_of
 from schemas.version import METADATA_KEY, SCHEMA_VERSION, is_compatible
 
 SHARD_RE = re.compile(r"^(?P<split>[A-Za-z0-9_]+)-(?P<i>\d{5})-of-(?P<n>\d{5})\.parquet$")
 SPLITS = ("train", "val", "test")
 
-
-class DatasetError(RuntimeError):
-    """A dataset folder is not as its manifest and the schema say."""
+__all__ = ["DatasetError", "SHARD_RE", "SPLITS", "shard_name", "write_records", "write_table", "read_table",
+           "read_records", "shard_entries", "has_table", "splits_of", "check_schema", "remove_split"]
 
 
 def shard_name(split: str, i: int, n: int) -> str:
@@ -65,8 +73,12 @@ def write_table(root, table: str, arrow: pa.Table, split: str, rows_per_shard: i
     if not re.fullmatch(r"[A-Za-z0-9_]+", split):
         raise ValueError(f"split: expected letters, digits or '_', got {split!r}")
     root = Path(root)
-    folder = root / table
+    manifest = load_manifest_for_write(root)  # refuses an unreadable or incompatible manifest before any write
+    root.mkdir(parents=True, exist_ok=True)
+    folder = entry_path(root, table, where=table)  # the table folder must not be a symlink out of the dataset
     folder.mkdir(parents=True, exist_ok=True)
+    if not folder.resolve().is_relative_to(root.resolve()):
+        raise DatasetError(f"{folder}: leads outside the dataset folder {root} (a symlink); refusing to write there")
     expected = schema_of(table)
     if not arrow.schema.equals(expected, check_metadata=False):
         raise ValueError(f"{table}: table schema differs from the contract:\n{arrow.schema}\nexpected:\n{expected}")
@@ -86,23 +98,49 @@ def write_table(root, table: str, arrow: pa.Table, split: str, rows_per_shard: i
         raise
     entries = []
     for tmp, final in temps:
+        digest = sha256_of(tmp)
+        entry = {"path": f"{table}/{final.name}", "split": split, "rows": pq.read_metadata(tmp).num_rows,
+                 "bytes": os.path.getsize(tmp), "sha256": digest}
         os.replace(tmp, final)
-        entries.append({"path": f"{table}/{final.name}", "split": split,
-                        "rows": pq.read_metadata(final).num_rows, "sha256": sha256_of(final)})
-    manifest = load_manifest(root)
+        remember_sha256(final, digest)
+        entries.append(entry)
     tinfo = manifest["tables"].setdefault(table, {"shards": []})
     old = [s for s in tinfo["shards"] if s["split"] == split]
     tinfo["shards"] = sorted([s for s in tinfo["shards"] if s["split"] != split] + entries, key=lambda s: s["path"])
     tinfo["rows"] = sum(s["rows"] for s in tinfo["shards"])
-    manifest["schema_version"] = SCHEMA_VERSION
     if config is not None:
         manifest.setdefault("configs", {})[table] = config
     save_manifest(root, manifest)
     new_paths = {e["path"] for e in entries}
-    for s in old:  # shards of an earlier layout (another shard count) are now stale
-        if s["path"] not in new_paths and (root / s["path"]).exists():
-            (root / s["path"]).unlink()
+    _unlink_stale(root, [s for s in old if s["path"] not in new_paths])  # another shard count's layout
     return entries
+
+
+def _unlink_stale(root: Path, entries: list[dict]) -> None:
+    """Delete the files of manifest entries no longer listed (only those inside the dataset)."""
+    for s in entries:
+        try:
+            path = entry_path(root, s["path"])
+        except DatasetError:
+            continue  # never delete outside the dataset
+        if path.is_file():
+            path.unlink()
+
+
+def remove_split(root, table: str, split: str) -> None:
+    """Drop one split of ``table`` from the manifest, then delete its shards (the table goes when empty)."""
+    root = Path(root)
+    manifest = load_manifest_for_write(root)
+    tinfo = manifest["tables"].get(table)
+    if not tinfo:
+        return
+    gone = [s for s in tinfo["shards"] if s["split"] == split]
+    tinfo["shards"] = [s for s in tinfo["shards"] if s["split"] != split]
+    tinfo["rows"] = sum(s["rows"] for s in tinfo["shards"])
+    if not tinfo["shards"]:
+        del manifest["tables"][table]
+    save_manifest(root, manifest)
+    _unlink_stale(root, gone)
 
 
 def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int) -> str:
@@ -111,48 +149,76 @@ def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int) -> st
     os.close(fd)
     try:
         pq.write_table(table, tmp, row_group_size=row_group_size, compression="zstd")
+        fsync_file(tmp)
+        chmod_like_open(tmp)
     except BaseException:
         os.unlink(tmp)
         raise
     return tmp
 
 
-def shard_entries(root, table: str, split: str | None = None) -> list[dict]:
-    """Manifest entries of ``table``'s shards (of one split, or all)."""
+def _reader_manifest(root, allow_incomplete: bool) -> dict:
     manifest = load_manifest(root)
+    if not allow_incomplete and not is_complete(manifest):
+        raise DatasetError(incomplete_reason(root, manifest))
+    return manifest
+
+
+def shard_entries(root, table: str, split: str | None = None, allow_incomplete: bool = False) -> list[dict]:
+    """Manifest entries of ``table``'s shards (of one split, or all).
+
+    Raises:
+        DatasetError: no readable manifest, or the dataset is marked incomplete (unless
+            ``allow_incomplete``: a stage resuming its own output).
+    """
+    manifest = _reader_manifest(root, allow_incomplete)
     shards = manifest.get("tables", {}).get(table, {}).get("shards", [])
     return [s for s in shards if split is None or s["split"] == split]
 
 
-def has_table(root, table: str, split: str | None = None) -> bool:
-    return bool(shard_entries(root, table, split))
+def has_table(root, table: str, split: str | None = None, allow_incomplete: bool = False) -> bool:
+    """True when the manifest lists shards of ``table`` (of ``split``); errors as :func:`shard_entries`."""
+    return bool(shard_entries(root, table, split, allow_incomplete))
 
 
-def read_table(root, table: str, split: str | None = None, columns: list[str] | None = None) -> pa.Table:
-    """Read ``table`` (one split, or all) from the shards the manifest lists, checking the schema.
+def read_table(root, table: str, split: str | None = None, columns: list[str] | None = None, *,
+               verify: bool | None = None, allow_incomplete: bool = False) -> pa.Table:
+    """Read ``table`` (one split, or all) from the shards the manifest lists, checking each one.
+
+    Args:
+        verify: check each shard's sha256 against the manifest (hashed once per process per
+            file); None (default) means yes unless ``MIMICBENCH_VERIFY=0``. Sizes, schema
+            versions, column types and row counts are always checked.
+        allow_incomplete: read a dataset marked incomplete (a stage resuming its own output).
 
     Raises:
-        DatasetError: a listed shard is missing, unreadable, of another schema version, or has
-            wrong column types.
+        DatasetError: naming the file: no manifest; the dataset is incomplete; the manifest lists
+            no shard of ``table`` (of ``split``); a shard path leaves the dataset folder; a shard is
+            missing, of another size or sha256, unreadable, of another schema version, has wrong
+            column types or another row count than the manifest says.
     """
     root = Path(root)
-    entries = shard_entries(root, table, split)
+    manifest = _reader_manifest(root, allow_incomplete)
+    entries = [s for s in manifest["tables"].get(table, {}).get("shards", []) if split is None or s["split"] == split]
+    if not entries:
+        what = f"table {table!r}" + (f" split {split!r}" if split is not None else "")
+        raise DatasetError(f"{root}/manifest.json lists no shard of {what} (present: "
+                           f"{', '.join(sorted(manifest['tables'])) or 'no tables'})")
     expected = schema_of(table)
     if columns is not None:
         expected = pa.schema([expected.field(c) for c in columns], metadata=expected.metadata)
     parts = []
     for e in entries:
-        path = root / e["path"]
-        if not path.exists():
-            raise DatasetError(f"{path}: listed in manifest.json but missing")
+        path = entry_path(root, e["path"])
+        verify_shard(path, e, verify)
         try:
             t = pq.read_table(path, columns=columns)
         except Exception as exc:  # pyarrow raises several types for damaged files
             raise DatasetError(f"{path}: not a readable Parquet file ({exc})") from exc
         check_schema(path, t.schema, expected)
+        if t.num_rows != e.get("rows"):
+            raise DatasetError(f"{path}: {t.num_rows} rows, manifest.json says {e.get('rows')}")
         parts.append(t.replace_schema_metadata(expected.metadata))
-    if not parts:
-        return expected.empty_table()
     return pa.concat_tables(parts)
 
 
@@ -172,12 +238,14 @@ def check_schema(path, found: pa.Schema, expected: pa.Schema) -> None:
             raise DatasetError(f"{path}: column {field.name!r} has type {got}, expected {field.type}")
 
 
-def read_records(root, table: str, split: str | None = None) -> list[Any]:
+def read_records(root, table: str, split: str | None = None, *, verify: bool | None = None,
+                 allow_incomplete: bool = False) -> list[Any]:
     """Read ``table`` as records (see :func:`read_table`)."""
-    return table_to_records(read_table(root, table, split), record_type(table))
+    return table_to_records(read_table(root, table, split, verify=verify, allow_incomplete=allow_incomplete),
+                            record_type(table))
 
 
-def splits_of(root, table: str) -> list[str]:
+def splits_of(root, table: str, allow_incomplete: bool = False) -> list[str]:
     """Splits present for ``table``, in train/val/test order first."""
-    found = {s["split"] for s in shard_entries(root, table)}
+    found = {s["split"] for s in shard_entries(root, table, allow_incomplete=allow_incomplete)}
     return [s for s in SPLITS if s in found] + sorted(found - set(SPLITS))

@@ -5,35 +5,36 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
-from schemas.manifest import MANIFEST, sha256_of
-from schemas.shards import SHARD_RE, DatasetError, check_schema
+from schemas.errors import DatasetError
+from schemas.fingerprint import stale_inputs
+from schemas.integrity import entry_path
+from schemas.manifest import MANIFEST, incomplete_reason, is_complete, load_manifest, sha256_of
+from schemas.shards import SHARD_RE, check_schema
 from schemas.tables import RECORD_TYPES, schema_of
-from schemas.version import SCHEMA_VERSION, is_compatible
-
-import json
 
 
 def validate_dataset(root) -> list[str]:
     """Problems found in a dataset folder, each naming the file and why; empty when valid.
 
-    Checks: manifest present and parseable with a known schema version; every listed shard
-    exists, has its sha256, reads as Parquet with the recorded row count, carries a compatible
-    schema version and the contract's column types; no shard file on disk is unlisted.
+    Checks: manifest present and parseable with a known schema version; the dataset marked
+    complete (not left half-written by a killed stage); every listed shard path is
+    ``{table}/{split}-{i}-of-{n}.parquet`` inside the folder (no ``..``, absolute path or symlink
+    out), exists, has the recorded size and sha256, reads as Parquet with the recorded row count,
+    carries a compatible schema version and the contract's column types; no shard file on disk
+    is unlisted; a table derived from other tables of the same dataset (pairs from characters)
+    still matches the fingerprints they had when it was made.
     """
     root = Path(root)
     problems: list[str] = []
     mpath = root / MANIFEST
     if not root.is_dir():
         return [f"{root}: not a folder"]
-    if not mpath.exists():
-        return [f"{mpath}: missing"]
     try:
-        manifest = json.loads(mpath.read_text())
-    except json.JSONDecodeError as exc:
-        return [f"{mpath}: not valid JSON ({exc})"]
-    version = manifest.get("schema_version")
-    if not isinstance(version, str) or not is_compatible(version):
-        problems.append(f"{mpath}: unknown schema version {version!r}, expected {SCHEMA_VERSION!r}")
+        manifest = load_manifest(root)
+    except DatasetError as exc:
+        return [str(exc)]
+    if not is_complete(manifest):
+        problems.append(incomplete_reason(root, manifest))
     listed = set()
     for table, info in sorted(manifest.get("tables", {}).items()):
         if table not in RECORD_TYPES:
@@ -41,11 +42,24 @@ def validate_dataset(root) -> list[str]:
             continue
         expected = schema_of(table)
         for entry in info.get("shards", []):
-            path = root / entry["path"]
+            rel = entry.get("path")
+            try:
+                path = entry_path(root, rel)
+            except DatasetError as exc:
+                problems.append(str(exc))
+                continue
+            parts = Path(rel).parts
+            if len(parts) != 2 or parts[0] != table or not SHARD_RE.match(parts[1]):
+                problems.append(f"{mpath}: shard path {rel!r} of table {table!r}: expected "
+                                f"'{table}/{{split}}-{{i:05d}}-of-{{n:05d}}.parquet'")
+                continue
             listed.add(path.resolve())
-            if not path.exists():
+            if not path.is_file():
                 problems.append(f"{path}: missing (listed in manifest.json)")
                 continue
+            size = path.stat().st_size
+            if entry.get("bytes") is not None and size != entry["bytes"]:
+                problems.append(f"{path}: {size} bytes, manifest says {entry['bytes']}: the file changed or is truncated")
             digest = sha256_of(path)
             if digest != entry.get("sha256"):
                 problems.append(f"{path}: checksum mismatch (sha256 {digest[:12]}..., manifest says "
@@ -62,6 +76,12 @@ def validate_dataset(root) -> list[str]:
                 problems.append(str(exc))
             if meta.num_rows != entry.get("rows"):
                 problems.append(f"{path}: {meta.num_rows} rows, manifest says {entry.get('rows')}")
+        stale = stale_inputs(root, manifest, table)
+        if stale:
+            problems.append(stale)
+        listed_rows = sum(e.get("rows", 0) for e in info.get("shards", []))
+        if info.get("rows") is not None and info["rows"] != listed_rows:
+            problems.append(f"{mpath}: table {table!r} says {info['rows']} rows, its shards {listed_rows}")
     for table in RECORD_TYPES:
         folder = root / table
         if not folder.is_dir():

@@ -8,9 +8,19 @@ METADATA_KEY = b"mimicbench.schema_version"
 TABLE_KEY = b"mimicbench.table"
 
 
+def _parts(version: str) -> tuple[int, int]:
+    parts = version.split(".")
+    return int(parts[0]), int(parts[1]) if len(parts) > 1 else 0
+
+
 def is_compatible(version: str) -> bool:
     """True when data written at ``version`` can be read by this code (same major version)."""
     try:
-        return version.split(".")[0] == SCHEMA_VERSION.split(".")[0]
-    except AttributeError:
+        return _parts(version)[0] == _parts(SCHEMA_VERSION)[0]
+    except (AttributeError, ValueError):
         return False
+
+
+def newer(a: str, b: str) -> str:
+    """The later of two compatible versions (a manifest never goes back to an older minor)."""
+    return a if _parts(a) >= _parts(b) else b

@@ -33,3 +33,16 @@ def test_table_fingerprint_follows_the_shards_checksums(tmp_path):
     assert after["characters"] == before["characters"] and after["motions"] != before["motions"]
     with pytest.raises(KeyError, match="pairs"):
         table_fingerprint(tmp_path, "pairs")
+
+
+def test_stage_config_mismatch_names_the_changed_parameters_and_inputs():
+    from schemas.fingerprint import fingerprint_mismatch, stage_config
+
+    a = stage_config({"stage": "resample", "faces": 2000}, {"characters": "c1"}, info={"source": "/a"})
+    assert a["fingerprint"]["config"] == digest_of({"stage": "resample", "faces": 2000}) and a["source"] == "/a"
+    assert fingerprint_mismatch(a, stage_config({"stage": "resample", "faces": 2000}, {"characters": "c1"},
+                                                info={"source": "/moved"})) is None
+    b = stage_config({"stage": "resample", "faces": 5000}, {"characters": "c2"})
+    why = fingerprint_mismatch(a, b)
+    assert "faces 2000 -> 5000" in why and "input table(s) characters changed" in why
+    assert "no fingerprint" in fingerprint_mismatch({"stage": "resample", "faces": 5000}, b)

@@ -13,6 +13,8 @@ from datagen.correspond.canonical import canonicalize_names
 from datagen.correspond.encoders import get_encoder
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
+from schemas.errors import DatasetError
+from schemas.fingerprint import stage_config, tables_fingerprint
 from schemas.manifest import atomic_write_bytes
 from schemas.pair import PairRecord
 from schemas.shards import read_records, splits_of, write_records
@@ -75,13 +77,16 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     """
     start = time.perf_counter()
     dataset_dir = Path(dataset_dir)
-    records = [r for r in read_records(dataset_dir, "characters") if r.num_joints > 0]
+    records = [r for r in read_records(dataset_dir, "characters") if r.num_joints > 0]  # DatasetError if no dataset
+    if not records:
+        raise DatasetError(f"{dataset_dir}: no character with bones in the characters table; nothing to correspond")
     by_id = {r.character_id: r for r in records}
     enc = get_encoder(encoder, clip_model, clip_pretrained)
     emb = embed_skeletons(records, enc)
     written, all_pairs_out = {}, []
-    config = {"stage": "correspond", "encoder": enc.name, "temperature": temperature, "seed": seed,
-              "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION}
+    config = stage_config({"stage": "correspond", "encoder": enc.name, "temperature": temperature, "seed": seed,
+                           "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION},
+                          tables_fingerprint(dataset_dir, ["characters"]))
     for split in splits_of(dataset_dir, "characters"):
         chosen = sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed)
         # batch pairs of similar sizes together (less padding); rows are written in sampled order

@@ -1,8 +1,18 @@
-"""The resample stage over a dataset: ``mimicbench datagen resample IN OUT``."""
+"""The resample stage over a dataset: ``mimicbench datagen resample IN OUT``.
+
+Work is written as it completes: every ``flush_every`` finished characters (or ``flush_seconds``)
+go into ``characters`` shards of a part split (``part_00000``, ``part_00001``...) while the
+manifest says ``"complete": false``. At the end the parts become the final per-split shards, the
+motions and pairs are copied, and the manifest is marked complete. A killed run keeps its parts;
+a re-run reuses them, and the rows of a finished run, only when the fingerprints of the input
+tables and of the parameters (faces, backend) match; otherwise it redoes every character.
+"""
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import tempfile
 import time
 from functools import partial
 from pathlib import Path
@@ -10,11 +20,20 @@ from pathlib import Path
 import numpy as np
 
 from datagen.resample.character import resample_character
+from datagen.resample.command import MIN_FACES
 from datagen.stage_runner import run_stage, summarize_statuses
-from schemas.manifest import load_manifest, save_manifest
-from schemas.shards import has_table, read_records, splits_of, write_records
+from schemas.errors import DatasetError
+from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
+from schemas.integrity import entry_path, remember_sha256, verify_shard
+from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_incomplete,
+                              save_manifest)
+from schemas.shards import has_table, read_records, remove_split, splits_of, write_records
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
+
+BACKENDS = ("fast", "pymeshlab")
+PART = "part_"  # split-name prefix of the shards written while the stage runs
+COPIED_TABLES = ("motions", "pairs")  # copied unchanged from the input
 
 
 def _one(item, faces, backend):
@@ -22,63 +41,207 @@ def _one(item, faces, backend):
     return resample_character(record, motions, faces, backend)
 
 
+def _copy_file(src: Path, dst: Path) -> None:
+    """Copy ``src`` to ``dst`` through a temporary file (fsynced, umask mode) renamed into place."""
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent)
+    os.close(fd)
+    try:
+        shutil.copyfile(src, tmp)
+        fsync_file(tmp)
+        chmod_like_open(tmp)
+        os.replace(tmp, dst)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
 def _copy_table(src: Path, dst: Path, table: str) -> None:
-    """Copy a table's shards and manifest entries unchanged."""
-    m_src, m_dst = load_manifest(src), load_manifest(dst)
+    """Make ``dst``'s ``table`` a verified copy of ``src``'s (or drop it when ``src`` has none).
+
+    Every path is confined to its dataset folder and each source shard is checked against its
+    manifest entry (size, sha256) before it is copied.
+    """
+    m_src = load_manifest_for_write(src)
     info = m_src["tables"].get(table)
-    if not info:
-        return
-    for shard in info["shards"]:
-        (dst / shard["path"]).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(src / shard["path"], dst / shard["path"])
-    m_dst["tables"][table] = json.loads(json.dumps(info))
-    if table in m_src.get("configs", {}):
-        m_dst.setdefault("configs", {})[table] = m_src["configs"][table]
+    m_dst = load_manifest_for_write(dst)
+    old = (m_dst["tables"].get(table) or {}).get("shards", [])
+    entries = []
+    for shard in (info or {}).get("shards", []):
+        src_path, dst_path = entry_path(src, shard["path"]), entry_path(dst, shard["path"])
+        verify_shard(src_path, shard)
+        _copy_file(src_path, dst_path)
+        remember_sha256(dst_path, shard["sha256"])
+        entries.append(dict(shard))
+    m_dst = load_manifest_for_write(dst)
+    if info:
+        m_dst["tables"][table] = {"rows": sum(e["rows"] for e in entries), "shards": entries}
+        if table in m_src.get("configs", {}):
+            config = json.loads(json.dumps(m_src["configs"][table]))
+            fp = config.get("fingerprint") or {}
+            if fp.get("inputs_from") == ".":  # made from the input dataset's tables, not from ours
+                fp["inputs_from"] = str(src.resolve())
+            m_dst["configs"][table] = config
+    else:
+        m_dst["tables"].pop(table, None)
+        m_dst["configs"].pop(table, None)
     save_manifest(dst, m_dst)
+    kept = {e["path"] for e in entries}
+    for s in old:
+        if s["path"] not in kept:
+            try:
+                stale = entry_path(dst, s["path"])
+            except DatasetError:
+                continue
+            if stale.is_file():
+                stale.unlink()
+
+
+def _check_arguments(in_dir: Path, out_dir: Path, faces: int, backend: str, jobs: int, flush_every: int) -> None:
+    if isinstance(faces, bool) or not isinstance(faces, (int, np.integer)) or faces < MIN_FACES:
+        raise ValueError(f"faces: expected an integer >= {MIN_FACES}, got {faces!r}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
+    if jobs < 1 or flush_every < 1:
+        raise ValueError(f"jobs, flush_every: expected >= 1, got {jobs}, {flush_every}")
+    if in_dir.resolve() == out_dir.resolve():
+        raise ValueError("resample: IN_DATASET and OUT_DATASET must differ")
+    if out_dir.resolve().is_relative_to(in_dir.resolve()) or in_dir.resolve().is_relative_to(out_dir.resolve()):
+        raise ValueError(f"resample: OUT_DATASET {out_dir} and IN_DATASET {in_dir} must not contain one another")
+
+
+def _reusable_rows(out_dir: Path, config: dict, progress: bool) -> dict:
+    """Rows of ``out_dir`` made with the same fingerprints as ``config`` (by character ID).
+
+    Drops part shards of an interrupted run with other fingerprints. Refuses an ``out_dir``
+    holding a dataset that resample did not make.
+    """
+    if not (out_dir / MANIFEST).exists():
+        return {}
+    manifest = load_manifest_for_write(out_dir)
+    final_config = manifest["configs"].get("characters")
+    pending = manifest.get("pending") or {}
+    if "characters" in manifest["tables"] and (final_config or {}).get("stage") != "resample" \
+            and pending.get("stage") != "resample":
+        made_by = (final_config or {}).get("stage") or (final_config or {}).get("generator") or "another stage"
+        raise DatasetError(f"{out_dir}: holds a dataset made by {made_by}, not by resample; choose an empty or "
+                           f"new OUT_DATASET (nothing was changed)")
+    shards = manifest["tables"].get("characters", {}).get("shards", [])
+    part_splits = sorted({s["split"] for s in shards if s["split"].startswith(PART)})
+    final_splits = sorted({s["split"] for s in shards if not s["split"].startswith(PART)})
+    done: dict = {}
+    why = fingerprint_mismatch(final_config, config) if final_splits else None
+    if final_splits and why is None:
+        for split in final_splits:
+            done.update((r.character_id, r) for r in read_records(out_dir, "characters", split, allow_incomplete=True))
+    elif final_splits and progress:
+        print(f"resample: {out_dir} holds a run that does not match ({why}); redoing every character "
+              f"(the old rows are replaced when this run has produced some)")
+    why_parts = fingerprint_mismatch(pending.get("config"), config) if part_splits else None
+    for split in part_splits:
+        if why_parts is None:
+            done.update((r.character_id, r) for r in read_records(out_dir, "characters", split, allow_incomplete=True))
+        else:
+            remove_split(out_dir, "characters", split)
+    if part_splits and why_parts is not None and progress:
+        print(f"resample: dropped the parts of an interrupted run that does not match ({why_parts})")
+    return done
 
 
 def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
-                     progress: bool = True) -> dict:
-    """Resample every character of ``in_dir`` into ``out_dir`` (a re-run keeps finished ones).
+                     progress: bool = True, flush_every: int = 8, flush_seconds: float = 60.0) -> dict:
+    """Resample every character of ``in_dir`` into ``out_dir``, writing finished work as it goes.
 
     Characters that fail get a status row (split ``resample``) with the reason and are left out;
     skeleton-only characters (no mesh) are copied as they are. The motions table (and pairs, if
-    any) are copied unchanged.
+    any) are copied unchanged (verified against the input's manifest). A re-run resumes: rows
+    made from the same input tables with the same faces and backend are kept, others redone.
+
+    Args:
+        flush_every, flush_seconds: write finished characters after this many, or this long.
 
     Returns:
         Summary: counts, failures, mean Hausdorff and transfer error (% of height), seconds.
+
+    Raises:
+        ValueError: a bad argument.
+        DatasetError: ``in_dir`` is not a dataset or has no characters; ``out_dir`` holds a
+            dataset not made by resample; every character failed (``out_dir`` is then left as it
+            was).
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
-    if in_dir.resolve() == out_dir.resolve():
-        raise ValueError("resample: IN_DATASET and OUT_DATASET must differ")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    records = read_records(in_dir, "characters")
-    done = {}
-    if has_table(out_dir, "characters"):
-        done = {r.character_id: r for r in read_records(out_dir, "characters")
-                if (r.meta or {}).get("resample", {}).get("faces_out") is not None or len(r.faces) == 0}
+    _check_arguments(in_dir, out_dir, faces, backend, jobs, flush_every)
+    records = read_records(in_dir, "characters")  # DatasetError when IN is not a dataset
+    if not records:
+        raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
+    inputs = [t for t in ("characters", "motions") if has_table(in_dir, t)]
     motions: dict[str, list] = {}
-    if has_table(in_dir, "motions"):
+    if "motions" in inputs:
         for m in read_records(in_dir, "motions"):
             motions.setdefault(m.character_id, []).append(m)
+    config = stage_config({"stage": "resample", "faces": int(faces), "backend": backend},
+                          tables_fingerprint(in_dir, inputs), inputs_from=str(in_dir.resolve()),
+                          info={"source": str(in_dir)})
+    existed = (out_dir / MANIFEST).exists()
+    done = _reusable_rows(out_dir, config, progress)
+    before = load_manifest_for_write(out_dir) if existed else None
+    mark_incomplete(out_dir, "resample", config)
+
     todo = [r for r in records if r.character_id not in done and len(r.faces) > 0]
+    parts = sorted({s["split"] for s in load_manifest_for_write(out_dir)["tables"].get("characters", {})
+                    .get("shards", []) if s["split"].startswith(PART)})
+    next_part = [int(parts[-1][len(PART):]) + 1 if parts else 0]
+    buffer: list = []
+    last_flush = [time.monotonic()]
+
+    def flush() -> None:
+        if buffer:
+            write_records(out_dir, "characters", buffer, split=f"{PART}{next_part[0]:05d}", rows_per_shard=500)
+            next_part[0] += 1
+            buffer.clear()
+        last_flush[0] = time.monotonic()
+
+    def on_done(i, ok, result) -> None:
+        if ok:
+            buffer.append(result)
+        if len(buffer) >= flush_every or time.monotonic() - last_flush[0] >= flush_seconds:
+            flush()
+
     results, statuses = run_stage([(r, motions.get(r.character_id, [])) for r in todo],
                                   partial(_one, faces=faces, backend=backend), "resample",
-                                  name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress)
+                                  name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress,
+                                  on_done=on_done)
+    flush()
     by_id = dict(done)
     by_id.update({r.character_id: r for r in results})
-    by_id.update({r.character_id: r for r in records if len(r.faces) == 0})
-    config = {"stage": "resample", "faces": faces, "backend": backend, "source": str(in_dir)}
+    meshless = {r.character_id: r for r in records if len(r.faces) == 0}
+    meshed = {r.character_id for r in records} - set(meshless)
+    if meshed and not any(cid in by_id for cid in meshed):
+        _restore(out_dir, before)
+        reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
+        raise DatasetError(f"resample: every character failed ({reasons}{'; ...' if len(statuses) > 3 else ''}); "
+                           f"{out_dir} left as it was" + ("" if existed else " (nothing written)"))
+    by_id.update(meshless)
+
     for split in splits_of(in_dir, "characters"):
         rows = [by_id[r.character_id] for r in records if r.split == split and r.character_id in by_id]
-        write_records(out_dir, "characters", rows, split=split, rows_per_shard=500, config=config)
-    old = read_records(out_dir, "status", "resample") if has_table(out_dir, "status", "resample") else []
-    kept = [s for s in old if s.asset not in {t.asset for t in statuses}]
+        write_records(out_dir, "characters", rows, split=split, rows_per_shard=500)
+    wanted = set(splits_of(in_dir, "characters"))
+    for split in splits_of(out_dir, "characters", allow_incomplete=True):
+        if split not in wanted:  # parts, and splits of an earlier run the input no longer has
+            remove_split(out_dir, "characters", split)
     skipped = [StatusRecord(cid, "resample", "skipped", "already resampled", 0.0) for cid in done]
-    write_records(out_dir, "status", kept + statuses + skipped if not kept else kept + statuses, split="resample")
-    for table in ("motions", "pairs"):
+    write_records(out_dir, "status", statuses + skipped, split="resample")
+    for table in COPIED_TABLES:
         _copy_table(in_dir, out_dir, table)
+    manifest = load_manifest_for_write(out_dir)
+    manifest["configs"]["characters"] = config
+    manifest["configs"]["status"] = config
+    manifest["complete"] = True
+    manifest.pop("pending", None)
+    save_manifest(out_dir, manifest)
     problems = validate_dataset(out_dir)
     if problems:
         raise RuntimeError("resample wrote an invalid dataset:\n" + "\n".join(problems))
@@ -93,3 +256,16 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     if progress:
         print(summarize_statuses(statuses))
     return summary
+
+
+def _restore(out_dir: Path, before: dict | None) -> None:
+    """Undo :func:`mark_incomplete` after a run that produced nothing: the old manifest, or no folder."""
+    if before is not None:
+        save_manifest(out_dir, before)
+        return
+    (out_dir / MANIFEST).unlink(missing_ok=True)
+    for folder in (out_dir / "characters", out_dir):
+        try:
+            folder.rmdir()  # only when empty
+        except OSError:
+            pass

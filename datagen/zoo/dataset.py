@@ -14,7 +14,9 @@ from datagen.zoo.export_obj import write_obj
 from datagen.zoo.motions import FPS, NUM_FRAMES
 from datagen.zoo.plan import assign_splits, plan_zoo
 from datagen.zoo.templates.humanoid import H2H_SKELETON_ID
-from schemas.manifest import atomic_write_bytes
+from schemas.errors import DatasetError
+from schemas.fingerprint import stage_config
+from schemas.manifest import MANIFEST, atomic_write_bytes, load_manifest_for_write, mark_complete, mark_incomplete
 from schemas.shards import SPLITS, write_records
 
 EXPORT_FORMATS = ("obj", "bvh")
@@ -35,6 +37,17 @@ def export_character(out: Path, built: BuiltCharacter, export: tuple[str, ...]) 
                       built.skeleton.tails, m.transforms, m.fps)
 
 
+def _refuse_foreign_dataset(out: Path) -> None:
+    """Raise DatasetError when ``out`` holds characters that the zoo did not make."""
+    if not (out / MANIFEST).exists():
+        return
+    manifest = load_manifest_for_write(out)
+    made_by = (manifest["configs"].get("characters") or {})
+    if "characters" in manifest["tables"] and made_by.get("generator") != "mimicbench.zoo":
+        raise DatasetError(f"{out}: holds a dataset made by {made_by.get('stage') or 'another stage'}, not by the "
+                           f"zoo; choose an empty or new --out folder (nothing was changed)")
+
+
 def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str] | None = None,
               clips_per_character: int = 3, export: tuple[str, ...] = (), progress: bool = True) -> dict:
     """Generate a procedural zoo into ``out_dir``.
@@ -42,7 +55,12 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     Writes ``characters/`` and ``motions/`` shards (one set per split; an empty split gets an
     empty shard so a rebuild replaces older data), a ``status`` table (split ``zoo``, one row a
     character; seconds are left 0 so the data is byte-identical for a seed), ``manifest.json``
-    with the build config, ``CARD.md``, and with ``export`` the .obj/.bvh files.
+    with the build config and its fingerprint, ``CARD.md``, and with ``export`` the .obj/.bvh files.
+    While writing, the manifest says ``"complete": false``.
+
+    A zoo in which every character failed writes nothing: an existing dataset in ``out_dir`` is
+    left untouched and :class:`DatasetError` says why. A folder holding a dataset that the zoo did
+    not make (ingested assets, a resampled copy) is refused rather than overwritten.
 
     Returns:
         A summary dict: ``characters``, ``motions``, ``frames``, ``failed``, ``by_category``,
@@ -56,10 +74,14 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         raise ValueError(f"export: unknown format(s) {bad}; expected some of {EXPORT_FORMATS}")
     if clips_per_character < 1:
         raise ValueError(f"clips_per_character: expected >= 1, got {clips_per_character}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     specs = plan_zoo(num_characters, seed, categories)
+    if not specs:
+        raise ValueError(f"num_characters: expected >= 1, got {num_characters}")
     splits = assign_splits(specs)
+    _refuse_foreign_dataset(out)
 
     def work(spec):
         built = build_character(spec, splits[spec.character_id], clips_per_character)
@@ -68,19 +90,26 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         return built.record, built.motions
 
     results, statuses = run_stage(specs, work, "zoo", name_of=lambda s: s.character_id, progress=progress)
+    if not results:
+        reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
+        raise DatasetError(f"zoo: every one of the {len(specs)} characters failed ({reasons}"
+                           f"{'; ...' if len(statuses) > 3 else ''}); nothing written, {out} left as it was")
     for s in statuses:
         s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
     characters = [r for r, _ in results]
     motions = [m for _, ms in results for m in ms]
-    config = {"generator": "mimicbench.zoo", "zoo_version": ZOO_VERSION, "seed": int(seed),
-              "num_characters": int(num_characters), "categories": list(categories) if categories else None,
-              "clips_per_character": int(clips_per_character), "fps": FPS, "frames_per_clip": NUM_FRAMES,
-              "h2h_skeleton_id": H2H_SKELETON_ID, "split_rule": SPLIT_RULE}
+    config = stage_config(
+        {"stage": "zoo", "generator": "mimicbench.zoo", "zoo_version": ZOO_VERSION, "seed": int(seed),
+         "num_characters": int(num_characters), "categories": list(categories) if categories else None,
+         "clips_per_character": int(clips_per_character), "fps": FPS, "frames_per_clip": NUM_FRAMES,
+         "h2h_skeleton_id": H2H_SKELETON_ID, "split_rule": SPLIT_RULE}, inputs={})
+    mark_incomplete(out, "zoo", config)
     for split in SPLITS:
         write_records(out, "characters", [c for c in characters if c.split == split], split, config=config)
         write_records(out, "motions", [m for m in motions if m.split == split], split, rows_per_shard=500,
                       config=config)
     write_records(out, "status", statuses, split="zoo", config=config)
+    mark_complete(out)
     split_counts = {s: sum(1 for c in characters if c.split == s) for s in SPLITS}
     family = sum(1 for c in characters if c.skeleton_id == H2H_SKELETON_ID)
     stats = zoo_stats(characters, motions)
