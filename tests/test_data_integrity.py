@@ -170,7 +170,7 @@ def test_a_zoo_where_every_character_fails_leaves_the_existing_zoo_untouched(tmp
     import datagen.zoo.dataset as zoo_dataset
 
     out = tmp_path / "zoo"
-    assert main(["zoo", "--out", str(out), "--characters", "2", "--quiet"]) == 0
+    assert main(["zoo", "--out", str(out), "--characters", "2", "--quiet", "--no-contact-sheet"]) == 0
     capsys.readouterr()
     before = snapshot(out)
     with pytest.raises(SystemExit) as exc:  # the CLI refuses a negative seed up front
@@ -181,7 +181,8 @@ def test_a_zoo_where_every_character_fails_leaves_the_existing_zoo_untouched(tmp
         raise RuntimeError(f"cannot build {spec.character_id}")
 
     monkeypatch.setattr(zoo_dataset, "build_character", broken)
-    code, err = cli(["zoo", "--out", str(out), "--characters", "3", "--seed", "4", "--quiet"], capsys)
+    code, err = cli(["zoo", "--out", str(out), "--characters", "3", "--seed", "4", "--quiet", "--no-contact-sheet"],
+                    capsys)
     assert code == 2 and "every one of the 3 characters failed" in err and "cannot build zoo/" in err
     assert snapshot(out) == before and validate_dataset(out) == []
 
@@ -189,7 +190,7 @@ def test_a_zoo_where_every_character_fails_leaves_the_existing_zoo_untouched(tmp
 def test_zoo_and_resample_refuse_to_overwrite_a_dataset_another_stage_made(tube, tmp_path, capsys):
     src = toy_dataset(tmp_path / "in", tube)
     before = snapshot(src)
-    code, err = cli(["zoo", "--out", str(src), "--characters", "2", "--quiet"], capsys)
+    code, err = cli(["zoo", "--out", str(src), "--characters", "2", "--quiet", "--no-contact-sheet"], capsys)
     assert code == 2 and "not by the zoo" in err
     other = toy_dataset(tmp_path / "other", tube)
     code, err = cli(["datagen", "resample", str(other), str(src), "--quiet"], capsys)
