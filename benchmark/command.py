@@ -43,10 +43,14 @@ def register(subparsers) -> None:
     r.set_defaults(func=run_run)
 
     lb = sub.add_parser("leaderboard", help="write leaderboard.md/.csv/.json/.html from results",
-                        description="Aggregate RESULTS into a leaderboard (Markdown, CSV, JSON, HTML with plots). "
-                        "Methods with failed or missing cases show their counts and no average.")
+                        description="Aggregate RESULTS into a leaderboard (Markdown, CSV, JSON, HTML with plots): per protocol "
+                        "a method x category matrix of the headline metric, plots per category, and rendered strips of "
+                        "a few sampled cases (source, ground truth, every method's prediction) through Blender. "
+                        "Methods with failed, missing or unsupported cases show their counts and no average.")
     lb.add_argument("results")
     lb.add_argument("--out", default=None, help="folder for the files (default: RESULTS)")
+    lb.add_argument("--no-pictures", action="store_true",
+                    help="skip the rendered strips of sampled cases (they need Blender, about 30 s)")
     lb.set_defaults(func=run_leaderboard)
 
     ls = sub.add_parser("methods", help="list the registered methods")
@@ -83,7 +87,7 @@ def run_leaderboard(args) -> int:
     from benchmark.leaderboard import markdown_tables, write_leaderboard
     from benchmark.aggregate import aggregate
 
-    paths = write_leaderboard(args.results, args.out)
+    paths = write_leaderboard(args.results, args.out, pictures=not args.no_pictures)
     print(markdown_tables(aggregate(args.results)))
     print("wrote " + ", ".join(str(p) for p in paths.values()))
     return 0

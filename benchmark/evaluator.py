@@ -20,6 +20,7 @@ from benchmark.registry import get_method
 from benchmark.request import TransferRequest
 from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.rigs import load_characters
+from benchmark.samples import SampleSink
 from benchmark.scoring import check_prediction, score_cycle, score_h2h
 from mimicbench.skinning import linear_blend_skinning
 from schemas.result import ResultRecord
@@ -118,8 +119,9 @@ def _posed(char, transforms):
     return linear_blend_skinning(r.vertices, r.keypoints, r.weights, transforms)
 
 
-def evaluate_batch(method, cases, chars, pairs) -> list[ResultRecord]:
-    """Score one batch of cases (one protocol) and return their rows."""
+def evaluate_batch(method, cases, chars, pairs, samples=None) -> list[ResultRecord]:
+    """Score one batch of cases (one protocol) and return their rows; ``samples`` (a
+    :class:`benchmark.samples.SampleSink`) keeps the predictions of the sampled cases for pictures."""
     protocol = cases[0].protocol
     src = [chars[c.source_id] for c in cases]
     tgt = [chars[c.target_id] for c in cases]
@@ -134,6 +136,8 @@ def evaluate_batch(method, cases, chars, pairs) -> list[ResultRecord]:
 
     fwd = _call(method, [request(s, p, t, c) for s, p, t, c in zip(src, posed_src, tgt, cases)],
                 [len(t.rig.vertices) for t in tgt])
+    if samples is not None:  # predictions of a few sampled cases, for the leaderboard's pictures
+        samples.keep(cases, fwd)
     rows = []
     if protocol == "h2h":
         for c, t, (pred, err, sec) in zip(cases, tgt, fwd):
@@ -146,6 +150,8 @@ def evaluate_batch(method, cases, chars, pairs) -> list[ResultRecord]:
     back = _call(method, [request(tgt[i], fwd[i][0], src[i], cases[i]) for i in ok],
                  [len(src[i].rig.vertices) for i in ok]) if ok else []
     back_of = dict(zip(ok, back))
+    if samples is not None:
+        samples.keep([cases[i] for i in ok], back, leg="returned")
     for i, c in enumerate(cases):
         pred, err, sec = fwd[i]
         if err:
@@ -188,6 +194,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = PR
             method.on_distributed_init(ctx.rank, ctx.world_size)
             folder = method_dir(out, method.metadata.name, method.metadata.version)
             done = done_case_ids(folder, include_failed=not retry_failed) if folder.exists() else set()
+            samples = SampleSink(folder, cases)
             for protocol, plist in cases.items():
                 mine = [c for i, c in enumerate(plist) if i % ctx.world_size == ctx.rank]
                 todo = [c for c in mine if c.case_id not in done]
@@ -195,7 +202,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = PR
                 bar = tqdm(total=len(todo), desc=f"{method.metadata.name}/{protocol}", unit="case",
                            disable=not progress or not todo)
                 for start in range(0, len(todo), batch_size):
-                    rows = evaluate_batch(method, todo[start:start + batch_size], chars, pairs)
+                    rows = evaluate_batch(method, todo[start:start + batch_size], chars, pairs, samples)
                     append_results(folder, rows, ctx.rank)
                     counts["computed"] += len(rows)
                     counts["failed"] += sum(r.status != "ok" for r in rows)

@@ -1,112 +1,279 @@
-"""Write the leaderboard: Markdown, CSV, JSON and a self-contained HTML page with plots."""
+"""Write the leaderboard: Markdown, CSV, JSON and a self-contained HTML page with plots and pictures.
+
+Per protocol: the method x category matrix of the headline metric (with an ``all`` column and a
+"missing / failed / not supported" column), a plot per category (log axis when one category is
+far off), the summary of every metric, and rendered strips of a few sampled cases (see
+:mod:`benchmark.leaderboard_strips`). Then each method's licence, citation and provenance.
+Files: ``leaderboard.md``, ``.csv`` (one row per protocol and method), ``leaderboard_matrix.csv``
+(one row per protocol, method and category), ``.json`` (:func:`benchmark.aggregate.aggregate`),
+``.html`` (images embedded), and ``leaderboard_files/`` (the same images as PNG files, which the
+Markdown links to).
+"""
 from __future__ import annotations
 
 import base64
 import csv
 import html
-import io
 import json
+import math
 from pathlib import Path
 
-from benchmark.aggregate import aggregate
+from benchmark.aggregate import ALL, aggregate
 
-COLUMNS = (("method", "method"), ("version", "version"), ("cases", "cases"), ("failed", "failed"),
-           ("missing", "missing"), ("pmd", "PMD x100"), ("pmd_squared", "PMD² x100"), ("els", "ELS"),
-           ("els_forward", "ELS fwd"), ("seconds_per_case", "s/case"))
-PROTOCOL_TITLES = {"h2h": "h2h: humanoid to humanoid, ground truth (PMD lower is better, ELS 1 is perfect)",
-                   "cct": "cct: cross-category cycle src -> tgt -> src (PMD of the return; ELS fwd on the target)"}
+FILES_DIR = "leaderboard_files"
+PROTOCOL_TITLES = {"h2h": "h2h: humanoid to humanoid, against ground truth",
+                   "cct": "cct: cross-category cycle, source -> target -> source (scored on the return)",
+                   "apparel": "apparel: motion transfer onto characters with apparel"}
+COUNT_COLUMNS = (("cases", "cases"), ("ok", "ok"), ("failed", "failed"), ("missing", "missing"),
+                 ("not_supported", "not supported"))
+STATUS_HEADER = "missing / failed / not supported"
 
 
-def _fmt(value, key) -> str:
+def _fmt(value, key: str = "") -> str:
     if value is None:
         return "—"
     if isinstance(value, float):
-        return f"{value:.4f}" if key in ("seconds_per_case",) else f"{value:.3f}"
+        return f"{value:.4f}" if key == "seconds_per_case" else f"{value:.3f}"
     return str(value)
 
 
-def markdown_tables(agg: dict) -> str:
-    """One Markdown table per protocol."""
+def _status(row: dict) -> str:
+    if row["missing"] == row["failed"] == row["not_supported"] == 0:
+        return "complete"
+    return f"{row['missing']} / {row['failed']} / {row['not_supported']}"
+
+
+def _one_line(text, limit: int = 120) -> str:
+    text = " ".join(str(text or "").split())
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _md_cell(text) -> str:
+    return str(text).replace("|", "\\|")
+
+
+def _short_fingerprints(fps) -> str:
+    if not fps:
+        return "—"
+    if isinstance(fps, dict):
+        return ", ".join(f"{k} {str(v)[:12]}" for k, v in sorted(fps.items()))
+    return str(fps)[:12]
+
+
+def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str = FILES_DIR) -> str:
+    """The leaderboard as Markdown: per protocol the matrix and the summary; then the methods."""
     lines = []
-    for protocol, entries in agg["protocols"].items():
-        lines.append(f"### {PROTOCOL_TITLES.get(protocol, protocol)}\n")
-        lines.append("| " + " | ".join(t for _, t in COLUMNS) + " |")
-        lines.append("|" + "---|" * len(COLUMNS))
-        for e in entries:
-            lines.append("| " + " | ".join(_fmt(e.get(k), k) for k, _ in COLUMNS) + " |")
+    metrics = [m for m in agg.get("metrics", []) if any(e.get(m) is not None for es in agg["protocols"].values()
+                                                          for e in es)] or agg.get("metrics", [])
+    for protocol, matrix in agg.get("matrix", {}).items():
+        head = matrix["headline"]
+        better = "lower is better" if matrix["lower_is_better"] else "higher is better"
+        lines += [f"### {PROTOCOL_TITLES.get(protocol, protocol)}", "",
+                  f"Mean `{head}` per category ({better}); `—`: no average (failed, missing or unsupported cases).", ""]
+        cols = matrix["columns"]
+        lines.append("| method | " + " | ".join(cols) + f" | {STATUS_HEADER} |")
+        lines.append("|---|" + "---:|" * len(cols) + "---|")
+        for row in matrix["rows"]:
+            cells = " | ".join(_fmt(row["cells"].get(c)) for c in cols)
+            lines.append(f"| {row['method']} v{row['version']} | {cells} | {_status(row)} |")
+        lines += ["", "All metrics (means over the protocol's cases):", ""]
+        header = ["method"] + [t for _, t in COUNT_COLUMNS] + metrics + ["s/case"]
+        lines.append("| " + " | ".join(header) + " |")
+        lines.append("|---|" + "---:|" * (len(header) - 1))
+        for e in agg["protocols"].get(protocol, []):
+            vals = [_fmt(e.get(k)) for k, _ in COUNT_COLUMNS] + [_fmt(e.get(m)) for m in metrics]
+            lines.append(f"| {e['method']} v{e['version']} | " + " | ".join(vals)
+                         + f" | {_fmt(e.get('seconds_per_case'), 'seconds_per_case')} |")
+        lines.append("")
+        for s in strips or []:
+            if s["protocol"] == protocol:
+                lines += [f"![{s['title']}]({files_dir}/{Path(s['path']).name})", ""]
+    methods = agg.get("methods", {})
+    if methods:
+        lines += ["### Methods", "", "| method | licence | citation | toolkit | dataset fingerprints | from |",
+                  "|---|---|---|---|---|---|"]
+        for key, m in methods.items():
+            lines.append(f"| {key} | {_md_cell(m.get('licence') or '—')} | {_md_cell(_one_line(m.get('citation')) or '—')} "
+                         f"| {m.get('toolkit_version') or '—'} | {_short_fingerprints(m.get('fingerprints'))} "
+                         f"| {m.get('source')} |")
         lines.append("")
     return "\n".join(lines)
 
 
-def _plot_png(agg: dict, protocol: str) -> str:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    cats = [c for c in agg["categories"].get(protocol, [])]
-    methods = sorted({c["method"] for c in cats})
-    keys = sorted({c["category"] for c in cats})
-    fig, axes = plt.subplots(1, 2, figsize=(12, 3.6))
-    width = 0.8 / max(1, len(methods))
-    for mi, m in enumerate(methods):
-        for ax, metric in zip(axes, ("pmd", "els")):
-            vals = [next((c[metric] for c in cats if c["method"] == m and c["category"] == k), None) for k in keys]
-            xs = [i + mi * width for i in range(len(keys))]
-            ax.bar(xs, [v if v is not None else 0 for v in vals], width, label=m)
-    els_values = [c["els"] for c in cats if c["els"] is not None]
-    if els_values:
-        axes[1].set_ylim(max(0.0, min(els_values) - 0.02), 1.0)
-    for ax, title in zip(axes, ("PMD x100 (lower is better)", "ELS (1 is perfect)")):
-        ax.set_xticks([i + 0.4 - width / 2 for i in range(len(keys))])
-        ax.set_xticklabels(keys, rotation=30, ha="right", fontsize=7)
-        ax.set_title(f"{protocol}: {title}", fontsize=9)
-    axes[0].legend(fontsize=7)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode()
+def _heat(values: list, lower_is_better: bool) -> list[str]:
+    """CSS background per value: green for the column's best, red for its worst, on a log scale
+    for positive values (so one far-off method does not flatten the rest); blank for None."""
+    nums = [v for v in values if v is not None]
+    if len(nums) < 2 or max(nums) == min(nums):
+        return ["" for _ in values]
+    use_log = min(nums) > 0
+    f = (lambda v: math.log(v)) if use_log else (lambda v: v)
+    lo, hi = f(min(nums)), f(max(nums))
+    out = []
+    for v in values:
+        if v is None:
+            out.append("")
+            continue
+        t = (f(v) - lo) / (hi - lo)
+        t = t if lower_is_better else 1 - t  # 0 best, 1 worst
+        r, g = int(200 + 55 * t), int(235 - 35 * t)
+        b = int(200 - 10 * t)
+        out.append(f"background:rgb({r},{g},{b})")
+    return out
 
 
-def html_page(agg: dict) -> str:
+def _img_tag(png: bytes, alt: str) -> str:
+    return f"<img alt='{html.escape(alt)}' src='data:image/png;base64,{base64.b64encode(png).decode()}'>"
+
+
+def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dict] | None = None,
+              note: str | None = None) -> str:
+    """The self-contained HTML page (images embedded as base64 PNG)."""
+    e = html.escape
+    metrics = agg.get("metrics", [])
     parts = ["<!doctype html><html><head><meta charset='utf-8'><title>mimicbench leaderboard</title>",
-             "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-             "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}"
-             "td:first-child{text-align:left}</style></head><body><h1>mimicbench leaderboard</h1>",
-             "<p>PMD x100: mean vertex distance in percent of the target's height. ELS: 1 - mean |edge "
-             "length ratio - 1|. A method with failed or missing cases shows no average (—).</p>"]
-    for protocol, entries in agg["protocols"].items():
-        parts.append(f"<h2>{html.escape(PROTOCOL_TITLES.get(protocol, protocol))}</h2><table><tr>")
-        parts.append("".join(f"<th>{html.escape(t)}</th>" for _, t in COLUMNS) + "</tr>")
-        for e in entries:
-            parts.append("<tr>" + "".join(f"<td>{html.escape(_fmt(e.get(k), k))}</td>" for k, _ in COLUMNS) + "</tr>")
+             "<style>body{font-family:sans-serif;margin:2em;max-width:1600px}table{border-collapse:collapse;"
+             "margin:.5em 0 1em}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}"
+             "td:first-child,th:first-child{text-align:left}td.status{text-align:left;color:#555}"
+             "figure{margin:1em 0}figcaption{font-size:90%;color:#444}img{max-width:100%}"
+             "pre{white-space:pre-wrap;margin:0;font-size:85%;text-align:left}</style></head><body>",
+             "<h1>mimicbench leaderboard</h1>"]
+    run = agg.get("run", {})
+    parts.append(f"<p>Dataset: <code>{e(str(run.get('dataset', '—')))}</code>. PMD x100: mean vertex distance in "
+                 "percent of the normalising size of the reference rest mesh; ELS: 1 - mean |edge length ratio - 1| "
+                 "(1 is perfect). A method with failed, missing or unsupported cases gets no average (—); the "
+                 f"<i>{STATUS_HEADER}</i> column counts them.</p>")
+    if note:
+        parts.append(f"<p><i>{e(note)}</i></p>")
+    if strips:
+        parts.append("<p>Pictures (Blender Workbench) of a few sampled cases a protocol: <span style='color:#5485cc'>"
+                     "posed source</span>, <span style='color:#5cb36b'>ground truth</span>, <span style='color:#ed9440'>"
+                     "each method's prediction</span>, <span style='color:#9e73c7'>the source each method returned"
+                     "</span> (cct), <span style='color:#999'>target at rest</span>. Panels on one character share a "
+                     "camera, so offsets show; a panel's note says when it had to be re-centred or zoomed out.</p>")
+    for protocol, matrix in agg.get("matrix", {}).items():
+        head, cols = matrix["headline"], matrix["columns"]
+        better = "lower is better" if matrix["lower_is_better"] else "higher is better"
+        parts.append(f"<section class='protocol' id='{e(protocol)}'><h2>{e(PROTOCOL_TITLES.get(protocol, protocol))}</h2>")
+        parts.append(f"<p>Mean <code>{e(head)}</code> per category ({better}).</p>")
+        parts.append("<table class='matrix'><tr><th>method</th>" + "".join(f"<th>{e(c)}</th>" for c in cols)
+                     + f"<th>{e(STATUS_HEADER)}</th></tr>")
+        shades = {c: _heat([r["cells"].get(c) for r in matrix["rows"]], matrix["lower_is_better"]) for c in cols}
+        for i, row in enumerate(matrix["rows"]):
+            tds = []
+            for c in cols:
+                n = row["counts"].get(c, {}).get("cases") if c != ALL else row["ok"] + row["failed"]
+                tip = f" title='{n} cases'" if n is not None else ""
+                tds.append(f"<td style='{shades[c][i]}'{tip}>{e(_fmt(row['cells'].get(c)))}</td>")
+            parts.append(f"<tr><td>{e(row['method'])} v{e(row['version'])}</td>" + "".join(tds)
+                         + f"<td class='status'>{e(_status(row))}</td></tr>")
         parts.append("</table>")
-        parts.append(f"<h3>per category</h3><img alt='{protocol} per category' "
-                     f"src='data:image/png;base64,{_plot_png(agg, protocol)}'>")
-        parts.append("<table><tr><th>method</th><th>category</th><th>cases</th><th>failed</th>"
-                     "<th>PMD x100</th><th>ELS</th></tr>")
-        for c in agg["categories"].get(protocol, []):
-            parts.append("<tr>" + "".join(f"<td>{html.escape(_fmt(c.get(k), k))}</td>"
-                                          for k in ("method", "category", "cases", "failed", "pmd", "els")) + "</tr>")
+        if plots and protocol in plots:
+            parts.append(f"<figure class='plot'>{_img_tag(plots[protocol], f'{protocol} per category')}"
+                         "<figcaption>Per category; a log axis when values span more than 10x.</figcaption></figure>")
+        present = [m for m in metrics if any(x.get(m) is not None for x in agg["protocols"].get(protocol, []))]
+        parts.append("<details><summary>all metrics</summary><table><tr><th>method</th>"
+                     + "".join(f"<th>{e(t)}</th>" for _, t in COUNT_COLUMNS)
+                     + "".join(f"<th>{e(m)}</th>" for m in present) + "<th>s/case</th><th>first error</th></tr>")
+        for x in agg["protocols"].get(protocol, []):
+            parts.append(f"<tr><td>{e(x['method'])} v{e(x['version'])}</td>"
+                         + "".join(f"<td>{e(_fmt(x.get(k)))}</td>" for k, _ in COUNT_COLUMNS)
+                         + "".join(f"<td>{e(_fmt(x.get(m)))}</td>" for m in present)
+                         + f"<td>{e(_fmt(x.get('seconds_per_case'), 'seconds_per_case'))}</td>"
+                         f"<td class='status'>{e(_one_line(x.get('first_error') or '', 80))}</td></tr>")
+        parts.append("</table></details>")
+        for s in strips or []:
+            if s["protocol"] == protocol:
+                parts.append(f"<figure class='strip'>{_img_tag(Path(s['path']).read_bytes(), s['title'])}</figure>")
+        parts.append("</section>")
+    methods = agg.get("methods", {})
+    if methods:
+        parts.append("<h2>Methods</h2><table class='methods'><tr><th>method</th><th>licence</th><th>citation</th>"
+                     "<th>description</th><th>toolkit</th><th>dataset fingerprints</th><th>created</th>"
+                     "<th>from</th></tr>")
+        for key, m in methods.items():
+            cite = m.get("citation") or ""
+            cite_html = f"<details><summary>{e(_one_line(cite, 60))}</summary><pre>{e(cite)}</pre></details>" \
+                if len(cite) > 60 or "\n" in cite else e(cite or "—")
+            parts.append(f"<tr><td>{e(key)}</td><td>{e(m.get('licence') or '—')}</td><td>{cite_html}</td>"
+                         f"<td>{e(m.get('description') or '—')}</td><td>{e(str(m.get('toolkit_version') or '—'))}</td>"
+                         f"<td>{e(_short_fingerprints(m.get('fingerprints')))}</td>"
+                         f"<td>{e(str(m.get('created') or '—'))}</td><td>{e(str(m.get('source')))}</td></tr>")
         parts.append("</table>")
+        fps = {json.dumps(m.get("fingerprints"), sort_keys=True) for m in methods.values() if m.get("fingerprints")}
+        if len(fps) > 1:
+            parts.append("<p><b>Warning:</b> the methods' results come from different dataset fingerprints.</p>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
-def write_leaderboard(results, out_dir=None) -> dict[str, Path]:
-    """Write leaderboard.md/.csv/.json/.html into ``out_dir`` (default: the results folder)."""
+def _els_metric(agg: dict, protocol: str) -> str | None:
+    for name in ("els", "els_forward"):
+        if any(c.get(name) is not None for c in agg["categories"].get(protocol, [])):
+            return name
+    return None
+
+
+def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str, Path]:
+    """Write the leaderboard files into ``out_dir`` (default: the results folder).
+
+    Args:
+        results: results folder (``<method>/<version>/part-*.parquet``, ``run.json``).
+        pictures: render strips of sampled cases through Blender; when Blender is missing or
+            fails, the page says why and everything else is still written.
+
+    Returns:
+        Paths by kind: ``md``, ``csv``, ``matrix_csv``, ``json``, ``html``, ``files`` (folder).
+    """
+    from benchmark.plots import protocol_figure_png
+
     agg = aggregate(results)
     out = Path(out_dir or results)
-    out.mkdir(parents=True, exist_ok=True)
+    files = out / FILES_DIR
+    files.mkdir(parents=True, exist_ok=True)
+    plots = {}
+    for protocol, matrix in agg["matrix"].items():
+        plots[protocol] = protocol_figure_png(protocol, matrix, agg["categories"].get(protocol, []),
+                                              _els_metric(agg, protocol))
+        (files / f"plot-{protocol}.png").write_bytes(plots[protocol])
+    strips, note = [], None
+    if pictures:
+        from benchmark.leaderboard_strips import build_strips, render_strips
+        from datagen.render.render import RenderError
+
+        todo, note = build_strips(results, agg)
+        try:
+            strips = render_strips(todo, files) if todo else []
+        except RenderError as exc:
+            note = f"no pictures: {exc}"
+    else:
+        note = "pictures not rendered (--no-pictures)"
     paths = {ext: out / f"leaderboard.{ext}" for ext in ("md", "csv", "json", "html")}
-    paths["md"].write_text("# mimicbench leaderboard\n\n" + markdown_tables(agg))
-    paths["json"].write_text(json.dumps(agg, indent=2) + "\n")
+    paths["matrix_csv"] = out / "leaderboard_matrix.csv"
+    paths["files"] = files
+    md = markdown_tables(agg, strips)
+    for protocol in plots:
+        md = md.replace(f"### {PROTOCOL_TITLES.get(protocol, protocol)}\n",
+                        f"### {PROTOCOL_TITLES.get(protocol, protocol)}\n\n![{protocol} per category]"
+                        f"({FILES_DIR}/plot-{protocol}.png)\n", 1)
+    paths["md"].write_text("# mimicbench leaderboard\n\n" + (f"_{note}_\n\n" if note else "") + md)
+    paths["json"].write_text(json.dumps(agg, indent=2, default=str) + "\n")
+    metrics = agg["metrics"]
     with open(paths["csv"], "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["protocol"] + [k for k, _ in COLUMNS] + ["complete", "first_error"])
+        w.writerow(["protocol", "method", "version"] + [k for k, _ in COUNT_COLUMNS] + metrics
+                   + ["seconds_per_case", "complete", "first_error"])
         for protocol, entries in agg["protocols"].items():
-            for e in entries:
-                w.writerow([protocol] + [e.get(k) for k, _ in COLUMNS] + [e["complete"], e["first_error"]])
-    paths["html"].write_text(html_page(agg))
+            for x in entries:
+                w.writerow([protocol, x["method"], x["version"]] + [x.get(k) for k, _ in COUNT_COLUMNS]
+                           + [x.get(m) for m in metrics] + [x["seconds_per_case"], x["complete"], x["first_error"]])
+    with open(paths["matrix_csv"], "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["protocol", "headline", "method", "version", "category", "value", "cases"])
+        for protocol, matrix in agg["matrix"].items():
+            for row in matrix["rows"]:
+                for c in matrix["columns"]:
+                    n = row["counts"].get(c, {}).get("cases") if c != ALL else row["ok"] + row["failed"]
+                    w.writerow([protocol, matrix["headline"], row["method"], row["version"], c, row["cells"].get(c), n])
+    paths["html"].write_text(html_page(agg, plots, strips, note))
     return paths

@@ -46,6 +46,21 @@ def test_fit_camera_frames_every_point():
         assert max(np.ptp(px[:, 0]) / w, np.ptp(px[:, 1]) / h) == pytest.approx(1 / MARGIN, rel=1e-6)
 
 
+def test_shared_frame_keeps_offsets_and_survives_an_outlier():
+    from datagen.render.render import GROUP_CAP, frame_panels
+
+    ref = box((0, 0, 0), (1, 1, 1))
+    near = box((0.1, 0, 0), (1.1, 1, 1))  # 10 cm off: stays in the shared frame, offset visible
+    far = box((50, 0, 0), (51, 1, 1))  # 50 m off: re-centred, with a note
+    huge = box((0, 0, 0), (30, 30, 30))  # exploded: its own zoom, the others keep theirs
+    panels = [Panel(*m, f"p{i}", frame="t") for i, m in enumerate((ref, near, far, huge))]
+    framed = frame_panels(panels, 100, 100)
+    scales = [c.ortho_scale for c, _ in framed]
+    assert scales[0] == scales[1] == scales[2] == pytest.approx(GROUP_CAP * fit_camera(ref[0], 100, 100).ortho_scale)
+    np.testing.assert_allclose(framed[0][0].location @ framed[0][0].right, framed[1][0].location @ framed[1][0].right)
+    assert framed[1][1] == "" and framed[2][1] == "re-centred: 50.00 m off" and framed[3][1].startswith("zoomed out")
+
+
 def test_panel_rejects_bad_input():
     v, f = box((0, 0, 0), (1, 1, 1))
     with pytest.raises(ValueError, match=r"expected vertices of shape \(N, 3\)"):
@@ -78,9 +93,9 @@ def _alpha_mask(img):
 def test_render_matches_orthographic_projection():
     """Silhouettes from Blender against the projection worked out here: the area of a unit cube's
     silhouette seen along unit d is |dx| + |dy| + |dz| m²; a small cube sharing the big one's
-    camera lands where the camera's own projection puts it."""
+    frame lands where the camera's own projection puts it."""
     from datagen.render.camera import VIEW_DIRECTION
-    from datagen.render.render import render_panels
+    from datagen.render.render import frame_panels, render_panels
 
     big = box((-0.5, 0, -0.5), (0.5, 1, 0.5))
     small = box((0.3, 0.8, 0.3), (0.5, 1.0, 0.5))
@@ -90,8 +105,10 @@ def test_render_matches_orthographic_projection():
     images = render_panels(panels, size, size)
     assert all(isinstance(i, np.ndarray) and i.shape == (size, size, 4) for i in images), images
     d = VIEW_DIRECTION / np.linalg.norm(VIEW_DIRECTION)
-    cam = fit_camera(np.concatenate([big[0], small[0]]), size, size)
-    px_per_m = size / cam.ortho_scale
+    cams = [c for c, _ in frame_panels(panels, size, size)]
+    assert cams[0].ortho_scale == cams[1].ortho_scale  # one frame: the small cube reads at the big one's scale
+    cam = cams[1]
+    px_per_m = size / cams[0].ortho_scale
     expected = np.abs(d).sum() * px_per_m ** 2
     assert _alpha_mask(images[0]).sum() == pytest.approx(expected, rel=0.05)
     ys, xs = np.nonzero(_alpha_mask(images[1]))

@@ -41,11 +41,17 @@ class OrthoCamera:
         return np.stack([width / 2 + x * px_per_m, height / 2 - y * px_per_m], axis=1)
 
 
-def fit_camera(points: np.ndarray, width: int, height: int, direction=VIEW_DIRECTION) -> OrthoCamera:
+def fit_camera(points: np.ndarray, width: int, height: int, direction=VIEW_DIRECTION, scale: float | None = None,
+               centre: np.ndarray | None = None) -> OrthoCamera:
     """The orthographic camera that frames (P, 3) points on a width x height image.
 
-    The points' projection is centred, and the camera's size is the larger of their projected
-    width and height (in image proportions) times :data:`MARGIN`.
+    Args:
+        points: (P, 3) metres, dataset frame; the camera stands in front of all of them.
+        direction: from the subject towards the camera (need not be unit length).
+        scale: ``ortho_scale`` to use (default: the larger of the points' projected width and
+            height, in image proportions, times :data:`MARGIN`).
+        centre: (3,) a point the image is centred on (default: the centre of the points'
+            projected bounding box).
     """
     pts = np.asarray(points, np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.isfinite(pts).all():
@@ -58,10 +64,16 @@ def fit_camera(points: np.ndarray, width: int, height: int, direction=VIEW_DIREC
     pr, pu, pb = pts @ right, pts @ up, pts @ back
     w, h = float(np.ptp(pr)), float(np.ptp(pu))
     extent = max(w, h, float(np.ptp(pb)), 1e-3)
-    aspect = width / height
-    scale = max(w, h * aspect) if width >= height else max(h, w / aspect)
-    scale = max(scale, 1e-3) * MARGIN
+    if scale is None:
+        aspect = width / height
+        scale = max(w, h * aspect) if width >= height else max(h, w / aspect)
+        scale = max(scale, 1e-3) * MARGIN
+    if centre is None:
+        cr, cu = (pr.min() + pr.max()) / 2, (pu.min() + pu.max()) / 2
+    else:
+        c = np.asarray(centre, np.float64)
+        cr, cu = float(c @ right), float(c @ up)
     distance = float(pb.max()) + extent  # in front of every point
-    location = right * (pr.min() + pr.max()) / 2 + up * (pu.min() + pu.max()) / 2 + back * distance
+    location = right * cr + up * cu + back * distance
     depth = distance - float(pb.min())
-    return OrthoCamera(location, right, up, back, scale, clip_start=extent * 1e-3, clip_end=depth + extent)
+    return OrthoCamera(location, right, up, back, float(scale), clip_start=extent * 1e-3, clip_end=depth + extent)

@@ -18,7 +18,7 @@ from typing import Sequence
 
 import numpy as np
 
-from datagen.render.camera import fit_camera
+from datagen.render.camera import OrthoCamera, fit_camera
 from datagen.render.panel import Panel
 
 PANEL_PX = 320
@@ -28,18 +28,56 @@ class RenderError(RuntimeError):
     """Blender could not render a job (bpy missing, the child crashed or timed out)."""
 
 
-def _cameras(panels: Sequence[Panel], width: int, height: int) -> tuple[list[dict], list[int]]:
-    """One camera per frame key, fitted to all the key's vertices; each panel's camera index."""
+GROUP_ROOM = 1.25  # a shared frame is this much larger than its largest member, so offsets show
+GROUP_CAP = 2.5  # ... but at most this many times the frame of its first member (the reference)
+
+
+def _bbox_centre(v: np.ndarray) -> np.ndarray:
+    return (v.min(axis=0) + v.max(axis=0)) / 2
+
+
+def frame_panels(panels: Sequence[Panel], width: int, height: int) -> list[tuple[OrthoCamera, str]]:
+    """A camera per panel, and a note ("" or why it deviates from its group's frame).
+
+    Panels sharing a ``frame`` key share one scale and one centre, the first member's (the
+    reference, e.g. the ground truth), so a prediction's offset and size read against it. The
+    shared scale fits the largest member with room to spare, capped at :data:`GROUP_CAP` times
+    the reference's, so one exploded prediction does not shrink the others to dots. A member
+    that would leave the frame is re-centred on itself (its note gives the offset in metres), and
+    one larger than the cap gets its own scale (its note says how much it was zoomed out).
+    """
     keys = [p.frame if p.frame is not None else f"__panel{i}" for i, p in enumerate(panels)]
-    order = list(dict.fromkeys(keys))
-    cams = []
-    for key in order:
-        pts = np.concatenate([p.vertices for p, k in zip(panels, keys) if k == key])
-        c = fit_camera(pts, width, height)
-        cams.append({"location": c.location.tolist(), "right": c.right.tolist(), "up": c.up.tolist(),
-                     "back": c.back.tolist(), "ortho_scale": c.ortho_scale, "clip_start": c.clip_start,
-                     "clip_end": c.clip_end})
-    return cams, [order.index(k) for k in keys]
+    own = [fit_camera(p.vertices, width, height) for p in panels]
+    out: list = [None] * len(panels)
+    for key in dict.fromkeys(keys):
+        members = [i for i, k in enumerate(keys) if k == key]
+        ref = members[0]
+        if len(members) == 1:
+            out[ref] = (own[ref], "")
+            continue
+        scale = min(GROUP_ROOM * max(own[i].ortho_scale for i in members), GROUP_CAP * own[ref].ortho_scale)
+        for i in members:
+            v = panels[i].vertices
+            cam = fit_camera(v, width, height, scale=scale, centre=own[ref].location)
+            px = cam.project(v, width, height)
+            if px[:, 0].min() >= 0 and px[:, 0].max() <= width and px[:, 1].min() >= 0 and px[:, 1].max() <= height:
+                out[i] = (cam, "")
+            elif own[i].ortho_scale <= scale:
+                off = float(np.linalg.norm(_bbox_centre(v) - _bbox_centre(panels[ref].vertices)))
+                out[i] = (fit_camera(v, width, height, scale=scale), f"re-centred: {off:.2f} m off")
+            else:
+                out[i] = (own[i], f"zoomed out {own[i].ortho_scale / scale:.1f}x")
+    return out
+
+
+def _camera_spec(c: OrthoCamera) -> dict:
+    return {"location": c.location.tolist(), "right": c.right.tolist(), "up": c.up.tolist(), "back": c.back.tolist(),
+            "ortho_scale": c.ortho_scale, "clip_start": c.clip_start, "clip_end": c.clip_end}
+
+
+def with_notes(labels: Sequence[str], notes: Sequence[str]) -> list[str]:
+    """Labels with each framing note (from :func:`frame_panels`) as a last line in brackets."""
+    return [f"{label}\n({note})" if note else label for label, note in zip(labels, notes)]
 
 
 def render_panels(panels: Sequence[Panel], width: int = PANEL_PX, height: int = PANEL_PX,
@@ -47,13 +85,13 @@ def render_panels(panels: Sequence[Panel], width: int = PANEL_PX, height: int = 
     """Render each panel with Blender (Workbench), all in one child process.
 
     Args:
-        panels: the meshes; panels sharing a ``frame`` key share a camera.
+        panels: the meshes; panels sharing a ``frame`` key share a camera (see :func:`frame_panels`).
         width, height: pixels of each panel.
         timeout: seconds for the whole job (default 120 + 15 a panel).
 
     Returns:
         Per panel, an (height, width, 4) uint8 RGBA image (transparent background), or a string
-        saying why that panel failed.
+        ``render failed: ...`` saying why that panel failed.
 
     Raises:
         RenderError: bpy is not installed, or the Blender process crashed or timed out.
@@ -64,7 +102,7 @@ def render_panels(panels: Sequence[Panel], width: int = PANEL_PX, height: int = 
         raise RenderError("rendering needs Blender's Python module bpy; install the `blender` extra "
                           "(pip install 'mimicbench[blender]', Python 3.11)")
     timeout = 120.0 + 15.0 * len(panels) if timeout is None else timeout
-    cams, cam_of = _cameras(panels, width, height)
+    cams = [_camera_spec(c) for c, _ in frame_panels(panels, width, height)]
     with tempfile.TemporaryDirectory(prefix="mimicbench-render-") as tmp:
         tmp = Path(tmp)
         arrays = {}
@@ -72,7 +110,7 @@ def render_panels(panels: Sequence[Panel], width: int = PANEL_PX, height: int = 
             arrays[f"v{i}"], arrays[f"f{i}"] = p.vertices, p.faces
         np.savez(tmp / "meshes.npz", **arrays)
         job = {"meshes": str(tmp / "meshes.npz"), "width": width, "height": height, "cameras": cams,
-               "panels": [{"mesh": i, "colour": list(p.colour), "camera": cam_of[i], "out": str(tmp / f"panel{i}.png")}
+               "panels": [{"mesh": i, "colour": list(p.colour), "camera": i, "out": str(tmp / f"panel{i}.png")}
                           for i, p in enumerate(panels)]}
         job_file = tmp / "job.json"
         job_file.write_text(json.dumps(job))
@@ -98,7 +136,7 @@ def render_panels(panels: Sequence[Panel], width: int = PANEL_PX, height: int = 
             if status["ok"] and png.exists():
                 out.append(np.asarray(Image.open(png).convert("RGBA")))
             else:
-                out.append(status["error"] or "no image written")
+                out.append(f"render failed: {status['error'] or 'no image written'}")
         return out
 
 
@@ -109,12 +147,19 @@ def _font(size: int):
     return ImageFont.truetype(font_manager.findfont("DejaVu Sans"), size)
 
 
+def _wrap(text: str, width: int) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width)[:8])
+
+
 def compose_sheet(images: Sequence[np.ndarray | str], labels: Sequence[str], columns: int | None = None,
                   title: str | None = None, width: int = PANEL_PX, height: int = PANEL_PX):
     """Lay out rendered panels in a grid, each labelled above, on white; returns a PIL RGB image.
 
     Args:
-        images: per panel an (H, W, 4) uint8 RGBA image, or a string (why it failed; drawn as text).
+        images: per panel an (H, W, 4) uint8 RGBA image, or a string drawn as text in a red box
+            (why there is no picture).
         labels: per panel its label (newlines allowed).
         columns: panels a row (default: all in one row).
         title: optional line above the grid.
@@ -141,8 +186,8 @@ def compose_sheet(images: Sequence[np.ndarray | str], labels: Sequence[str], col
             draw.text((x + max(4, (width - tw) / 2), y + 3 + j * line_h), line, fill=(30, 30, 30), font=font)
         if isinstance(img, str):
             draw.rectangle((x + 4, y + label_h, x + width - 4, y + label_h + height - 4), outline=(200, 60, 60))
-            draw.multiline_text((x + 10, y + label_h + 10), "render failed:\n" + img[:120], fill=(200, 60, 60),
-                                font=font)
+            draw.multiline_text((x + 10, y + label_h + 10), _wrap(img, max(12, width // (font.size // 2 + 1))),
+                                fill=(200, 60, 60), font=font)
         else:
             tile = Image.fromarray(np.asarray(img, np.uint8), "RGBA")
             if tile.size != (width, height):
@@ -159,7 +204,8 @@ def render_sheet(panels: Sequence[Panel], out_png, columns: int | None = None, t
         RenderError: see :func:`render_panels`.
     """
     images = render_panels(panels, width, height, timeout)
-    sheet = compose_sheet(images, [p.label for p in panels], columns, title, width, height)
+    notes = [note for _, note in frame_panels(panels, width, height)]
+    sheet = compose_sheet(images, with_notes([p.label for p in panels], notes), columns, title, width, height)
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp.png")
