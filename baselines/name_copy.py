@@ -2,18 +2,19 @@
 
 Source transforms are estimated from the posed source vertices (weighted Kabsch); target bones
 with no same-named source bone keep their rest orientation relative to their parent; the root's
-displacement is scaled by the ratio of heights. Exact up to estimation error on a shared skeleton.
+displacement is scaled by the ratio of sizes (largest rest extents). Exact up to estimation error
+on a shared skeleton.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from baselines.posing import height_ratio, inherit_unmatched, pose_target, source_pose
+from baselines.posing import inherit_unmatched, pose_target, size_ratio, source_pose
 from benchmark.method import MethodMetadata, PoseTransferMethod
 
 
 class NameCopy(PoseTransferMethod):
-    metadata = MethodMetadata(name="name_copy", version="1", licence="MIT",
+    metadata = MethodMetadata(name="name_copy", version="2", licence="MIT",
                               description="rotations copied between bones of the same name")
 
     def transfer(self, requests):
@@ -34,5 +35,5 @@ class NameCopy(PoseTransferMethod):
         src_root = int(np.flatnonzero(r.source.parents < 0)[0])
         tgt_root_name = r.target.bone_names[int(np.flatnonzero(r.target.parents < 0)[0])]
         k = index.get(tgt_root_name, src_root)
-        disp = (t_src[k] - r.source.keypoints[k]) * height_ratio(r)
+        disp = (t_src[k] - r.source.keypoints[k]) * size_ratio(r)
         return pose_target(r.target, q, disp)

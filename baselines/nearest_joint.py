@@ -10,14 +10,14 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from baselines.posing import height_ratio, inherit_unmatched, pose_target, source_pose
+from baselines.posing import inherit_unmatched, pose_target, size_ratio, source_pose
 from benchmark.method import MethodMetadata, PoseTransferMethod
 from mimicbench.hungarian import hungarian_match
 from mimicbench.mesh import normalize_unit_height
 
 
 class NearestJoint(PoseTransferMethod):
-    metadata = MethodMetadata(name="nearest_joint", version="1", licence="MIT",
+    metadata = MethodMetadata(name="nearest_joint", version="2", licence="MIT",
                               description="Hungarian matching of unit-height rest joints")
 
     def transfer(self, requests):
@@ -35,5 +35,5 @@ class NearestJoint(PoseTransferMethod):
         matched[pairs[:, 1]] = True
         q = inherit_unmatched(q, matched, r.target.parents)
         src_root = int(np.flatnonzero(r.source.parents < 0)[0])
-        disp = (t_src[src_root] - r.source.keypoints[src_root]) * height_ratio(r)
+        disp = (t_src[src_root] - r.source.keypoints[src_root]) * size_ratio(r)
         return pose_target(r.target, q, disp)

@@ -27,9 +27,12 @@ def source_pose(request: TransferRequest) -> tuple[np.ndarray, np.ndarray]:
     return q, t
 
 
-def height_ratio(request: TransferRequest) -> float:
-    """Target height / source height (rest meshes)."""
-    return request.target.height / max(request.source.height, 1e-12)
+def size_ratio(request: TransferRequest) -> float:
+    """Target size / source size: the rest meshes' largest bounding-box sides (the benchmark's
+    size, :func:`benchmark.normalisation.size_ratio`). Heights would not do: a snake's height is
+    its thickness, so a humanoid's steps would shrink 30-fold on it and a snake's grow 30-fold on
+    a humanoid."""
+    return request.target.size / request.source.size
 
 
 def pose_target(target: Rig, global_rotations: np.ndarray, root_displacement: np.ndarray) -> np.ndarray:

@@ -15,11 +15,19 @@ def register(subparsers) -> None:
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
     c = sub.add_parser("cases", help="make deterministic h2h and cct cases (cases/ table)",
-                       description="Make benchmark cases from one split: h2h (humanoids sharing a skeleton, "
-                       "ground truth by forward kinematics) and cct (cross-category, scored by cycle consistency).")
+                       description="Make benchmark cases from one split: h2h, same-skeleton transfer (characters "
+                       "of any category that share a skeleton_id; ground truth carries the source's local rotations "
+                       "and size-scaled local translations over) and cct (cross-category pairs with a humanoid on "
+                       "one side, scored by cycle consistency). Example:\n"
+                       "  mimicbench bench cases data/zoo5k --split all --h2h-pairs 50\n"
+                       "  mimicbench bench cases data/zoo5k --all-pairs     # every pair, across splits",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("dataset")
-    c.add_argument("--split", default="test", help="characters to use: train, val, test or all (default test)")
-    c.add_argument("--h2h-pairs", type=int, default=100, help="ordered humanoid pairs (default 100)")
+    c.add_argument("--split", default=None, help="characters to use: train, val, test or all (default test)")
+    c.add_argument("--all-pairs", action="store_true",
+                   help="every candidate pair of every protocol, across all splits (no sampling; "
+                   "--h2h-pairs and --cct-pairs do not apply; --split may only be 'all')")
+    c.add_argument("--h2h-pairs", type=int, default=100, help="ordered same-skeleton pairs (default 100)")
     c.add_argument("--h2h-poses", type=int, default=20, help="poses per h2h pair (default 20)")
     c.add_argument("--cct-pairs", type=int, default=300, help="cross-category pairs (default 300)")
     c.add_argument("--cct-poses", type=int, default=10, help="poses per cct pair (default 10)")
@@ -34,7 +42,8 @@ def register(subparsers) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("dataset")
     r.add_argument("--methods", required=True, help="comma-separated method names (see --list-methods)")
-    r.add_argument("--protocols", default="h2h,cct", help="comma-separated: h2h, cct (default both)")
+    r.add_argument("--protocols", default="h2h,cct",
+                   help="comma-separated protocols: h2h (same-skeleton), cct (cross-category cycle); default both")
     r.add_argument("--out", default="results", help="results folder (default results)")
     r.add_argument("--device", default="cpu", help="cpu or cuda[:i] (default cpu)")
     r.add_argument("--batch-size", type=int, default=16)
@@ -60,11 +69,18 @@ def register(subparsers) -> None:
 def run_cases(args) -> int:
     from benchmark.cases import build_cases, write_cases
 
-    cases = build_cases(args.dataset, args.split, args.h2h_pairs, args.h2h_poses, args.cct_pairs, args.cct_poses, args.seed)
-    counts = write_cases(args.dataset, cases, {"stage": "bench cases", **{k: v for k, v in vars(args).items() if k != "func"}})
+    if args.all_pairs and args.split not in (None, "all"):
+        print(f"error: --all-pairs takes every pair across all splits; it cannot be limited to --split {args.split}")
+        return 2
+    split = "all" if args.all_pairs else (args.split or "test")
+    cases = build_cases(args.dataset, split, args.h2h_pairs, args.h2h_poses, args.cct_pairs, args.cct_poses,
+                        args.seed, all_pairs=args.all_pairs)
+    config = {"stage": "bench cases", **{k: v for k, v in vars(args).items() if k != "func"}, "split": split}
+    counts = write_cases(args.dataset, cases, config)
     print(f"cases in {args.dataset}: " + ", ".join(f"{p} {n}" for p, n in counts.items()))
     if not any(counts.values()):
-        print("no cases: the split has no humanoid family (h2h) and no cross-category pairs (cct); try --split all")
+        print("no cases: no two characters share a skeleton_id (h2h) and there are no cross-category pairs (cct); "
+              "try --split all")
         return 1
     return 0
 
@@ -78,8 +94,8 @@ def run_run(args) -> int:
                             args.batch_size, progress=not args.quiet, retry_failed=args.retry_failed)
     if summary["rank"] == 0:
         print(markdown_tables(summary["aggregate"]))
-        print(f"{summary['computed']} cases computed ({summary['failed']} failed), {summary['skipped']} already "
-              f"done; results in {args.out}")
+        print(f"{summary['computed']} cases computed ({summary['failed']} failed, {summary['not_supported']} not "
+              f"supported by their method), {summary['skipped']} already done; results in {args.out}")
     return 0
 
 

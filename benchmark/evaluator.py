@@ -5,6 +5,10 @@ nccl on GPU), each rank appends its own result parts, and rank 0 aggregates once
 barrier. A re-run computes only the cases without a row. A method that raises, returns NaN or a
 wrong shape fails that case (the batch is retried one request at a time to find which) and the
 run goes on.
+
+The evaluator knows no protocol by name: each protocol module (:mod:`benchmark.protocols`) builds
+its requests and scores, and calls the method only through the ``call`` it is handed here
+(:func:`_call`). A method whose metadata does not list a protocol gets ``not_supported`` rows.
 """
 from __future__ import annotations
 
@@ -13,20 +17,18 @@ import time
 from dataclasses import dataclass
 from typing import Sequence
 
-import numpy as np
 from tqdm.auto import tqdm
 
+from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
+from benchmark.protocols.base import EvalData
 from benchmark.registry import get_method
 from benchmark.request import TransferRequest
 from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
-from benchmark.rigs import load_characters
 from benchmark.samples import SampleSink
-from benchmark.scoring import check_prediction, score_cycle, score_h2h
-from mimicbench.skinning import linear_blend_skinning
-from schemas.result import ResultRecord
+from benchmark.scoring import check_prediction
+from schemas.result import NOT_SUPPORTED, ResultRecord
 from schemas.shards import has_table, read_records
 
-PROTOCOLS = ("h2h", "cct")
 
 
 @dataclass
@@ -66,18 +68,11 @@ def load_cases(dataset, protocols: Sequence[str]):
     """Cases of each protocol, in stored order; raises if ``bench cases`` has not been run."""
     out = {}
     for p in protocols:
-        if p not in PROTOCOLS:
-            raise ValueError(f"unknown protocol {p!r}; expected one of {', '.join(PROTOCOLS)}")
+        get_protocol(p)  # raises on an unknown name
         if not has_table(dataset, "cases", p):
             raise FileNotFoundError(f"{dataset}: no {p} cases; run `mimicbench bench cases {dataset}` first")
         out[p] = read_records(dataset, "cases", p)
     return out
-
-
-def _pairs_lookup(dataset) -> dict[tuple[str, str], np.ndarray]:
-    if not has_table(dataset, "pairs"):
-        return {}
-    return {(r.source_id, r.target_id): r.m_sink for r in read_records(dataset, "pairs")}
 
 
 def _call(method, requests: list[TransferRequest], sizes: list[int]):
@@ -111,61 +106,42 @@ def _row(case, method, status, error, seconds, metrics=None) -> ResultRecord:
     m = metrics or {}
     return ResultRecord(case.case_id, case.protocol, method.metadata.name, method.metadata.version, status, error,
                         float(seconds), m.get("pmd"), m.get("pmd_squared"), m.get("els"), m.get("els_forward"),
-                        case.source_category, case.target_category)
+                        case.source_category, case.target_category, pmd_height=m.get("pmd_height"),
+                        pmd_extent=m.get("pmd_extent"), pmd_aligned=m.get("pmd_aligned"))
 
 
-def _posed(char, transforms):
-    r = char.rig
-    return linear_blend_skinning(r.vertices, r.keypoints, r.weights, transforms)
+def supports(method, protocol: str) -> bool:
+    """Whether the method's metadata lists ``protocol``."""
+    return protocol in getattr(method.metadata, "protocols", DEFAULT_PROTOCOLS)
 
 
-def evaluate_batch(method, cases, chars, pairs, samples=None) -> list[ResultRecord]:
-    """Score one batch of cases (one protocol) and return their rows; ``samples`` (a
-    :class:`benchmark.samples.SampleSink`) keeps the predictions of the sampled cases for pictures."""
-    protocol = cases[0].protocol
-    src = [chars[c.source_id] for c in cases]
-    tgt = [chars[c.target_id] for c in cases]
-    posed_src = [_posed(s, c.source_transforms) for s, c in zip(src, cases)]
+def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> list[ResultRecord]:
+    """Score one batch of cases of one protocol (a :class:`BenchmarkProtocol` or its name);
+    ``samples`` (a :class:`benchmark.samples.SampleSink`) keeps the predictions of the sampled
+    cases for pictures.
 
-    def request(a, posed, b, case):
-        extras = {}
-        if (a.rig.character_id, b.rig.character_id) in pairs:
-            k1, k2 = len(a.rig.parents), len(b.rig.parents)
-            extras["m_sink"] = np.asarray(pairs[(a.rig.character_id, b.rig.character_id)]).reshape(k1, k2)
-        return TransferRequest(a.rig, posed, b.rig, case.case_id, extras)
+    A method whose metadata does not list the protocol gets ``not_supported`` rows and is not
+    called.
+    """
+    if isinstance(protocol, str):
+        protocol = get_protocol(protocol)
+    if not supports(method, protocol.name):
+        reason = f"{method.metadata.name} does not support the {protocol.name} protocol (metadata.protocols)"
+        return [_row(c, method, NOT_SUPPORTED, reason, 0.0) for c in cases]
 
-    fwd = _call(method, [request(s, p, t, c) for s, p, t, c in zip(src, posed_src, tgt, cases)],
-                [len(t.rig.vertices) for t in tgt])
+    def call(requests):
+        return _call(method, list(requests), [len(r.target.vertices) for r in requests])
+
+    outcomes = protocol.evaluate(cases, data, call)
     if samples is not None:  # predictions of a few sampled cases, for the leaderboard's pictures
-        samples.keep(cases, fwd)
-    rows = []
-    if protocol == "h2h":
-        for c, t, (pred, err, sec) in zip(cases, tgt, fwd):
-            if err:
-                rows.append(_row(c, method, "failed", err, sec))
-            else:
-                rows.append(_row(c, method, "ok", None, sec, score_h2h(pred, _posed(t, c.target_transforms), t)))
-        return rows
-    ok = [i for i, (pred, err, _) in enumerate(fwd) if err is None]
-    back = _call(method, [request(tgt[i], fwd[i][0], src[i], cases[i]) for i in ok],
-                 [len(src[i].rig.vertices) for i in ok]) if ok else []
-    back_of = dict(zip(ok, back))
-    if samples is not None:
-        samples.keep([cases[i] for i in ok], back, leg="returned")
-    for i, c in enumerate(cases):
-        pred, err, sec = fwd[i]
-        if err:
-            rows.append(_row(c, method, "failed", f"forward leg: {err}", sec))
-            continue
-        ret, err2, sec2 = back_of[i]
-        if err2:
-            rows.append(_row(c, method, "failed", f"return leg: {err2}", sec + sec2))
-        else:
-            rows.append(_row(c, method, "ok", None, sec + sec2, score_cycle(ret, posed_src[i], pred, src[i], tgt[i])))
-    return rows
+        for leg in ("forward", "returned"):
+            kept = [o for o in outcomes if leg in o.outputs]
+            if kept:
+                samples.keep([o.case for o in kept], [o.outputs[leg] for o in kept], leg=leg)
+    return [_row(o.case, method, o.status, o.error, o.seconds, o.metrics) for o in outcomes]
 
 
-def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = PROTOCOLS, out="results",
+def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DEFAULT_PROTOCOLS, out="results",
                   device: str = "cpu", batch_size: int = 16, progress: bool = True,
                   retry_failed: bool = False) -> dict:
     """Evaluate ``methods`` on the dataset's cases; returns a summary (rank 0 aggregates).
@@ -173,7 +149,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = PR
     Args:
         dataset: dataset folder with ``characters``, ``motions`` and ``cases`` tables.
         methods: registered method names.
-        protocols: subset of ``h2h``, ``cct``.
+        protocols: protocol names (:func:`benchmark.protocols.available_protocols`).
         out: results folder; rows go to ``out/<method>/<version>/``.
         device: passed to each method's ``setup``.
         batch_size: requests per ``transfer`` call.
@@ -181,10 +157,9 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = PR
     """
     instances = [get_method(m) for m in methods]  # fail fast on unknown names
     cases = load_cases(dataset, protocols)
-    chars = load_characters(dataset)
-    pairs = _pairs_lookup(dataset)
+    data = EvalData.load(dataset)
     ctx = DistributedContext.from_env(device)
-    counts = {"computed": 0, "skipped": 0, "failed": 0}
+    counts = {"computed": 0, "skipped": 0, "failed": 0, NOT_SUPPORTED: 0}
     try:
         if ctx.rank == 0:
             write_run_info(out, {"dataset": str(dataset), "protocols": {p: len(c) for p, c in cases.items()},
@@ -195,17 +170,19 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = PR
             folder = method_dir(out, method.metadata.name, method.metadata.version)
             done = done_case_ids(folder, include_failed=not retry_failed) if folder.exists() else set()
             samples = SampleSink(folder, cases)
-            for protocol, plist in cases.items():
+            for name, plist in cases.items():
+                protocol = get_protocol(name)
                 mine = [c for i, c in enumerate(plist) if i % ctx.world_size == ctx.rank]
                 todo = [c for c in mine if c.case_id not in done]
                 counts["skipped"] += len(mine) - len(todo)
-                bar = tqdm(total=len(todo), desc=f"{method.metadata.name}/{protocol}", unit="case",
+                bar = tqdm(total=len(todo), desc=f"{method.metadata.name}/{name}", unit="case",
                            disable=not progress or not todo)
                 for start in range(0, len(todo), batch_size):
-                    rows = evaluate_batch(method, todo[start:start + batch_size], chars, pairs, samples)
+                    rows = evaluate_batch(method, protocol, todo[start:start + batch_size], data, samples)
                     append_results(folder, rows, ctx.rank)
                     counts["computed"] += len(rows)
-                    counts["failed"] += sum(r.status != "ok" for r in rows)
+                    counts["failed"] += sum(r.status == "failed" for r in rows)
+                    counts[NOT_SUPPORTED] += sum(r.status == NOT_SUPPORTED for r in rows)
                     bar.update(len(rows))
                 bar.close()
             method.on_run_end()

@@ -26,6 +26,12 @@ class MethodMetadata:
         needs_training: whether the method must be trained before it is evaluated.
         citation: how to cite it (BibTeX or a reference line).
         description: one line.
+        tags: free-form labels.
+        protocols: the benchmark protocols the method supports (names from
+            :func:`benchmark.protocols.available_protocols`); the evaluator does not run it on
+            the others and records those cases as ``not_supported``, not failed. The default is
+            every protocol whose requests a general pose-transfer method can answer
+            (``h2h``, ``cct``); a humanoid-only method would declare ``("h2h",)``.
     """
 
     name: str
@@ -35,6 +41,14 @@ class MethodMetadata:
     citation: str = ""
     description: str = ""
     tags: tuple[str, ...] = field(default_factory=tuple)
+    protocols: tuple[str, ...] = ("h2h", "cct")
+
+    def __post_init__(self):
+        protocols = (self.protocols,) if isinstance(self.protocols, str) else tuple(self.protocols)
+        if not protocols or not all(isinstance(p, str) and p for p in protocols):
+            raise ValueError(f"MethodMetadata.protocols: expected a non-empty tuple of protocol names, "
+                             f"got {self.protocols!r}")
+        object.__setattr__(self, "protocols", protocols)
 
 
 @runtime_checkable

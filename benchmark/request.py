@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from benchmark.normalisation import largest_extent
 from mimicbench.weights import SparseWeights
 
 
@@ -36,6 +37,12 @@ class Rig:
     def height(self) -> float:
         """Y extent of the rest mesh, metres."""
         return float(self.vertices[:, 1].max() - self.vertices[:, 1].min())
+
+    @property
+    def size(self) -> float:
+        """Largest side of the rest mesh's bounding box, metres: the size the benchmark scales
+        translations by between two characters (:func:`benchmark.normalisation.size_ratio`)."""
+        return largest_extent(self.vertices)
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.metrics import els, pmd, pmd_squared
+from benchmark.metrics import els, pmd, pmd_aligned, pmd_squared
+from benchmark.normalisation import RestFrame
 
 
 class InvalidPrediction(ValueError):
@@ -28,16 +29,18 @@ def check_prediction(pred, num_vertices: int) -> np.ndarray:
     return arr.astype(np.float32)
 
 
-def score_h2h(pred: np.ndarray, gt: np.ndarray, target) -> dict:
-    """PMD, squared PMD and ELS of a prediction against the ground-truth posed target."""
-    return {"pmd": pmd(pred, gt, target.rig.vertices), "pmd_squared": pmd_squared(pred, gt, target.rig.vertices),
-            "els": els(pred, gt, target.edges), "els_forward": None}
+def score_pose(pred: np.ndarray, ref: np.ndarray, frame: RestFrame, headline: str) -> dict:
+    """Every pose metric of predicted (N, 3) vs reference (N, 3) vertices in one rest frame.
 
-
-def score_cycle(returned: np.ndarray, posed_source: np.ndarray, forward: np.ndarray, source, target) -> dict:
-    """Cycle consistency: the returned source vs the posed source (PMD, ELS, in the source's
-    unit height), and the forward leg's ELS against the target's rest edge lengths."""
-    return {"pmd": pmd(returned, posed_source, source.rig.vertices),
-            "pmd_squared": pmd_squared(returned, posed_source, source.rig.vertices),
-            "els": els(returned, posed_source, source.edges),
-            "els_forward": els(forward, target.rig.vertices, target.edges)}
+    Returns the result columns ``pmd`` (normalised by ``headline``: ``height`` or ``extent``),
+    ``pmd_height``, ``pmd_extent``, ``pmd_aligned`` and ``pmd_squared`` (both by ``headline``)
+    and ``els`` (over ``frame.edges``).
+    """
+    if frame.edges is None:
+        raise ValueError("frame: expected a RestFrame with edges (RestFrame.of(vertices, edges))")
+    frame.scale(headline)  # raises on an unknown name
+    by = {"height": pmd(pred, ref, frame, "height"), "extent": pmd(pred, ref, frame, "extent")}
+    return {"pmd": by[headline], "pmd_height": by["height"], "pmd_extent": by["extent"],
+            "pmd_aligned": pmd_aligned(pred, ref, frame, headline),
+            "pmd_squared": pmd_squared(pred, ref, frame, headline),
+            "els": els(pred, ref, frame.edges)}

@@ -1,24 +1,64 @@
 import numpy as np
+import pytest
 import torch
 
-from benchmark.metrics import els, pmd, pmd_squared
-from benchmark.metrics_torch import els_torch, pmd_squared_torch, pmd_torch
+from benchmark.metrics import els, pmd, pmd_aligned, pmd_squared
+from benchmark.metrics_torch import els_torch, pmd_aligned_torch, pmd_squared_torch, pmd_torch
+from benchmark.normalisation import RestFrame, largest_extent, size_ratio
+from benchmark.scoring import score_pose
 from mimicbench.mesh import unique_edges
 
+# a rest mesh whose bounding box is 4 m along x, 2 m tall (y) and 1 m deep (z)
+REST = np.array([[0, 0, 0], [4, 0, 0], [0, 2, 0], [0, 0, 1.0]])
+FACES = np.array([[0, 1, 2], [0, 3, 1]])
 
-def test_hand_built_case():
-    # a right triangle plus a far vertex: rest height (Y extent) is 2 m
+
+def test_rest_frame_by_hand():
+    f = RestFrame.of(REST, unique_edges(FACES))
+    np.testing.assert_allclose(f.centre, [2, 1, 0.5])
+    assert f.height == 2.0 and f.extent == 4.0 and f.scale("height") == 2.0 and f.scale("extent") == 4.0
+    np.testing.assert_allclose(f.normalise([[2, 1, 0.5], [4, 2, 0.5]], "extent"), [[0, 0, 0], [0.5, 0.25, 0]])
+    assert largest_extent(REST) == 4.0 and size_ratio(REST, REST * 1.5) == 1.5
+    with pytest.raises(ValueError, match="height or extent|one of height, extent"):
+        f.scale("width")
+    with pytest.raises(ValueError, match="positive Y extent"):
+        RestFrame.of(REST * [1, 0, 1])
+
+
+def test_three_normalisations_by_hand():
+    moved = REST.copy()
+    moved[1] += [0.4, 0, 0]  # one of four vertices moves 0.4 m
+    # mean distance 0.1 m: 0.1 / 2 m height = 5%; 0.1 / 4 m extent = 2.5%
+    assert np.isclose(pmd(moved, REST, REST, "height"), 5.0)
+    assert np.isclose(pmd(moved, REST, REST, "extent"), 2.5)
+    # aligned: the prediction's centroid moved by 0.1 m along x, so after centring the four
+    # vertices are off by 0.1, 0.3, 0.1, 0.1 m: mean 0.15 m = 7.5% of height, 3.75% of extent
+    assert np.isclose(pmd_aligned(moved, REST, REST, "height"), 7.5)
+    assert np.isclose(pmd_aligned(moved, REST, REST, "extent"), 3.75)
+    # squared: (0.4 / 4)^2 / 4 vertices = 0.0025 -> 0.25
+    assert np.isclose(pmd_squared(moved, REST, REST, "extent"), 0.25)
+
+    shifted = REST + [1.0, 1.0, 0.0]  # a pure translation of sqrt(2) m
+    assert np.isclose(pmd(shifted, REST, REST, "height"), 100 * np.sqrt(2) / 2)
+    assert np.isclose(pmd(shifted, REST, REST, "extent"), 100 * np.sqrt(2) / 4)
+    assert np.isclose(pmd_aligned(shifted, REST, REST, "height"), 0.0, atol=1e-12)
+    # translation plus the moved vertex: aligned PMD sees only the articulation
+    assert np.isclose(pmd_aligned(moved + [1.0, 1.0, 0.0], REST, REST, "height"), 7.5)
+
+    frame = RestFrame.of(REST, unique_edges(FACES))
+    for headline, main in (("height", 5.0), ("extent", 2.5)):
+        s = score_pose(moved, REST, frame, headline)
+        assert np.isclose(s["pmd"], main) and np.isclose(s["pmd_height"], 5.0) and np.isclose(s["pmd_extent"], 2.5)
+        assert np.isclose(s["pmd_aligned"], 7.5 if headline == "height" else 3.75)
+        assert np.isclose(s["els"], els(moved, REST, frame.edges))
+
+
+def test_els_by_hand():
     rest = np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [0, 0, 1.0]])
-    faces = np.array([[0, 1, 2], [0, 3, 1]])
-    edges = unique_edges(faces)  # (0,1) (0,2) (0,3) (1,2) (1,3)
+    edges = unique_edges(FACES)  # (0,1) (0,2) (0,3) (1,2) (1,3)
     pred = rest.copy()
-    pred[1] += [0.2, 0, 0]  # vertex 1 moves 0.2 m along x
-    # PMD: distances 0, 0.2, 0, 0 m -> 0.1 unit heights / 4 vertices * 100 = 2.5
-    assert np.isclose(pmd(pred, rest, rest), 2.5)
-    # squared: (0.1)^2 / 4 * 100 = 0.25
-    assert np.isclose(pmd_squared(pred, rest, rest), 0.25)
-    # edges touching vertex 1: (0,1) 1 -> 1.2 (ratio err 0.2); (1,2) sqrt5 -> sqrt(1.44+4);
-    # (1,3) sqrt2 -> sqrt(1.44+1)
+    pred[1] += [0.2, 0, 0]
+    # (0,1) 1 -> 1.2; (1,2) sqrt5 -> sqrt(1.44+4); (1,3) sqrt2 -> sqrt(1.44+1)
     errs = [0.2, 0, 0, np.sqrt(5.44) / np.sqrt(5) - 1, np.sqrt(2.44) / np.sqrt(2) - 1]
     assert np.isclose(els(pred, rest, edges), 1 - np.mean(np.abs(errs)))
 
@@ -27,19 +67,25 @@ def test_identity_is_perfect():
     rng = np.random.default_rng(0)
     v = rng.normal(size=(50, 3))
     edges = unique_edges(rng.integers(0, 50, size=(80, 3)))
-    assert pmd(v, v, v) == 0.0 and pmd_squared(v, v, v) == 0.0 and els(v, v, edges) == 1.0
+    for by in ("height", "extent"):
+        assert pmd(v, v, v, by) == 0.0 and pmd_squared(v, v, v, by) == 0.0 and pmd_aligned(v, v, v, by) == 0.0
+    assert els(v, v, edges) == 1.0
 
 
-def test_torch_twins_match_numpy_batched():
+@pytest.mark.parametrize("by", ["height", "extent"])
+def test_torch_twins_match_numpy_batched(by):
     rng = np.random.default_rng(1)
-    rest = rng.normal(size=(4, 60, 3))
-    pred = rest + 0.05 * rng.normal(size=rest.shape)
+    rest = rng.normal(size=(4, 60, 3)) * [3.0, 1.0, 0.5]
+    pred = rest + 0.05 * rng.normal(size=rest.shape) + 0.2
     ref = rest + 0.05 * rng.normal(size=rest.shape)
     faces = rng.integers(0, 60, size=(100, 3))
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])]
     edges = unique_edges(faces)
     t = lambda a: torch.tensor(a)  # noqa: E731
-    np.testing.assert_allclose(pmd_torch(t(pred), t(ref), t(rest)).numpy(), [pmd(p, r, s) for p, r, s in zip(pred, ref, rest)])
-    np.testing.assert_allclose(pmd_squared_torch(t(pred), t(ref), t(rest)).numpy(),
-                               [pmd_squared(p, r, s) for p, r, s in zip(pred, ref, rest)])
+    for twin, ref_fn in ((pmd_torch, pmd), (pmd_squared_torch, pmd_squared), (pmd_aligned_torch, pmd_aligned)):
+        np.testing.assert_allclose(twin(t(pred), t(ref), t(rest), by).numpy(),
+                                   [ref_fn(p, r, s, by) for p, r, s in zip(pred, ref, rest)], rtol=1e-10)
+    # one rest mesh (N, 3) shared by the batch
+    np.testing.assert_allclose(pmd_torch(t(pred), t(ref), t(rest[0]), by).numpy(),
+                               [pmd(p, r, rest[0], by) for p, r in zip(pred, ref)], rtol=1e-10)
     np.testing.assert_allclose(els_torch(t(pred), t(ref), t(edges)).numpy(), [els(p, r, edges) for p, r in zip(pred, ref)])

@@ -1,0 +1,168 @@
+"""What a benchmark protocol is: a rule that builds cases from a dataset, turns a case into the
+requests a method answers, and scores the answers.
+
+A protocol never calls a method itself: :meth:`BenchmarkProtocol.evaluate` receives ``call``, the
+evaluator's single call site (``call(requests) -> [(vertices | None, error | None, seconds)]``,
+one tuple per request, in order), so how methods are run (in process, in a worker with a
+timeout) is decided in one place for every protocol.
+"""
+from __future__ import annotations
+
+import abc
+import zlib
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from benchmark.normalisation import RestFrame
+from benchmark.request import TransferRequest
+from benchmark.rigs import CharacterData
+from mimicbench.skinning import linear_blend_skinning
+from schemas.case import CaseRecord
+from schemas.shards import has_table, read_records
+
+HUMANOID_LIKE = ("humanoid", "apparel")
+"""Categories that count as humanoid (an ``apparel`` character is a humanoid wearing apparel)."""
+
+Call = Callable[[Sequence[TransferRequest]], list]
+"""The evaluator's call site: requests in, ``[(array | None, error | None, seconds)]`` out."""
+
+
+@dataclass
+class Outcome:
+    """One case scored (or failed) by a protocol, before it becomes a results row.
+
+    Attributes:
+        case: the case.
+        status: ``ok`` or ``failed``.
+        error: why it failed, in words; None when ok.
+        seconds: wall-clock seconds the method spent on the case (both legs of a cycle).
+        metrics: result columns by name (``pmd``, ``pmd_height``, ... see ``schemas/result.py``).
+        outputs: the method's predictions by leg, for the leaderboard's pictures: ``forward``
+            (Nt, 3) on the target, ``returned`` (Ns, 3) on the source (cycle protocols); a leg
+            that failed is left out.
+    """
+
+    case: CaseRecord
+    status: str
+    error: str | None
+    seconds: float
+    metrics: dict = field(default_factory=dict)
+    outputs: dict = field(default_factory=dict)
+
+
+@dataclass
+class CasePool:
+    """Characters with a mesh, sorted by ID, and each one's motions sorted by motion ID."""
+
+    characters: list
+    motions: dict
+
+    @classmethod
+    def load(cls, dataset, split: str = "test") -> "CasePool":
+        """The characters of ``split`` (``all`` for every split) and their motions."""
+        chars = [c for c in read_records(dataset, "characters") if len(c.faces) and split in ("all", c.split)]
+        chars.sort(key=lambda c: c.character_id)
+        ids = {c.character_id for c in chars}
+        motions: dict[str, list] = {}
+        for m in read_records(dataset, "motions"):
+            if m.character_id in ids:
+                motions.setdefault(m.character_id, []).append(m)
+        for ms in motions.values():
+            ms.sort(key=lambda m: m.motion_id)
+        return cls(chars, motions)
+
+    def frames_for(self, rng: np.random.Generator, character_id: str, n_poses: int) -> list[tuple]:
+        """Up to ``n_poses`` (motion, frame) draws from a character's clips, never frame 0 (rest)."""
+        choices = [(m, f) for m in self.motions.get(character_id, []) for f in range(1, m.num_frames)]
+        if not choices:
+            return []
+        idx = rng.choice(len(choices), size=min(n_poses, len(choices)), replace=False)
+        return [choices[i] for i in sorted(idx)]
+
+
+@dataclass
+class EvalData:
+    """What protocols need to build requests and score them: rigs and the dataset's soft
+    correspondences, with each character's rest frame derived once."""
+
+    characters: dict[str, CharacterData]
+    pairs: dict = field(default_factory=dict)
+    rest_frames: dict = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def load(cls, dataset) -> "EvalData":
+        from benchmark.rigs import load_characters
+
+        pairs = {}
+        if has_table(dataset, "pairs"):
+            pairs = {(r.source_id, r.target_id): r.m_sink for r in read_records(dataset, "pairs")}
+        return cls(load_characters(dataset), pairs)
+
+    def frame(self, char: CharacterData) -> RestFrame:
+        """The character's rest frame (centre, height, largest extent, edges), cached."""
+        cid = char.rig.character_id
+        if cid not in self.rest_frames:
+            self.rest_frames[cid] = RestFrame.of(char.rig.vertices, char.edges)
+        return self.rest_frames[cid]
+
+    @staticmethod
+    def posed(char: CharacterData, transforms: np.ndarray) -> np.ndarray:
+        """(N, 3) vertices of ``char`` posed by transforms (K, 7) through LBS."""
+        r = char.rig
+        return linear_blend_skinning(r.vertices, r.keypoints, r.weights, transforms)
+
+    def request(self, source: CharacterData, source_posed: np.ndarray, target: CharacterData,
+                case_id: str) -> TransferRequest:
+        """A request, with the pair's ``m_sink`` (Ks, Kt) in ``extras`` when the dataset has it."""
+        extras = {}
+        key = (source.rig.character_id, target.rig.character_id)
+        if key in self.pairs:
+            extras["m_sink"] = np.asarray(self.pairs[key]).reshape(len(source.rig.parents), len(target.rig.parents))
+        return TransferRequest(source.rig, source_posed, target.rig, case_id, extras)
+
+
+class BenchmarkProtocol(abc.ABC):
+    """One way of scoring pose transfer. Subclasses set the class attributes and implement
+    :meth:`candidate_pairs`, :meth:`make_case` and :meth:`evaluate`.
+
+    Attributes:
+        name: short name, the ``protocol`` column of cases and results (``h2h``, ``cct``, ...).
+        title: what it measures, in words (docs, leaderboard).
+        headline: normalisation of its ``pmd`` column: ``height`` or ``extent``
+            (see :mod:`benchmark.normalisation`).
+    """
+
+    name: str
+    title: str
+    headline: str
+
+    @abc.abstractmethod
+    def candidate_pairs(self, pool: CasePool) -> list[tuple]:
+        """Every ordered (source, target) character pair this protocol can make a case of."""
+
+    @abc.abstractmethod
+    def make_case(self, source, target, motion, frame: int) -> CaseRecord:
+        """The case for one source pose (``motion.transforms[frame]``) and one target."""
+
+    @abc.abstractmethod
+    def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
+        """Build the requests of ``cases``, run them through ``call``, score the answers."""
+
+    def rng(self, seed: int) -> np.random.Generator:
+        """This protocol's own generator: cases of one protocol do not depend on the others'."""
+        return np.random.default_rng([seed, zlib.crc32(self.name.encode())])
+
+    def build_cases(self, pool: CasePool, pairs: int | None, poses: int, seed: int = 0) -> list[CaseRecord]:
+        """Cases for ``pairs`` candidate pairs drawn with a seeded generator (None: every
+        pair), each with ``poses`` frames of the source's clips (never the rest frame)."""
+        rng = self.rng(seed)
+        cands = [(a, b) for a, b in self.candidate_pairs(pool) if pool.motions.get(a.character_id)]
+        if pairs is not None and len(cands) > pairs:
+            cands = [cands[i] for i in sorted(rng.choice(len(cands), size=pairs, replace=False))]
+        return [self.make_case(a, b, m, f) for a, b in cands for m, f in pool.frames_for(rng, a.character_id, poses)]
+
+    def case_id(self, source, target, motion, frame: int) -> str:
+        """``<protocol>/<source_id>-><target_id>/<motion name>#<frame>``."""
+        return f"{self.name}/{source.character_id}->{target.character_id}/{motion.name}#{frame}"

@@ -1,0 +1,115 @@
+"""``h2h``: same-skeleton transfer with ground truth.
+
+Cases: ordered pairs of characters that share one skeleton (equal ``skeleton_id``, hence equal
+bone names and parents), of **any** category: a family of humanoids, a dinosaur pack on one rig,
+a horse and a zebra. (The name ``h2h``, humanoid to humanoid, is kept for the results it
+labels; the docs call the protocol "same-skeleton".)
+
+Ground truth: the target posed by the source's pose carried over bone by bone
+(:func:`ground_truth_transforms`): each bone's rotation relative to its parent, and each bone's
+translation relative to its parent beyond its rest offset (a body bone a clip moves, feet driven
+by IK, pole targets) scaled by the size ratio, as is the root's displacement from rest. Two
+characters with identical rest skeletons and meshes therefore get the source's own pose.
+
+Scores: PMD (headline by the target's height, the papers' convention), PMD by largest extent,
+aligned PMD, squared PMD and ELS of the prediction against the posed ground truth.
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+from typing import Sequence
+
+import numpy as np
+
+from benchmark.normalisation import size_ratio
+from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome
+from benchmark.scoring import score_pose
+from mimicbench.kinematics import array_to_transforms, forward_kinematics, local_from_global, transforms_to_array
+from mimicbench.quaternion import quat_apply, quat_conjugate
+from schemas.case import CaseRecord
+
+
+def local_translations(source_transforms: np.ndarray, rest_keypoints: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """Each bone's translation (K, 3) relative to its parent beyond its rest offset, in the
+    parent's rest-relative frame: ``R(q_p)^-1 (t_k - t_p) - (cbar_k - cbar_p)``; for a root, its
+    displacement from rest ``t_k - cbar_k``. All zero for a pose made of rotations only.
+
+    Args:
+        source_transforms: (K, 7) pose.
+        rest_keypoints: (K, 3) rest joint heads.
+        parents: (K,) parents, -1 for roots.
+    """
+    q, t = array_to_transforms(source_transforms)
+    rest = np.asarray(rest_keypoints, np.float64)
+    parents = np.asarray(parents)
+    out = t - rest
+    child = parents >= 0
+    p = parents[child]
+    out[child] = quat_apply(quat_conjugate(q[p]), t[child] - t[p]) - (rest[child] - rest[p])
+    return out
+
+
+def ground_truth_transforms(source, target, source_transforms: np.ndarray) -> np.ndarray:
+    """Ground-truth target transforms (K, 7) for a source pose (K, 7) on a shared skeleton.
+
+    Local rotations are copied bone by bone; local translations (:func:`local_translations`,
+    the roots' displacements included) are scaled by :func:`benchmark.normalisation.size_ratio`
+    and added to the target's own rest offsets; positions follow by forward kinematics.
+
+    Args:
+        source, target: CharacterRecord-like objects (character_id, keypoints, parents,
+            bone_names, vertices) with equal bone names and parents.
+        source_transforms: (K, 7) the source's pose.
+    """
+    if list(source.bone_names) != list(target.bone_names) or not np.array_equal(source.parents, target.parents):
+        raise ValueError(f"same-skeleton ground truth: {source.character_id} and {target.character_id} do not "
+                         "share a skeleton (expected equal bone names and parents)")
+    parents = np.asarray(target.parents)
+    q, _ = array_to_transforms(source_transforms)
+    moved = local_translations(source_transforms, source.keypoints, parents) * size_ratio(source.vertices,
+                                                                                          target.vertices)
+    rest = np.asarray(target.keypoints, np.float64)
+    # a rest skeleton whose bone offsets include the scaled local translations: FK on it places
+    # every joint where the carried-over pose puts it
+    shifted = np.empty_like(rest)
+    for k, p in enumerate(parents):
+        shifted[k] = rest[k] if p < 0 else shifted[p] + rest[k] - rest[p] + moved[k]
+    roots = parents < 0
+    root_pos = shifted.copy()
+    root_pos[roots] += moved[roots]
+    g_rot, g_pos = forward_kinematics(local_from_global(q, parents), shifted, parents, root_pos)
+    return transforms_to_array(g_rot, g_pos)
+
+
+class SameSkeleton(BenchmarkProtocol):
+    name = "h2h"
+    title = "same-skeleton transfer, scored against ground truth"
+    headline = "height"
+
+    def candidate_pairs(self, pool: CasePool) -> list[tuple]:
+        families = defaultdict(list)
+        for c in pool.characters:
+            if c.skeleton_id:
+                families[c.skeleton_id].append(c)
+        return [(a, b) for fam in families.values() for a in fam for b in fam if a is not b]
+
+    def make_case(self, source, target, motion, frame: int) -> CaseRecord:
+        src_t = motion.transforms[frame]
+        return CaseRecord(self.case_id(source, target, motion, frame), self.name, source.character_id,
+                          target.character_id, motion.motion_id, frame, src_t,
+                          ground_truth_transforms(source, target, src_t), source.category, target.category)
+
+    def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
+        src = [data.characters[c.source_id] for c in cases]
+        tgt = [data.characters[c.target_id] for c in cases]
+        answers = call([data.request(s, data.posed(s, c.source_transforms), t, c.case_id)
+                        for s, t, c in zip(src, tgt, cases)])
+        out = []
+        for c, t, (pred, err, sec) in zip(cases, tgt, answers):
+            if err:
+                out.append(Outcome(c, "failed", err, sec))
+                continue
+            truth = data.posed(t, c.target_transforms)
+            out.append(Outcome(c, "ok", None, sec, score_pose(pred, truth, data.frame(t), self.headline),
+                               {"forward": pred}))
+        return out
