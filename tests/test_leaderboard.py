@@ -23,8 +23,10 @@ from schemas.result import ResultRecord
 
 def row(case_id, method, src, tgt, pmd, status="ok", protocol="cct", els=0.9):
     ok = status == "ok"
+    value = pmd if ok else None  # real rows: pmd is pmd_height on h2h, pmd_extent on cct
     return ResultRecord(case_id, protocol, method, "1", status, None if ok else f"{status} on purpose", 0.5,
-                        pmd if ok else None, pmd if ok else None, els if ok else None, els if ok else None, src, tgt)
+                        value, value, els if ok else None, els if ok else None, src, tgt,
+                        pmd_height=value, pmd_extent=value, pmd_aligned=value)
 
 
 @pytest.fixture
