@@ -6,12 +6,13 @@ import argparse
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ, .blend) through Blender into a dataset",
+        "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ, .blend through Blender; MMD .pmx/.pmd without) into a dataset",
         description="Import each asset with Blender (bpy) in its own child process with a timeout: rest mesh "
         "(all skinned meshes of the armature merged, triangulated, Y up), deform bones, skin weights and every "
         "animation clip as per-frame transforms that reproduce Blender's own deformation by linear blend "
         "skinning. A crash, timeout or unreadable file becomes a status row; a re-run skips assets already "
-        "done. Example:\n  mimicbench datagen ingest 'assets/*.glb' mocap/run.bvh --out data/mine --jobs 2",
+        "done. MMD models (.pmx, .pmd) are read without Blender (datagen/mmd): 1 MMD unit = 0.08 m, z mirrored "
+        "(see schemas/FORMAT.md). Example:\n  mimicbench datagen ingest 'assets/*.glb' mocap/run.bvh --out data/mine --jobs 2",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", help="asset files or glob patterns")
     p.add_argument("--out", required=True, help="dataset folder")

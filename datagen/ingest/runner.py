@@ -107,6 +107,8 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     cache = out_dir / CACHE
     cache.mkdir(parents=True, exist_ok=True)
     assets = [Path(p).resolve() for p in paths]
+    from datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)
+    assets, mmd_assets = split_mmd_paths(assets)
     done = [a for a in assets if (cache / f"{a.stem}.json").exists() and (cache / f"{a.stem}.npz").exists()]
     todo = [a for a in assets if a not in done]
     statuses = [StatusRecord(str(a), "ingest", "skipped", "already ingested", 0.0) for a in done]
@@ -122,6 +124,8 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
             c, m = records_from_cache(a, cache, category_for(a, category_map))
             chars.append(c)
             motions.extend(m)
+    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), progress=progress)
+    chars, motions, statuses = chars + mmd.characters, motions + mmd.motions, statuses + mmd.statuses
     config = {"stage": "ingest", "timeout": timeout, "category_map": category_map or {}}
     for split in sorted({c.split for c in chars}):
         write_records(out_dir, "characters", [c for c in chars if c.split == split], split, rows_per_shard=200, config=config)
