@@ -39,3 +39,19 @@ def load_split_file(path: str | Path) -> dict[str, str]:
                 raise ValueError(f"{path}: character {cid!r} is in both {out[cid]!r} and {split!r}")
             out[cid] = split
     return out
+
+
+def split_rule(fractions: dict[str, float] | None = None, salt: str = "", split_file: str | Path | None = None) -> dict:
+    """A JSON description of how splits are assigned, for a stage's fingerprinted parameters.
+
+    A stage that assigns splits (ingest with :func:`split_of` or a split file) puts this in the
+    parameters it passes to :func:`schemas.fingerprint.stage_config`, so output made under another
+    split rule, or another split file's content, is not reused on resume.
+
+    Returns:
+        ``{"rule": "sha256-bucket", "fractions": ..., "salt": ...}`` or, with ``split_file``,
+        ``{"rule": "split-file", "split_file_sha256": <sha256 of the file's bytes>}``.
+    """
+    if split_file is not None:
+        return {"rule": "split-file", "split_file_sha256": hashlib.sha256(Path(split_file).read_bytes()).hexdigest()}
+    return {"rule": "sha256-bucket", "fractions": dict(fractions or DEFAULT_FRACTIONS), "salt": salt}

@@ -6,7 +6,8 @@ shard under a final name and a manifest that still describes the data that was c
 
 Every read checks what the manifest promises before trusting a shard: the path stays inside the
 dataset, the size and sha256 match (the hash once per process per file; ``verify=False`` or
-``MIMICBENCH_VERIFY=0`` skips the hash), the schema version is known, the row count matches.
+``MIMICBENCH_VERIFY=0`` skips the hash), the schema version is known, the row count matches, and
+a table derived from other tables of the dataset was made from their current content.
 A missing manifest, a table the manifest does not list, or a dataset marked incomplete is an
 error (:class:`DatasetError`, naming the file), never an empty result.
 """
@@ -24,6 +25,7 @@ import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
 from schemas.errors import DatasetError
+from schemas.fingerprint import stale_inputs
 from schemas.integrity import entry_path, remember_sha256, verify_shard
 from schemas.manifest import (chmod_like_open, fsync_file, incomplete_reason, is_complete, load_manifest,
                               load_manifest_for_write, save_manifest, sha256_of)
@@ -195,10 +197,14 @@ def read_table(root, table: str, split: str | None = None, columns: list[str] | 
         DatasetError: naming the file: no manifest; the dataset is incomplete; the manifest lists
             no shard of ``table`` (of ``split``); a shard path leaves the dataset folder; a shard is
             missing, of another size or sha256, unreadable, of another schema version, has wrong
-            column types or another row count than the manifest says.
+            column types or another row count than the manifest says; ``table`` was derived from
+            tables of this dataset that have changed since (e.g. pairs after a new zoo).
     """
     root = Path(root)
     manifest = _reader_manifest(root, allow_incomplete)
+    stale = stale_inputs(root, manifest, table)
+    if stale:
+        raise DatasetError(stale)
     entries = [s for s in manifest["tables"].get(table, {}).get("shards", []) if split is None or s["split"] == split]
     if not entries:
         what = f"table {table!r}" + (f" split {split!r}" if split is not None else "")

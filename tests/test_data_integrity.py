@@ -126,13 +126,15 @@ def test_resampling_with_other_faces_into_an_earlier_run_redoes_every_character(
     assert validate_dataset(out) == []
 
 
-def test_validate_flags_a_table_derived_from_tables_that_changed_since(tube, tmp_path):
+def test_a_table_derived_from_tables_that_changed_since_is_refused_and_flagged(tube, tmp_path):
     root = toy_dataset(tmp_path / "ds", tube)
     config = stage_config({"stage": "unit"}, tables_fingerprint(root, ["characters"]))
     write_records(root, "status", [], split="unit", config=config)
     assert validate_dataset(root) == []
     write_records(root, "characters", [make_character(tube, "toy/other")], "train")  # a regenerated input
     assert any("table 'status' was made from other characters" in p for p in validate_dataset(root))
+    with pytest.raises(DatasetError, match="table 'status' was made from other characters.*re-run unit"):
+        read_records(root, "status")
 
 
 # -- item 4: a missing manifest or an empty input is an error ------------------------------------

@@ -24,3 +24,18 @@ def test_split_file(tmp_path):
     p.write_text(json.dumps({"train": ["a"], "test": ["a"]}))
     with pytest.raises(ValueError, match="both"):
         load_split_file(p)
+
+
+def test_split_rule_changes_with_the_fractions_the_salt_and_the_split_file_content(tmp_path):
+    import hashlib
+
+    from datagen.splits import split_rule
+
+    assert split_rule() == {"rule": "sha256-bucket", "fractions": {"train": 0.8, "val": 0.1, "test": 0.1}, "salt": ""}
+    assert split_rule(salt="b") != split_rule() and split_rule({"train": 0.5, "test": 0.5}) != split_rule()
+    p = tmp_path / "splits.json"
+    p.write_text('{"train": ["a"]}')
+    first = split_rule(split_file=p)
+    assert first["split_file_sha256"] == hashlib.sha256(b'{"train": ["a"]}').hexdigest()
+    p.write_text('{"test": ["a"]}')
+    assert split_rule(split_file=p) != first
