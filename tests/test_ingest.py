@@ -170,8 +170,8 @@ def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested
             assert q["hausdorff_pct"] < 1.0, (backend, c.character_id, q["hausdorff_pct"])
             np.testing.assert_allclose(c.weight_values.sum(1), 1.0, atol=1e-5)
             assert (c.weight_values > 0).sum(1).max() <= 8
-    correspond_dataset(data, all_pairs=True, progress=False)
-    # the assets as humanoid (CesiumMan, Robot) vs animals, every split
+    # the assets as humanoid (CesiumMan, Robot) vs animals, every split (before correspond: pairs
+    # record the characters table's fingerprint and categories)
     import dataclasses
     from schemas.shards import write_records
 
@@ -180,6 +180,7 @@ def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested
     chars = [dataclasses.replace(c, category="humanoid" if c.character_id in humanoid else c.category) for c in chars]
     for split in {c.split for c in chars}:
         write_records(data, "characters", [c for c in chars if c.split == split], split)
+    correspond_dataset(data, all_pairs=True, progress=False)
     cases = build_cases(data, "all", cct_pairs=6, cct_poses=2)
     assert cases["cct"]
     write_cases(data, {"cct": cases["cct"]}, {})

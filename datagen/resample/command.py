@@ -15,7 +15,9 @@ def register(subparsers) -> None:
         "subdivision then collapse below), carry skin weights and the apparel mask over by barycentric "
         "interpolation at the closest point of the original surface, and record the face counts, Hausdorff "
         "distance and skinning transfer error (percent of height) in meta['resample']. Motions are copied "
-        "unchanged. A re-run into the same OUT_DATASET resumes. Example:\n"
+        "unchanged. Finished characters are written as they complete; a re-run into the same OUT_DATASET "
+        "resumes, reusing only rows made from the same input tables with the same --faces and --backend "
+        "(others are redone). Example:\n"
         "  mimicbench datagen resample data/zoo data/zoo5k\n\n"
         "Backends: fast (default; fast-simplification, the quadric error metric with a low aggressiveness) "
         "and pymeshlab (MeshLab's quadric edge collapse). On 8 zoo characters fast is about 4x faster "
@@ -28,7 +30,7 @@ def register(subparsers) -> None:
     p.add_argument("--backend", choices=("fast", "pymeshlab"), default="fast",
                    help="fast (fast-simplification, default) or pymeshlab (MeshLab's quadric edge collapse)")
     p.add_argument("--jobs", type=positive_int, default=1, help="worker processes, >= 1 (default 1)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
@@ -36,6 +38,8 @@ def run(args) -> int:
     from datagen.resample.stage import resample_dataset
 
     s = resample_dataset(args.in_dataset, args.out_dataset, args.faces, args.backend, args.jobs, not args.quiet)
+    for note in s["notes"]:
+        print(f"resample: {note}")
     h = s["hausdorff_pct_mean"]
     t = s["transfer_error_pct_mean"]
     print(f"{s['resampled']} resampled, {s['already_done']} already done, {s['failed']} failed in {s['seconds']:.1f} s; "

@@ -111,14 +111,15 @@ def _check_arguments(in_dir: Path, out_dir: Path, faces: int, backend: str, jobs
         raise ValueError(f"resample: OUT_DATASET {out_dir} and IN_DATASET {in_dir} must not contain one another")
 
 
-def _reusable_rows(out_dir: Path, config: dict, progress: bool) -> dict:
-    """Rows of ``out_dir`` made with the same fingerprints as ``config`` (by character ID).
+def _reusable_rows(out_dir: Path, config: dict) -> tuple[dict, list[str]]:
+    """Rows of ``out_dir`` made with the same fingerprints as ``config`` (by character ID), and
+    notes on the rows that cannot be reused and why.
 
     Drops part shards of an interrupted run with other fingerprints. Refuses an ``out_dir``
     holding a dataset that resample did not make.
     """
     if not (out_dir / MANIFEST).exists():
-        return {}
+        return {}, []
     manifest = load_manifest_for_write(out_dir)
     final_config = manifest["configs"].get("characters")
     pending = manifest.get("pending") or {}
@@ -131,22 +132,23 @@ def _reusable_rows(out_dir: Path, config: dict, progress: bool) -> dict:
     part_splits = sorted({s["split"] for s in shards if s["split"].startswith(PART)})
     final_splits = sorted({s["split"] for s in shards if not s["split"].startswith(PART)})
     done: dict = {}
+    notes = []
     why = fingerprint_mismatch(final_config, config) if final_splits else None
     if final_splits and why is None:
         for split in final_splits:
             done.update((r.character_id, r) for r in read_records(out_dir, "characters", split, allow_incomplete=True))
-    elif final_splits and progress:
-        print(f"resample: {out_dir} holds a run that does not match ({why}); redoing every character "
-              f"(the old rows are replaced when this run has produced some)")
+    elif final_splits:
+        notes.append(f"{out_dir} holds a run that does not match ({why}): every character is redone (the old "
+                     f"rows are replaced once this run has produced some)")
     why_parts = fingerprint_mismatch(pending.get("config"), config) if part_splits else None
     for split in part_splits:
         if why_parts is None:
             done.update((r.character_id, r) for r in read_records(out_dir, "characters", split, allow_incomplete=True))
         else:
             remove_split(out_dir, "characters", split)
-    if part_splits and why_parts is not None and progress:
-        print(f"resample: dropped the parts of an interrupted run that does not match ({why_parts})")
-    return done
+    if part_splits and why_parts is not None:
+        notes.append(f"dropped the parts of an interrupted run that does not match ({why_parts})")
+    return done, notes
 
 
 def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
@@ -162,7 +164,8 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
         flush_every, flush_seconds: write finished characters after this many, or this long.
 
     Returns:
-        Summary: counts, failures, mean Hausdorff and transfer error (% of height), seconds.
+        Summary: counts, failures, mean Hausdorff and transfer error (% of height), seconds,
+        ``notes`` (why earlier rows in ``out_dir`` were not reused).
 
     Raises:
         ValueError: a bad argument.
@@ -185,7 +188,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
                           tables_fingerprint(in_dir, inputs), inputs_from=str(in_dir.resolve()),
                           info={"source": str(in_dir)})
     existed = (out_dir / MANIFEST).exists()
-    done = _reusable_rows(out_dir, config, progress)
+    done, notes = _reusable_rows(out_dir, config)
     before = load_manifest_for_write(out_dir) if existed else None
     mark_incomplete(out_dir, "resample", config)
 
@@ -251,7 +254,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
         "failed": sum(s.status == "failed" for s in statuses),
         "hausdorff_pct_mean": float(np.mean([x["hausdorff_pct"] for x in q])) if q else None,
         "transfer_error_pct_mean": float(np.mean([x["transfer_error_pct"] for x in q])) if q else None,
-        "seconds": time.perf_counter() - start, "statuses": statuses,
+        "seconds": time.perf_counter() - start, "statuses": statuses, "notes": notes,
     }
     if progress:
         print(summarize_statuses(statuses))
