@@ -38,7 +38,7 @@ def entry_path(root: str | os.PathLike, rel: str, where: str = "manifest.json") 
             resolves (following symlinks) outside ``root``.
     """
     root = Path(root)
-    if not isinstance(rel, str) or not rel:
+    if not isinstance(rel, str) or not rel or "\x00" in rel:
         raise DatasetError(f"{root / where}: shard path {rel!r} is not a relative path string")
     parts = PurePosixPath(rel).parts
     if rel.startswith(("/", "\\")) or os.path.isabs(rel) or ":" in parts[0] or any(p in ("..", "") for p in parts) \

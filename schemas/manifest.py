@@ -47,15 +47,48 @@ def _parse(path: Path) -> dict:
         manifest = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DatasetError(f"{path}: not valid JSON ({exc})") from exc
-    if not isinstance(manifest, dict) or not isinstance(manifest.get("tables", {}), dict):
-        raise DatasetError(f"{path}: expected a JSON object with a 'tables' object")
+    if not isinstance(manifest, dict):
+        raise DatasetError(f"{path}: expected a JSON object, got {type(manifest).__name__}")
     version = manifest.get("schema_version")
     if not isinstance(version, str) or not is_compatible(version):
         raise DatasetError(f"{path}: unknown schema version {version!r}, expected {SCHEMA_VERSION!r} (this "
                            f"mimicbench reads {SCHEMA_VERSION.split('.')[0]}.x; use a matching mimicbench version)")
     manifest.setdefault("tables", {})
     manifest.setdefault("configs", {})
+    _check_structure(path, manifest)
     return manifest
+
+
+SHARD_FIELDS = {"path": str, "split": str, "rows": int, "sha256": str}
+
+
+def _check_structure(path: Path, manifest: dict) -> None:
+    """Raise DatasetError naming ``path`` when the manifest's fields are not of the documented types."""
+    def bad(what: str):
+        raise DatasetError(f"{path}: {what}; see schemas/FORMAT.md for the manifest's layout")
+
+    if not isinstance(manifest["tables"], dict):
+        bad("'tables' must be an object")
+    if not isinstance(manifest["configs"], dict) or not all(isinstance(c, dict) for c in manifest["configs"].values()):
+        bad("'configs' must be an object of objects")
+    if not isinstance(manifest.get("complete", True), bool):
+        bad("'complete' must be true or false")
+    if not isinstance(manifest.get("pending", {}), dict):
+        bad("'pending' must be an object")
+    for table, info in manifest["tables"].items():
+        if not isinstance(info, dict) or not isinstance(info.get("shards", []), list):
+            bad(f"table {table!r} must be an object with a 'shards' list")
+        for i, entry in enumerate(info.get("shards", [])):
+            if not isinstance(entry, dict):
+                bad(f"table {table!r} shard {i} must be an object")
+            for key, kind in SHARD_FIELDS.items():
+                value = entry.get(key)
+                if not isinstance(value, kind) or isinstance(value, bool) or (kind is int and value < 0):
+                    bad(f"table {table!r} shard {i}: {key!r} must be "
+                        f"{'a non-negative integer' if kind is int else 'a string'}, got {value!r}")
+            size = entry.get("bytes")
+            if size is not None and (not isinstance(size, int) or isinstance(size, bool) or size < 0):
+                bad(f"table {table!r} shard {i}: 'bytes' must be a non-negative integer, got {size!r}")
 
 
 def load_manifest(root: str | os.PathLike) -> dict:

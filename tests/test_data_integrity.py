@@ -312,3 +312,42 @@ def test_shards_manifests_and_copies_get_the_users_umask(tube, tmp_path, mask):
     assert len(files) >= 6
     for p in files:
         assert p.stat().st_mode & 0o777 == 0o666 & ~mask, p
+
+
+@pytest.mark.parametrize("manifest,said", [
+    ([], "expected a JSON object, got list"),
+    ({"schema_version": "1.0", "tables": []}, "'tables' must be an object"),
+    ({"schema_version": "1.0", "tables": {"characters": {"shards": [{"path": 3}]}}}, "'path' must be a string, got 3"),
+    ({"schema_version": "1.0", "tables": {"characters": {"shards": [
+        {"path": "characters/train-00000-of-00001.parquet", "split": "train", "rows": -1, "sha256": "x"}]}}},
+     "'rows' must be a non-negative integer, got -1"),
+    ({"schema_version": "1.0", "complete": "no"}, "'complete' must be true or false"),
+    ({"schema_version": 1}, "unknown schema version 1"),
+])
+def test_a_malformed_manifest_is_a_named_error_for_readers_and_validate(tmp_path, manifest, said, capsys):
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(DatasetError, match=said):
+        read_records(tmp_path, "characters")
+    assert [said in p for p in validate_dataset(tmp_path)] == [True]
+    code, err = cli(["datagen", "correspond", str(tmp_path), "--quiet"], capsys)
+    assert code == 2 and said in err
+
+
+def test_a_resample_where_every_character_fails_leaves_the_earlier_output_untouched(tube, tmp_path, capsys,
+                                                                                     monkeypatch):
+    import datagen.resample.stage as stage
+
+    src = toy_dataset(tmp_path / "in", tube)
+    out = tmp_path / "out"
+    resample_dataset(src, out, faces=200, progress=False)
+    before = snapshot(out)
+
+    def broken(record, motions, faces, backend):
+        raise RuntimeError(f"cannot resample {record.character_id}")
+
+    monkeypatch.setattr(stage, "resample_character", broken)
+    code, err = cli(["datagen", "resample", str(src), str(out), "--faces", "400", "--quiet"], capsys)
+    assert code == 2 and "every character failed" in err and "cannot resample toy/t-0" in err
+    assert snapshot(out) == before and validate_dataset(out) == []
+    code, err = cli(["datagen", "resample", str(src), str(tmp_path / "new"), "--faces", "400", "--quiet"], capsys)
+    assert code == 2 and "nothing written" in err and not (tmp_path / "new").exists()

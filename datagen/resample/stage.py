@@ -107,8 +107,6 @@ def _check_arguments(in_dir: Path, out_dir: Path, faces: int, backend: str, jobs
         raise ValueError(f"jobs, flush_every: expected >= 1, got {jobs}, {flush_every}")
     if in_dir.resolve() == out_dir.resolve():
         raise ValueError("resample: IN_DATASET and OUT_DATASET must differ")
-    if out_dir.resolve().is_relative_to(in_dir.resolve()) or in_dir.resolve().is_relative_to(out_dir.resolve()):
-        raise ValueError(f"resample: OUT_DATASET {out_dir} and IN_DATASET {in_dir} must not contain one another")
 
 
 def _reusable_rows(out_dir: Path, config: dict) -> tuple[dict, list[str]]:
