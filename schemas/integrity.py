@@ -90,6 +90,8 @@ def verify_shard(path: Path, entry: dict, verify: bool | None = None) -> None:
         st = path.stat()
     except FileNotFoundError:
         raise DatasetError(f"{path}: listed in manifest.json but missing") from None
+    if not path.is_file():
+        raise DatasetError(f"{path}: listed in manifest.json as a shard but not a regular file")
     size = entry.get("bytes")
     if size is not None and st.st_size != size:
         raise DatasetError(f"{path}: {st.st_size} bytes, manifest.json says {size}: the file changed or is "

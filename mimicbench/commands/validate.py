@@ -8,9 +8,11 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "validate",
         help="check a dataset folder against manifest.json and the schema",
-        description="Check every shard listed in DIR/manifest.json: present, sha256 as recorded, "
-        "readable Parquet with the recorded rows, a known schema version and the contract's "
-        "column types. Exits 1 and names each bad file and why.",
+        description="Check every shard listed in DIR/manifest.json: its path inside DIR, present, size and "
+        "sha256 as recorded, readable Parquet with the recorded rows, a known schema version and the "
+        "contract's column types; the dataset marked complete (not left half-written by a killed stage); "
+        "tables derived from other tables of DIR (pairs from characters) still matching their "
+        "fingerprints; no unlisted shard on disk. Exits 1 and names each bad file and why.",
     )
     p.add_argument("dataset", help="dataset folder (holds manifest.json)")
     p.set_defaults(func=run)
