@@ -49,12 +49,35 @@ def local_translations(source_transforms: np.ndarray, rest_keypoints: np.ndarray
     return out
 
 
+def transforms_from_local(local_rotations: np.ndarray, moved: np.ndarray, rest_keypoints: np.ndarray,
+                          parents: np.ndarray) -> np.ndarray:
+    """Global transforms (K, 7) from local rotations (K, 4) and local translations (K, 3).
+
+    ``moved`` is what :func:`local_translations` returns: per bone its translation relative to
+    its parent beyond the rest offset, in the parent's rest-relative frame (a root's: its
+    displacement from rest). Forward kinematics runs on a rest skeleton whose bone offsets
+    include them, so every joint lands where the carried-over pose puts it.
+    """
+    parents = np.asarray(parents)
+    rest = np.asarray(rest_keypoints, np.float64)
+    moved = np.asarray(moved, np.float64)
+    shifted = np.empty_like(rest)
+    for k, p in enumerate(parents):
+        shifted[k] = rest[k] if p < 0 else shifted[p] + rest[k] - rest[p] + moved[k]
+    roots = parents < 0
+    root_pos = shifted.copy()
+    root_pos[roots] += moved[roots]
+    g_rot, g_pos = forward_kinematics(local_rotations, shifted, parents, root_pos)
+    return transforms_to_array(g_rot, g_pos)
+
+
 def ground_truth_transforms(source, target, source_transforms: np.ndarray) -> np.ndarray:
     """Ground-truth target transforms (K, 7) for a source pose (K, 7) on a shared skeleton.
 
     Local rotations are copied bone by bone; local translations (:func:`local_translations`,
     the roots' displacements included) are scaled by :func:`benchmark.normalisation.size_ratio`
-    and added to the target's own rest offsets; positions follow by forward kinematics.
+    and added to the target's own rest offsets; positions follow by forward kinematics
+    (:func:`transforms_from_local`).
 
     Args:
         source, target: CharacterRecord-like objects (character_id, keypoints, parents,
@@ -66,19 +89,9 @@ def ground_truth_transforms(source, target, source_transforms: np.ndarray) -> np
                          "share a skeleton (expected equal bone names and parents)")
     parents = np.asarray(target.parents)
     q, _ = array_to_transforms(source_transforms)
-    moved = local_translations(source_transforms, source.keypoints, parents) * size_ratio(source.vertices,
-                                                                                          target.vertices)
-    rest = np.asarray(target.keypoints, np.float64)
-    # a rest skeleton whose bone offsets include the scaled local translations: FK on it places
-    # every joint where the carried-over pose puts it
-    shifted = np.empty_like(rest)
-    for k, p in enumerate(parents):
-        shifted[k] = rest[k] if p < 0 else shifted[p] + rest[k] - rest[p] + moved[k]
-    roots = parents < 0
-    root_pos = shifted.copy()
-    root_pos[roots] += moved[roots]
-    g_rot, g_pos = forward_kinematics(local_from_global(q, parents), shifted, parents, root_pos)
-    return transforms_to_array(g_rot, g_pos)
+    ratio = size_ratio(source.vertices, target.vertices)
+    moved = local_translations(source_transforms, source.keypoints, parents) * ratio
+    return transforms_from_local(local_from_global(q, parents), moved, target.keypoints, parents)
 
 
 class SameSkeleton(BenchmarkProtocol):
