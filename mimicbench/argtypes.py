@@ -18,12 +18,16 @@ import math
 from typing import Callable, Iterable
 
 
+def _num(x) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
 def _range_text(kind: str, lo, hi, low_open: bool, high_open: bool) -> str:
     parts = []
     if lo is not None:
-        parts.append(f"{'>' if low_open else '>='} {lo:g}")
+        parts.append(f"{'>' if low_open else '>='} {_num(lo)}")
     if hi is not None:
-        parts.append(f"{'<' if high_open else '<='} {hi:g}")
+        parts.append(f"{'<' if high_open else '<='} {_num(hi)}")
     return f"{kind} " + " and ".join(parts) if parts else kind
 
 
@@ -73,6 +77,10 @@ nonnegative_int = int_in(0)
 nonnegative_int.__doc__ = "An argparse type: an integer >= 0."
 positive_float = float_in(0.0, None, low_open=True)
 positive_float.__doc__ = "An argparse type: a finite number > 0."
+
+MAX_JOBS = 256  # more worker processes than this is a typo, and would exhaust the machine first
+job_count = int_in(1, MAX_JOBS)
+job_count.__doc__ = f"An argparse type for --jobs: an integer from 1 to {MAX_JOBS}."
 
 
 def comma_choices(choices: Iterable[str], allow_empty: bool = True) -> Callable[[str], tuple[str, ...]]:

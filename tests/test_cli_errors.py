@@ -32,12 +32,14 @@ def test_comma_choices_keeps_order_drops_duplicates_and_rejects_unknown_or_empty
 
 
 @pytest.mark.parametrize("argv,said", [
-    (["zoo", "--out", "X", "--characters", "0"], "argument --characters: expected an integer >= 1, got '0'"),
+    (["zoo", "--out", "X", "--characters", "0"], "argument --characters: expected an integer >= 1 and <= 100000, got '0'"),
     (["zoo", "--out", "X", "--seed", "-1"], "argument --seed: expected an integer >= 0"),
     (["zoo", "--out", "X", "--clips-per-character", "0"], "argument --clips-per-character"),
     (["zoo", "--out", "X", "--export", "stl"], "argument --export: unknown 'stl'"),
-    (["datagen", "resample", "A", "B", "--faces", "0"], "argument --faces: expected an integer >= 100, got '0'"),
-    (["datagen", "resample", "A", "B", "--jobs", "0"], "argument --jobs: expected an integer >= 1"),
+    (["datagen", "resample", "A", "B", "--faces", "0"], "argument --faces: expected an integer >= 100 and <= 1000000, got '0'"),
+    (["datagen", "resample", "A", "B", "--faces", "2000000"], "argument --faces: expected an integer >= 100"),
+    (["datagen", "resample", "A", "B", "--jobs", "0"], "argument --jobs: expected an integer >= 1 and <= 256"),
+    (["datagen", "resample", "A", "B", "--jobs", "100000"], "argument --jobs: expected an integer >= 1 and <= 256"),
     (["datagen", "correspond", "A", "--temperature", "0"], "argument --temperature: expected a finite number > 0"),
     (["datagen", "correspond", "A", "--pairs", "-1"], "argument --pairs: expected an integer >= 1"),
     (["datagen", "correspond", "A", "--seed", "-2"], "argument --seed: expected an integer >= 0"),

@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.argtypes import int_in, positive_int
+from mimicbench.argtypes import MAX_JOBS, int_in, job_count
 
 MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
+MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
 
 
 def register(subparsers) -> None:
@@ -25,11 +26,11 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("in_dataset")
     p.add_argument("out_dataset")
-    p.add_argument("--faces", type=int_in(MIN_FACES), default=5000,
-                   help=f"target face count, >= {MIN_FACES} (default 5000)")
+    p.add_argument("--faces", type=int_in(MIN_FACES, MAX_FACES), default=5000,
+                   help=f"target face count, {MIN_FACES} to {MAX_FACES:,} (default 5000)")
     p.add_argument("--backend", choices=("fast", "pymeshlab"), default="fast",
                    help="fast (fast-simplification, default) or pymeshlab (MeshLab's quadric edge collapse)")
-    p.add_argument("--jobs", type=positive_int, default=1, help="worker processes, >= 1 (default 1)")
+    p.add_argument("--jobs", type=job_count, default=1, help=f"worker processes, 1 to {MAX_JOBS} (default 1)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from datagen.resample.character import resample_character
-from datagen.resample.command import MIN_FACES
+from datagen.resample.command import MAX_FACES, MIN_FACES
 from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
@@ -99,8 +99,8 @@ def _copy_table(src: Path, dst: Path, table: str) -> None:
 
 
 def _check_arguments(in_dir: Path, out_dir: Path, faces: int, backend: str, jobs: int, flush_every: int) -> None:
-    if isinstance(faces, bool) or not isinstance(faces, (int, np.integer)) or faces < MIN_FACES:
-        raise ValueError(f"faces: expected an integer >= {MIN_FACES}, got {faces!r}")
+    if isinstance(faces, bool) or not isinstance(faces, (int, np.integer)) or not MIN_FACES <= faces <= MAX_FACES:
+        raise ValueError(f"faces: expected an integer from {MIN_FACES} to {MAX_FACES}, got {faces!r}")
     if backend not in BACKENDS:
         raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
     if jobs < 1 or flush_every < 1:

@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.argtypes import comma_choices, nonnegative_int, positive_int
+from mimicbench.argtypes import comma_choices, int_in, nonnegative_int
+
+MAX_CHARACTERS = 100_000
+MAX_CLIPS = 100
 
 DESCRIPTION = """\
 Generate procedural rigged, skinned and animated characters of every kind (humanoid, quadruped,
@@ -23,12 +26,14 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("zoo", help="generate procedural rigged, animated characters (the offline default dataset)",
                               description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, help="dataset folder to write (created if missing)")
-    p.add_argument("--characters", type=positive_int, default=40, help="number of characters, >= 1 (default 40)")
+    p.add_argument("--characters", type=int_in(1, MAX_CHARACTERS), default=40,
+                   help=f"number of characters, 1 to {MAX_CHARACTERS:,} (default 40)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed, >= 0 (default 0)")
     p.add_argument("--categories", nargs="+", default=None, metavar="CATEGORY",
                    help="subset of humanoid quadruped bird fish reptile insect apparel, separated by spaces or "
                    "commas (default all)")
-    p.add_argument("--clips-per-character", type=positive_int, default=3, help="clips per character, >= 1 (default 3)")
+    p.add_argument("--clips-per-character", type=int_in(1, MAX_CLIPS), default=3,
+                   help=f"clips per character, 1 to {MAX_CLIPS} (default 3)")
     p.add_argument("--export", type=comma_choices(("obj", "bvh")), default=(),
                    help="also write files: comma-separated of obj,bvh "
                    "(OUT/export/<character>.obj, OUT/export/<character>/<clip>.bvh)")
