@@ -7,12 +7,14 @@ manifest cannot make a reader (or ``resample``'s copy) touch files elsewhere.
 :func:`verify_shard` compares a shard with its manifest entry: size (``bytes``) always, sha256
 unless verification is off (``verify=False``, or the environment variable ``MIMICBENCH_VERIFY=0``,
 which the CLI's ``--no-verify`` sets). A file is hashed once per process: the digest is cached by
-path, size, inode, mtime and ctime (nanoseconds), so reading a shard again, or right after this
-process wrote it, costs no second hash.
+path, size, inode, mtime and ctime (nanoseconds), so reading a shard again costs no second hash. A file whose status changed (ctime) less than
+``RACY_SECONDS`` before it was hashed is not cached (the "racy timestamp" rule git uses): file
+times tick coarsely, so a same-size rewrite within one tick would otherwise keep its old key.
 """
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path, PurePosixPath
 
 from schemas.errors import DatasetError
@@ -21,6 +23,7 @@ from schemas.manifest import sha256_of
 VERIFY_ENV = "MIMICBENCH_VERIFY"
 
 _DIGESTS: dict[tuple, str] = {}
+RACY_SECONDS = 2.0
 
 
 def verify_enabled(verify: bool | None = None) -> bool:
@@ -57,22 +60,22 @@ def _key(path: Path, st: os.stat_result) -> tuple:
     return (str(path.resolve()), st.st_size, st.st_ino, st.st_mtime_ns, st.st_ctime_ns)
 
 
+def _settled(st: os.stat_result) -> bool:
+    """True when the file last changed long enough ago that a later change must show in its times."""
+    return time.time_ns() - max(st.st_mtime_ns, st.st_ctime_ns) > RACY_SECONDS * 1e9
+
+
 def cached_sha256(path: str | os.PathLike) -> str:
     """sha256 of ``path``, hashed once per process for an unchanged file."""
     path = Path(path)
-    key = _key(path, path.stat())
+    st = path.stat()
+    key = _key(path, st)
     digest = _DIGESTS.get(key)
     if digest is None:
         digest = sha256_of(path)
-        if _key(path, path.stat()) == key:  # unchanged while hashing
+        if _key(path, path.stat()) == key and _settled(st):  # unchanged while hashing, and not racy
             _DIGESTS[key] = digest
     return digest
-
-
-def remember_sha256(path: str | os.PathLike, digest: str) -> None:
-    """Record the digest of a file this process just wrote (no re-hash when it is read back)."""
-    path = Path(path)
-    _DIGESTS[_key(path, path.stat())] = digest
 
 
 def forget_digests() -> None:

@@ -26,7 +26,7 @@ import pyarrow.parquet as pq
 from schemas.columns import records_to_table, table_to_records
 from schemas.errors import DatasetError
 from schemas.fingerprint import stale_inputs
-from schemas.integrity import entry_path, remember_sha256, verify_shard
+from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (chmod_like_open, fsync_file, incomplete_reason, is_complete, load_manifest,
                               load_manifest_for_write, save_manifest, sha256_of)
 from schemas.tables import ROW_GROUP_SIZE, record_type, schema_of
@@ -104,7 +104,6 @@ def write_table(root, table: str, arrow: pa.Table, split: str, rows_per_shard: i
         entry = {"path": f"{table}/{final.name}", "split": split, "rows": pq.read_metadata(tmp).num_rows,
                  "bytes": os.path.getsize(tmp), "sha256": digest}
         os.replace(tmp, final)
-        remember_sha256(final, digest)
         entries.append(entry)
     tinfo = manifest["tables"].setdefault(table, {"shards": []})
     old = [s for s in tinfo["shards"] if s["split"] == split]

@@ -24,7 +24,7 @@ from datagen.resample.command import MAX_FACES, MIN_FACES
 from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
-from schemas.integrity import entry_path, remember_sha256, verify_shard
+from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_incomplete,
                               save_manifest)
 from schemas.shards import has_table, read_records, remove_split, splits_of, write_records
@@ -72,7 +72,6 @@ def _copy_table(src: Path, dst: Path, table: str) -> None:
         src_path, dst_path = entry_path(src, shard["path"]), entry_path(dst, shard["path"])
         verify_shard(src_path, shard)
         _copy_file(src_path, dst_path)
-        remember_sha256(dst_path, shard["sha256"])
         entries.append(dict(shard))
     m_dst = load_manifest_for_write(dst)
     if info:
