@@ -42,7 +42,21 @@ def build_cases(dataset, split: str = "test", h2h_pairs: int | None = 100, h2h_p
 
 
 def write_cases(dataset, cases: dict[str, list[CaseRecord]], config: dict) -> dict[str, int]:
-    """Write the cases table, one shard group per protocol (split = protocol name)."""
+    """Write the cases table, one shard group per protocol (split = protocol name).
+
+    The manifest's ``configs.cases`` records ``config`` plus the fingerprints of the characters
+    and motions tables the cases were built from (``bench run`` refuses cases that no longer
+    match the dataset).
+
+    Raises:
+        ValueError: no protocol has any case: nothing is written, existing cases are kept.
+    """
+    from benchmark.provenance import CONFIG_KEY, cases_inputs
+
+    if not any(cases.values()):
+        raise ValueError(f"{dataset}: no cases were made (the split has no humanoid family for h2h and no "
+                         "cross-category pair for cct); the existing cases are left as they were")
+    config = {**config, CONFIG_KEY: cases_inputs(dataset)}
     counts = {}
     for protocol, recs in cases.items():
         write_records(dataset, "cases", recs, split=protocol, rows_per_shard=5000, config=config)

@@ -2,6 +2,27 @@
 from __future__ import annotations
 
 import argparse
+import sys
+
+from mimicbench.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
+
+SPLIT_CHOICES = ("train", "val", "test", "all")
+
+
+def _method_names(text: str) -> tuple[str, ...]:
+    """argparse type of ``--methods``: a non-empty comma-separated list of names."""
+    names = tuple(dict.fromkeys(m.strip() for m in text.split(",") if m.strip()))
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected a comma-separated list of at least one method name, got {text!r}"
+                                         " (see `mimicbench bench methods`)")
+    return names
+
+
+def _protocol_names(text: str) -> tuple[str, ...]:
+    """argparse type of ``--protocols``: a non-empty comma-separated subset of the protocols."""
+    from benchmark.protocols import available_protocols
+
+    return comma_choices(available_protocols(), allow_empty=False)(text)
 
 
 def register(subparsers) -> None:
@@ -18,35 +39,47 @@ def register(subparsers) -> None:
                        description="Make benchmark cases from one split: h2h, same-skeleton transfer (characters "
                        "of any category that share a skeleton_id; ground truth carries the source's local rotations "
                        "and size-scaled local translations over) and cct (cross-category pairs with a humanoid on "
-                       "one side, scored by cycle consistency). Example:\n"
+                       "one side, scored by cycle consistency). The cases record the fingerprints of the characters and "
+                       "motions they were built from; `bench run` refuses them once the dataset changes. A run that "
+                       "makes no case is an error and keeps the existing cases. Example:\n"
                        "  mimicbench bench cases data/zoo5k --split all --h2h-pairs 50\n"
                        "  mimicbench bench cases data/zoo5k --all-pairs     # every pair, across splits",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("dataset")
-    c.add_argument("--split", default=None, help="characters to use: train, val, test or all (default test)")
+    c.add_argument("--split", default=None, choices=SPLIT_CHOICES, help="characters to use: train, val, test or all (default test)")
     c.add_argument("--all-pairs", action="store_true",
                    help="every candidate pair of every protocol, across all splits (no sampling; "
                    "--h2h-pairs and --cct-pairs do not apply; --split may only be 'all')")
-    c.add_argument("--h2h-pairs", type=int, default=100, help="ordered same-skeleton pairs (default 100)")
-    c.add_argument("--h2h-poses", type=int, default=20, help="poses per h2h pair (default 20)")
-    c.add_argument("--cct-pairs", type=int, default=300, help="cross-category pairs (default 300)")
-    c.add_argument("--cct-poses", type=int, default=10, help="poses per cct pair (default 10)")
-    c.add_argument("--seed", type=int, default=0)
+    c.add_argument("--h2h-pairs", type=nonnegative_int, default=100, help="ordered same-skeleton pairs (default 100)")
+    c.add_argument("--h2h-poses", type=positive_int, default=20, help="poses per h2h pair (default 20)")
+    c.add_argument("--cct-pairs", type=nonnegative_int, default=300, help="cross-category pairs (default 300)")
+    c.add_argument("--cct-poses", type=positive_int, default=10, help="poses per cct pair (default 10)")
+    c.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the pair and pose draws (default 0)")
     c.set_defaults(func=run_cases)
 
     r = sub.add_parser("run", help="run methods on the cases and store per-case results",
                        description="Run registered methods on the dataset's cases. Rows go to "
-                       "OUT/<method>/<version>/; a re-run computes only missing cases. Under torchrun the "
-                       "cases are sharded by RANK/WORLD_SIZE, e.g.\n"
+                       "OUT/<method>/<version>/ with a meta.json (dataset fingerprints, method metadata, toolkit "
+                       "version); a re-run computes only missing cases, and refuses an OUT made from another "
+                       "dataset state. Each method runs in a worker process: a case that hangs past "
+                       "--case-timeout, or a crash, fails that case and the run goes on with a fresh worker. "
+                       "Under torchrun the cases are sharded by RANK/WORLD_SIZE, e.g.\n"
                        "  torchrun --nproc-per-node 2 -m mimicbench bench run DATA --methods name_copy --out results",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("dataset")
-    r.add_argument("--methods", required=True, help="comma-separated method names (see --list-methods)")
-    r.add_argument("--protocols", default="h2h,cct",
+    r.add_argument("--methods", required=True, type=_method_names,
+                   help="comma-separated method names (see `mimicbench bench methods`)")
+    r.add_argument("--protocols", default=("h2h", "cct"), type=_protocol_names,
                    help="comma-separated protocols: h2h (same-skeleton), cct (cross-category cycle); default both")
     r.add_argument("--out", default="results", help="results folder (default results)")
     r.add_argument("--device", default="cpu", help="cpu or cuda[:i] (default cpu)")
-    r.add_argument("--batch-size", type=int, default=16)
+    r.add_argument("--batch-size", type=positive_int, default=16, help="requests per transfer call (default 16)")
+    r.add_argument("--case-timeout", type=positive_float, default=600.0, metavar="SECONDS",
+                   help="seconds a case may take before it fails as timed out (a batch of B gets B times "
+                   "this; default 600)")
+    r.add_argument("--in-process", action="store_true",
+                   help="call methods in this process: no worker start-up, but no timeout and no protection "
+                   "from a method that hangs or crashes")
     r.add_argument("--retry-failed", action="store_true", help="also re-run cases whose stored row failed")
     r.add_argument("--quiet", action="store_true", help="no progress bars")
     r.set_defaults(func=run_run)
@@ -78,10 +111,6 @@ def run_cases(args) -> int:
     config = {"stage": "bench cases", **{k: v for k, v in vars(args).items() if k != "func"}, "split": split}
     counts = write_cases(args.dataset, cases, config)
     print(f"cases in {args.dataset}: " + ", ".join(f"{p} {n}" for p, n in counts.items()))
-    if not any(counts.values()):
-        print("no cases: no two characters share a skeleton_id (h2h) and there are no cross-category pairs (cct); "
-              "try --split all")
-        return 1
     return 0
 
 
@@ -89,9 +118,9 @@ def run_run(args) -> int:
     from benchmark.evaluator import run_benchmark
     from benchmark.leaderboard import markdown_tables
 
-    summary = run_benchmark(args.dataset, [m.strip() for m in args.methods.split(",") if m.strip()],
-                            [p.strip() for p in args.protocols.split(",") if p.strip()], args.out, args.device,
-                            args.batch_size, progress=not args.quiet, retry_failed=args.retry_failed)
+    summary = run_benchmark(args.dataset, list(args.methods), list(args.protocols), args.out, args.device,
+                            args.batch_size, progress=not args.quiet, retry_failed=args.retry_failed,
+                            case_timeout=args.case_timeout, in_process=args.in_process)
     if summary["rank"] == 0:
         print(markdown_tables(summary["aggregate"]))
         print(f"{summary['computed']} cases computed ({summary['failed']} failed, {summary['not_supported']} not "

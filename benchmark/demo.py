@@ -35,6 +35,7 @@ def run(args) -> int:
     from benchmark.cases import build_cases, write_cases
     from benchmark.evaluator import run_benchmark
     from benchmark.leaderboard import markdown_tables, write_leaderboard
+    from benchmark.provenance import cases_are_current
     from datagen.correspond import correspond_dataset
     from datagen.resample import resample_dataset
     from datagen.zoo import build_zoo
@@ -63,7 +64,10 @@ def run(args) -> int:
         agree = corr["report"]["humanoid_cross_style_agreement"]
         print(f"   {sum(corr['pairs'].values())} pairs; humanoid bones matched to the same role across naming "
               f"styles: {'n/a' if agree is None else f'{agree:.0%}'} (details: {data}/correspond_report.json)")
-    if not has_table(data, "cases"):
+    if not has_table(data, "cases") or not cases_are_current(data):
+        if results.exists():  # scored on cases of an earlier dataset state
+            shutil.rmtree(results)
+
         def make_cases():
             cases = build_cases(data, "test", h2h_pairs=100, h2h_poses=args.h2h_poses, cct_pairs=args.cct_pairs,
                                 cct_poses=args.cct_poses, seed=args.seed)

@@ -3,8 +3,10 @@
 Cases are sharded by rank when launched by ``torchrun`` (``RANK``/``WORLD_SIZE``; gloo on CPU,
 nccl on GPU), each rank appends its own result parts, and rank 0 aggregates once after a
 barrier. A re-run computes only the cases without a row. A method that raises, returns NaN or a
-wrong shape fails that case (the batch is retried one request at a time to find which) and the
-run goes on.
+wrong shape, writes into its (read-only) input, hangs past the per-case timeout or kills its
+worker process fails that case (the batch is retried one request at a time to find which) and
+the run goes on; see :mod:`benchmark.worker` for the worker process and :mod:`benchmark.provenance`
+for the fingerprints that keep results, cases and dataset together.
 
 The evaluator knows no protocol by name: each protocol module (:mod:`benchmark.protocols`) builds
 its requests and scores, and calls the method only through the ``call`` it is handed here
@@ -13,7 +15,6 @@ its requests and scores, and calls the method only through the ``call`` it is ha
 from __future__ import annotations
 
 import os
-import time
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -21,11 +22,14 @@ from tqdm.auto import tqdm
 
 from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
 from benchmark.protocols.base import EvalData
+from benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
+                                  dataset_fingerprints, method_meta, write_method_meta)
 from benchmark.registry import get_method
 from benchmark.request import TransferRequest
 from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.samples import SampleSink
 from benchmark.scoring import check_prediction
+from benchmark.worker import InProcessRunner, open_runner
 from schemas.result import NOT_SUPPORTED, ResultRecord
 from schemas.shards import has_table, read_records
 
@@ -76,30 +80,28 @@ def load_cases(dataset, protocols: Sequence[str]):
 
 
 def _call(method, requests: list[TransferRequest], sizes: list[int]):
-    """Run a batch; on an exception retry one by one. Returns [(array | None, error | None, seconds)]."""
-    start = time.perf_counter()
-    try:
-        outputs = method.transfer(requests)
-        if len(outputs) != len(requests):
-            raise RuntimeError(f"method returned {len(outputs)} outputs for {len(requests)} requests")
-        per = (time.perf_counter() - start) / len(requests)
-        results = []
-        for out, n in zip(outputs, sizes):
-            try:
-                results.append((check_prediction(out, n), None, per))
-            except ValueError as exc:
-                results.append((None, str(exc), per))
-        return results
-    except Exception:
+    """Run a batch through a runner (:mod:`benchmark.worker`; a bare method runs in process); on a
+    failure retry one by one. Returns [(array | None, error | None, seconds)]."""
+    runner = method if hasattr(method, "run_batch") else InProcessRunner(method, setup=False)
+    outcome = runner.run_batch(requests)
+    error = outcome.error
+    if error is None and len(outcome.outputs) != len(requests):
+        error = f"method returned {len(outcome.outputs)} outputs for {len(requests)} requests"
+    if error is not None:
         if len(requests) == 1:
-            import traceback
-
-            exc_text = traceback.format_exc(limit=1).strip().splitlines()[-1]
-            return [(None, f"method raised: {exc_text}", time.perf_counter() - start)]
+            return [(None, error, outcome.seconds)]
         results = []
         for req, n in zip(requests, sizes):
-            results.extend(_call(method, [req], [n]))
+            results.extend(_call(runner, [req], [n]))
         return results
+    per = outcome.seconds / len(requests)
+    results = []
+    for out, n in zip(outcome.outputs, sizes):
+        try:
+            results.append((check_prediction(out, n), None, per))
+        except ValueError as exc:
+            results.append((None, str(exc), per))
+    return results
 
 
 def _row(case, method, status, error, seconds, metrics=None) -> ResultRecord:
@@ -141,22 +143,46 @@ def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> lis
     return [_row(o.case, method, o.status, o.error, o.seconds, o.metrics) for o in outcomes]
 
 
+def check_run_options(methods: Sequence[str], batch_size: int, case_timeout: float) -> None:
+    """Raise ValueError saying what is allowed when a run option is out of range."""
+    if not methods:
+        raise ValueError("methods: expected at least one method name (see `mimicbench bench methods`)")
+    if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
+        raise ValueError(f"batch_size: expected an integer >= 1, got {batch_size!r}")
+    if not case_timeout > 0:
+        raise ValueError(f"case_timeout: expected seconds > 0, got {case_timeout!r}")
+
+
 def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DEFAULT_PROTOCOLS, out="results",
                   device: str = "cpu", batch_size: int = 16, progress: bool = True,
-                  retry_failed: bool = False) -> dict:
+                  retry_failed: bool = False, case_timeout: float = 600.0, in_process: bool = False) -> dict:
     """Evaluate ``methods`` on the dataset's cases; returns a summary (rank 0 aggregates).
 
     Args:
         dataset: dataset folder with ``characters``, ``motions`` and ``cases`` tables.
         methods: registered method names.
         protocols: protocol names (:func:`benchmark.protocols.available_protocols`).
-        out: results folder; rows go to ``out/<method>/<version>/``.
+        out: results folder; rows go to ``out/<method>/<version>/`` with a ``meta.json``.
         device: passed to each method's ``setup``.
-        batch_size: requests per ``transfer`` call.
+        batch_size: requests per ``transfer`` call (>= 1).
         retry_failed: also re-run cases whose stored row failed (default: only missing ones).
+        case_timeout: seconds a request may take in the worker process (> 0).
+        in_process: call methods in this process (faster start, no timeout, no crash isolation).
+
+    Raises:
+        ValueError: an option out of range, or an unknown protocol.
+        ProvenanceError: the cases were built from another state of the dataset, or ``out``
+            holds rows made from another dataset state (nothing is written then).
     """
+    check_run_options(methods, batch_size, case_timeout)
     instances = [get_method(m) for m in methods]  # fail fast on unknown names
     cases = load_cases(dataset, protocols)
+    check_cases_current(dataset)
+    fingerprints = dataset_fingerprints(dataset, list(cases))
+    check_results_folder(out, fingerprints)
+    metas = [method_meta(m.metadata, dataset, fingerprints) for m in instances]
+    for method, meta in zip(instances, metas):  # refuse before anything is written
+        check_method_folder(method_dir(out, method.metadata.name, method.metadata.version), meta)
     data = EvalData.load(dataset)
     ctx = DistributedContext.from_env(device)
     counts = {"computed": 0, "skipped": 0, "failed": 0, NOT_SUPPORTED: 0}
@@ -164,28 +190,33 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         if ctx.rank == 0:
             write_run_info(out, {"dataset": str(dataset), "protocols": {p: len(c) for p, c in cases.items()},
                                  "methods": {m.metadata.name: m.metadata.version for m in instances}})
-        for method in instances:
-            method.setup(device)
-            method.on_distributed_init(ctx.rank, ctx.world_size)
+        for method, meta in zip(instances, metas):
             folder = method_dir(out, method.metadata.name, method.metadata.version)
+            if ctx.rank == 0:
+                write_method_meta(folder, meta)
             done = done_case_ids(folder, include_failed=not retry_failed) if folder.exists() else set()
             samples = SampleSink(folder, cases)
-            for name, plist in cases.items():
-                protocol = get_protocol(name)
-                mine = [c for i, c in enumerate(plist) if i % ctx.world_size == ctx.rank]
-                todo = [c for c in mine if c.case_id not in done]
-                counts["skipped"] += len(mine) - len(todo)
-                bar = tqdm(total=len(todo), desc=f"{method.metadata.name}/{name}", unit="case",
-                           disable=not progress or not todo)
-                for start in range(0, len(todo), batch_size):
-                    rows = evaluate_batch(method, protocol, todo[start:start + batch_size], data, samples)
-                    append_results(folder, rows, ctx.rank)
-                    counts["computed"] += len(rows)
-                    counts["failed"] += sum(r.status == "failed" for r in rows)
-                    counts[NOT_SUPPORTED] += sum(r.status == NOT_SUPPORTED for r in rows)
-                    bar.update(len(rows))
-                bar.close()
-            method.on_run_end()
+            runner = open_runner(method, device, ctx.rank, ctx.world_size, case_timeout, in_process)
+            try:
+                for name, plist in cases.items():
+                    protocol = get_protocol(name)
+                    mine = [c for i, c in enumerate(plist) if i % ctx.world_size == ctx.rank]
+                    todo = [c for c in mine if c.case_id not in done]
+                    counts["skipped"] += len(mine) - len(todo)
+                    bar = tqdm(total=len(todo), desc=f"{method.metadata.name}/{name}", unit="case",
+                               disable=not progress or not todo)
+                    for start in range(0, len(todo), batch_size):
+                        rows = evaluate_batch(runner, protocol, todo[start:start + batch_size], data, samples)
+                        append_results(folder, rows, ctx.rank)
+                        counts["computed"] += len(rows)
+                        counts["failed"] += sum(r.status == "failed" for r in rows)
+                        counts[NOT_SUPPORTED] += sum(r.status == NOT_SUPPORTED for r in rows)
+                        bar.update(len(rows))
+                    bar.close()
+            except BaseException:
+                runner.abort()
+                raise
+            runner.close()
         ctx.barrier()
     finally:
         ctx.close()

@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 
 from benchmark.aggregate import ALL, aggregate
+from benchmark.provenance import check_results_provenance
 
 FILES_DIR = "leaderboard_files"
 PROTOCOL_TITLES = {"h2h": "h2h: humanoid to humanoid, against ground truth",
@@ -227,6 +228,7 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str,
     """
     from benchmark.plots import protocol_figure_png
 
+    check_results_provenance(results)  # refuses results of different dataset states
     agg = aggregate(results)
     out = Path(out_dir or results)
     files = out / FILES_DIR

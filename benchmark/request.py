@@ -1,12 +1,36 @@
-"""What a method receives: rigs at rest, and the posed source vertices."""
+"""What a method receives: rigs at rest, and the posed source vertices.
+
+Every array a method receives is read-only, and every request carries its own :class:`Rig`
+objects (read-only views of one shared copy): a method that writes into its input raises
+``ValueError: ... read-only`` (the evaluator fails that case saying so) and cannot change what
+another case or another method sees. A method that needs to edit an array copies it first
+(``np.array(r.target.vertices)``).
+"""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from benchmark.normalisation import largest_extent
 from mimicbench.weights import SparseWeights
+
+
+def read_only(array, dtype=None) -> np.ndarray:
+    """A read-only view of ``array`` whose memory cannot be made writable through the view.
+
+    An array that is already such a view (its owner is a read-only ndarray) is viewed again
+    without copying; anything else is copied once into a new read-only owner.
+    """
+    a = np.asarray(array, dtype=dtype)
+    owner = a.base if isinstance(a.base, np.ndarray) else None
+    if a.flags.writeable or owner is None or owner.flags.writeable or not owner.flags.owndata:
+        owner = np.array(a, copy=True)
+        owner.flags.writeable = False
+    view = owner.view()
+    view.flags.writeable = False
+    return view
 
 
 @dataclass(frozen=True)
@@ -33,6 +57,17 @@ class Rig:
     weights: SparseWeights
     bone_names: tuple[str, ...]
 
+    def __post_init__(self):
+        for name in ("vertices", "faces", "keypoints", "parents"):
+            object.__setattr__(self, name, read_only(getattr(self, name)))
+        w = self.weights
+        object.__setattr__(self, "weights", SparseWeights(read_only(w.indices), read_only(w.values), w.num_keypoints))
+        object.__setattr__(self, "bone_names", tuple(self.bone_names))
+
+    def fresh(self) -> "Rig":
+        """A new Rig over the same read-only memory (no copy): one per request."""
+        return dataclasses.replace(self)
+
     @property
     def height(self) -> float:
         """Y extent of the rest mesh, metres."""
@@ -57,6 +92,9 @@ class TransferRequest:
         case_id: the case this request serves (for logging; methods must not parse it).
         extras: optional precomputed data keyed by name, e.g. ``"m_sink"``: (Ks, Kt) soft
             correspondence from the dataset's ``pairs/`` table.
+
+    The rigs are this request's own (see :meth:`Rig.fresh`), ``source_posed`` and array extras
+    are read-only, and ``extras`` is this request's own dict.
     """
 
     source: Rig
@@ -64,3 +102,10 @@ class TransferRequest:
     target: Rig
     case_id: str = ""
     extras: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        object.__setattr__(self, "source", self.source.fresh())
+        object.__setattr__(self, "target", self.target.fresh())
+        object.__setattr__(self, "source_posed", read_only(self.source_posed))
+        object.__setattr__(self, "extras", {k: read_only(v) if isinstance(v, np.ndarray) else v
+                                            for k, v in self.extras.items()})

@@ -1,15 +1,24 @@
 """Results on disk: ``RESULTS/<method>/<version>/part-*.parquet`` plus ``RESULTS/run.json``.
 
-Each evaluator batch appends one part file, written under a temporary name and renamed when
-complete, so a killed run loses at most the batch in flight and a re-run computes only the cases
-without a row. ``run.json`` records the protocols' case counts, so the leaderboard can tell a
-missing case from one never asked for.
+Each evaluator batch appends one part file, written under a temporary name, fsynced and renamed
+when complete (created with the user's umask), so a killed run loses at most the batch in flight
+and a re-run computes only the cases without a row. ``run.json`` records the protocols' case
+counts, so the leaderboard can tell a missing case from one never asked for.
+
+Part names carry their stored order: ``part-{seq:010d}-r{rank:03d}-{id}.parquet``, where ``seq``
+is one more than the largest sequence number in the folder when the part is written. When a case
+has several rows (a ``--retry-failed`` re-run), the row of the part with the highest sequence
+number wins (then the later row in that part); file modification times play no part, so a copy of
+the folder (``cp -r``) reads the same. A part that is empty (0 bytes), unreadable or not of the
+results schema is reported (a warning on the ``mimicbench`` logger) and skipped: its cases count
+as missing, and a re-run computes them again.
 """
 from __future__ import annotations
 
 import json
+import logging
 import os
-import tempfile
+import re
 import uuid
 from pathlib import Path
 
@@ -17,42 +26,105 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
-from schemas.manifest import atomic_write_bytes
 from schemas.result import ResultRecord
 from schemas.tables import schema_of
 
 RUN_FILE = "run.json"
+PART_RE = re.compile(r"^part-(?P<seq>\d{10})-r(?P<rank>\d{3})-(?P<id>[0-9a-f]{12})\.parquet$")
+
+log = logging.getLogger("mimicbench")
+_reported: set[tuple] = set()  # parts already reported as skipped (path, size, mtime)
 
 
 def method_dir(results: str | os.PathLike, method: str, version: str) -> Path:
     return Path(results) / method / version
 
 
+def part_files(folder: Path) -> list[Path]:
+    """The folder's result parts in stored order (sequence number, then rank, then name).
+
+    A ``part-*.parquet`` whose name does not follow :data:`PART_RE` is reported and left out.
+    """
+    parts = []
+    for p in Path(folder).glob("part-*.parquet"):
+        m = PART_RE.match(p.name)
+        if m is None:
+            _report(p, "its name is not part-<10-digit sequence>-r<rank>-<id>.parquet")
+            continue
+        parts.append((int(m["seq"]), int(m["rank"]), p.name, p))
+    return [p for *_, p in sorted(parts)]
+
+
+def next_sequence(folder: Path) -> int:
+    """One more than the largest sequence number among the folder's parts (1 when none)."""
+    seqs = [int(m["seq"]) for p in Path(folder).glob("part-*.parquet") if (m := PART_RE.match(p.name))]
+    return max(seqs, default=0) + 1
+
+
 def append_results(folder: Path, records: list[ResultRecord], rank: int = 0) -> Path | None:
-    """Write records as a new part file in ``folder`` (atomic); returns its path."""
+    """Write records as a new part file in ``folder`` (atomic, fsynced); returns its path."""
     if not records:
         return None
+    folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     table = records_to_table(records, ResultRecord, "results")
-    final = folder / f"part-r{rank:03d}-{uuid.uuid4().hex[:12]}.parquet"
-    fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".tmp", dir=folder)
-    os.close(fd)
+    final = folder / f"part-{next_sequence(folder):010d}-r{rank:03d}-{uuid.uuid4().hex[:12]}.parquet"
+    write_file_durably(final, lambda f: pq.write_table(table, f))
+    return final
+
+
+def write_file_durably(final: Path, write) -> None:
+    """Call ``write(file)`` on a new temporary file beside ``final``, fsync it, rename it to
+    ``final`` and fsync the folder. The file gets the mode the user's umask gives (not 0600)."""
+    tmp = final.with_name(f".{final.name}.{uuid.uuid4().hex[:8]}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
     try:
-        pq.write_table(table, tmp)
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
         os.replace(tmp, final)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
-    return final
+    dir_fd = os.open(final.parent, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+def _report(path: Path, reason: str) -> None:
+    try:
+        st = path.stat()
+        key = (str(path), st.st_size, st.st_mtime_ns)
+    except OSError:
+        key = (str(path), None, None)
+    if key not in _reported:
+        _reported.add(key)
+        log.warning("%s: skipped (%s); its cases count as missing and a re-run computes them", path, reason)
+
+
+def _read_part(path: Path) -> pa.Table | None:
+    """The part's rows in the results schema, or None (reported) when it cannot be used."""
+    try:
+        if path.stat().st_size == 0:
+            _report(path, "empty file, 0 bytes")
+            return None
+        return pq.read_table(path).cast(schema_of("results"))
+    except Exception as exc:  # pyarrow raises several types for damaged files
+        _report(path, f"not a readable result part: {type(exc).__name__}: {exc}")
+        return None
 
 
 def read_results(folder: Path) -> pa.Table:
-    """All result rows of one method version; the last row wins when a case appears twice."""
-    parts = sorted(Path(folder).glob("part-*.parquet"), key=lambda p: p.stat().st_mtime_ns)
-    if not parts:
+    """All result rows of one method version; when a case appears twice, the row stored last wins
+    (see the module docstring). Unusable parts are reported and skipped."""
+    tables = [t for t in (_read_part(p) for p in part_files(folder)) if t is not None]
+    if not tables:
         return schema_of("results").empty_table()
-    table = pa.concat_tables([pq.read_table(p).cast(schema_of("results")) for p in parts])
+    table = pa.concat_tables(tables)
     ids = table.column("case_id").to_pylist()
     last = {cid: i for i, cid in enumerate(ids)}
     return table.take(sorted(last.values()))
@@ -78,7 +150,9 @@ def write_run_info(results, info: dict) -> None:
             current[key].update(value)
         else:
             current[key] = value
-    atomic_write_bytes(path, (json.dumps(current, indent=2, sort_keys=True) + "\n").encode())
+    data = (json.dumps(current, indent=2, sort_keys=True) + "\n").encode()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_file_durably(path, lambda f: f.write(data))
 
 
 def read_run_info(results) -> dict:

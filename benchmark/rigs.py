@@ -1,5 +1,9 @@
 """Load a dataset's characters as :class:`Rig` objects, with the per-character data the
-evaluator reuses across cases (unique edges)."""
+evaluator reuses across cases (unique edges).
+
+Every array here is read-only (see :func:`benchmark.request.read_only`): the same rig serves many
+cases and methods, so nothing may write into it.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -7,7 +11,7 @@ from functools import cached_property
 
 import numpy as np
 
-from benchmark.request import Rig
+from benchmark.request import Rig, read_only
 from mimicbench.mesh import unique_edges
 from schemas.character import CharacterRecord
 from schemas.shards import read_records
@@ -28,8 +32,8 @@ class CharacterData:
 
     @cached_property
     def edges(self) -> np.ndarray:
-        """(E, 2) unique edges of the rest mesh."""
-        return unique_edges(self.record.faces)
+        """(E, 2) unique edges of the rest mesh (read-only)."""
+        return read_only(unique_edges(self.record.faces))
 
 
 def load_characters(dataset) -> dict[str, CharacterData]:

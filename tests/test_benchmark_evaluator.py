@@ -79,7 +79,7 @@ def test_killed_run_resumes_to_the_same_results(bench_data, tmp_path):
         "import sys; sys.path.insert(0, %r)\n"
         "from benchmark.registry import register\nfrom tests.bench_fixtures import KillerCopy\n"
         "from benchmark.evaluator import run_benchmark\nregister('killer', KillerCopy)\n"
-        "run_benchmark(%r, ['killer'], ['h2h', 'cct'], %r, batch_size=2, progress=False)\n"
+        "run_benchmark(%r, ['killer'], ['h2h', 'cct'], %r, batch_size=2, progress=False, in_process=True)\n"
     ) % (str(REPO), str(bench_data), str(tmp_path / "killed"))
     env = dict(os.environ, KILL_AFTER_BATCHES="3")
     proc = subprocess.run([sys.executable, "-c", script], env=env, cwd=REPO, capture_output=True, text=True)

@@ -1,0 +1,210 @@
+"""What made a set of results: dataset fingerprints, the method's metadata, the toolkit version.
+
+``bench cases`` records in the manifest (``configs.cases.input_fingerprints``) the fingerprints
+of the ``characters`` and ``motions`` tables it read; ``bench run`` refuses cases whose
+recorded fingerprints differ from the tables now in the dataset (the dataset was regenerated
+after the cases were made).
+
+``bench run`` writes ``RESULTS/<method>/<version>/meta.json``::
+
+    {"method": {MethodMetadata fields}, "toolkit_version": "0.1.0", "dataset": "data/zoo",
+     "fingerprints": {"characters": sha, "motions": sha, "pairs": sha | null,
+                      "cases": {"h2h": sha, "cct": sha}},
+     "created": "2026-11-30T08:00:00+00:00"}
+
+and refuses (it never silently redoes) to add rows to a results folder whose rows were made from
+other fingerprints or by another toolkit version, saying which differs: use another ``--out``,
+or delete the old folder. The leaderboard calls :func:`check_results_provenance`, which refuses
+a results folder that mixes fingerprints.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Sequence
+
+from mimicbench import __version__ as TOOLKIT_VERSION
+from schemas.fingerprint import digest_of, table_fingerprint
+from schemas.manifest import load_manifest
+
+META_FILE = "meta.json"
+CASES_INPUTS = ("characters", "motions")
+CONFIG_KEY = "input_fingerprints"
+
+
+class ProvenanceError(RuntimeError):
+    """Results, cases or a dataset do not come from the same inputs."""
+
+
+def split_fingerprint(manifest: dict, table: str, split: str) -> str | None:
+    """Fingerprint of one split of ``table`` (its shards' paths, rows, sha256), None when absent."""
+    shards = [s for s in manifest.get("tables", {}).get(table, {}).get("shards", []) if s["split"] == split]
+    if not shards:
+        return None
+    return digest_of(sorted((s["path"], s["rows"], s["sha256"]) for s in shards))
+
+
+def cases_inputs(dataset) -> dict[str, str]:
+    """``{"characters": fp, "motions": fp}``: what ``bench cases`` records it was built from."""
+    manifest = load_manifest(dataset)
+    return {t: table_fingerprint(dataset, t, manifest) for t in CASES_INPUTS}
+
+
+def check_cases_current(dataset, manifest: dict | None = None) -> None:
+    """Raise :class:`ProvenanceError` unless the cases were built from the dataset's current
+    characters and motions (as recorded by ``bench cases``)."""
+    manifest = load_manifest(dataset) if manifest is None else manifest
+    recorded = manifest.get("configs", {}).get("cases", {}).get(CONFIG_KEY)
+    rebuild = f"run `mimicbench bench cases {dataset}` again"
+    if not recorded:
+        raise ProvenanceError(f"{dataset}: the cases do not record which characters and motions they were built "
+                              f"from (made by an older toolkit); {rebuild}")
+    for table in CASES_INPUTS:
+        now = table_fingerprint(dataset, table, manifest)
+        if recorded.get(table) != now:
+            raise ProvenanceError(
+                f"{dataset}: the cases were built from another state of the {table} table (fingerprint "
+                f"{str(recorded.get(table))[:12]}, now {now[:12]}): the dataset changed after `bench cases`; {rebuild}")
+
+
+def cases_are_current(dataset) -> bool:
+    """Whether the dataset has cases built from its current characters and motions."""
+    try:
+        check_cases_current(dataset)
+    except (ProvenanceError, KeyError):
+        return False
+    return True
+
+
+def dataset_fingerprints(dataset, protocols: Sequence[str]) -> dict:
+    """The fingerprints results record: characters, motions, pairs (None without a pairs table)
+    and the cases of each protocol."""
+    manifest = load_manifest(dataset)
+    has_pairs = bool(manifest.get("tables", {}).get("pairs", {}).get("shards"))
+    return {"characters": table_fingerprint(dataset, "characters", manifest),
+            "motions": table_fingerprint(dataset, "motions", manifest),
+            "pairs": table_fingerprint(dataset, "pairs", manifest) if has_pairs else None,
+            "cases": {p: split_fingerprint(manifest, "cases", p) for p in protocols}}
+
+
+def method_meta(metadata, dataset, fingerprints: dict) -> dict:
+    """The content of ``meta.json`` for a method version run on ``dataset``."""
+    return {"method": asdict(metadata), "toolkit_version": TOOLKIT_VERSION, "dataset": str(dataset),
+            "fingerprints": fingerprints, "created": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+
+
+def read_meta(folder) -> dict | None:
+    """``folder/meta.json``, or None when absent.
+
+    Raises:
+        ProvenanceError: it exists but is not readable JSON.
+    """
+    path = Path(folder) / META_FILE
+    if not path.exists():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ProvenanceError(f"{path}: unreadable ({exc}); cannot tell which dataset made these results") from exc
+
+
+def _has_parts(folder: Path) -> bool:
+    return any(folder.glob("part-*.parquet"))
+
+
+def _differences(a: dict, b: dict) -> list[str]:
+    """Names of the fingerprints that differ between two ``fingerprints`` dicts (cases per protocol
+    compared only where both have the protocol)."""
+    diff = [k for k in ("characters", "motions", "pairs") if a.get(k) != b.get(k)]
+    ca, cb = a.get("cases", {}), b.get("cases", {})
+    diff += [f"cases/{p}" for p in sorted(set(ca) & set(cb)) if ca[p] != cb[p]]
+    return diff
+
+
+def check_method_folder(folder, meta: dict) -> None:
+    """Raise :class:`ProvenanceError` when ``folder`` holds rows not made from ``meta``'s inputs."""
+    folder = Path(folder)
+    old = read_meta(folder)
+    fresh = f"use another --out, or delete {folder} to start it again"
+    if old is None:
+        if _has_parts(folder):
+            raise ProvenanceError(f"{folder}: result parts without {META_FILE} (made by an older toolkit, or the "
+                                  f"file was lost): cannot tell which dataset made them; {fresh}")
+        return
+    diff = _differences(old.get("fingerprints", {}), meta["fingerprints"])
+    if diff:
+        raise ProvenanceError(f"{folder}: its rows were made from another dataset state ({', '.join(diff)} differ; "
+                              f"dataset was {old.get('dataset')}); {fresh}")
+    if old.get("toolkit_version") != meta["toolkit_version"]:
+        raise ProvenanceError(f"{folder}: its rows were scored by mimicbench {old.get('toolkit_version')}, this is "
+                              f"{meta['toolkit_version']}; {fresh}")
+
+
+def write_method_meta(folder, meta: dict) -> None:
+    """Write ``folder/meta.json``: the method's metadata as now, the cases fingerprints of earlier
+    protocols kept, ``created`` kept from the first run."""
+    from benchmark.results import write_file_durably
+
+    folder = Path(folder)
+    old = read_meta(folder) or {}
+    merged = dict(meta, fingerprints=dict(meta["fingerprints"]))
+    merged["fingerprints"]["cases"] = {**old.get("fingerprints", {}).get("cases", {}), **meta["fingerprints"]["cases"]}
+    merged["created"] = old.get("created", meta["created"])
+    folder.mkdir(parents=True, exist_ok=True)
+    data = (json.dumps(merged, indent=2, sort_keys=True) + "\n").encode()
+    write_file_durably(folder / META_FILE, lambda f: f.write(data))
+
+
+def method_folders(results) -> list[Path]:
+    """Every ``RESULTS/<method>/<version>`` folder holding result parts or a meta.json."""
+    root = Path(results)
+    if not root.is_dir():
+        return []
+    return [v for m in sorted(p for p in root.iterdir() if p.is_dir())
+            for v in sorted(p for p in m.iterdir() if p.is_dir()) if _has_parts(v) or (v / META_FILE).exists()]
+
+
+def check_results_provenance(results) -> dict:
+    """Check that every method version in ``results`` was run on the same dataset state.
+
+    Returns:
+        The common fingerprints (cases: the union over protocols), or {} for an empty folder.
+
+    Raises:
+        ProvenanceError: a folder with parts lacks meta.json, or two folders' fingerprints differ
+            (the message names both folders and what differs).
+    """
+    common: dict = {}
+    first: Path | None = None
+    for folder in method_folders(results):
+        meta = read_meta(folder)
+        if meta is None:
+            raise ProvenanceError(f"{folder}: result parts without {META_FILE}: cannot tell which dataset made "
+                                  "them; re-run that method into a new results folder")
+        fps = meta.get("fingerprints", {})
+        if first is None:
+            first, common = folder, {**fps, "cases": dict(fps.get("cases", {}))}
+            continue
+        diff = _differences(common, fps)
+        if diff:
+            raise ProvenanceError(f"{results}: results from different dataset states cannot be compared: "
+                                  f"{folder} and {first} differ in {', '.join(diff)}; run every method on one "
+                                  "dataset state, into its own results folder")
+        common["cases"].update(fps.get("cases", {}))
+    return common
+
+
+def check_results_folder(results, fingerprints: dict) -> None:
+    """Raise :class:`ProvenanceError` when ``results`` already holds rows of another dataset state."""
+    for folder in method_folders(results):
+        meta = read_meta(folder)
+        if meta is None:
+            raise ProvenanceError(f"{folder}: result parts without {META_FILE} (made by an older toolkit, or the "
+                                  "file was lost): cannot tell which dataset made them; use another --out")
+        diff = _differences(meta.get("fingerprints", {}), fingerprints)
+        if diff:
+            raise ProvenanceError(f"{results}: holds results made from another dataset state ({folder}: "
+                                  f"{', '.join(diff)} differ; dataset was {meta.get('dataset')}); use another "
+                                  "--out for this dataset")
