@@ -55,7 +55,8 @@ def write_cases(dataset, cases: dict[str, list[CaseRecord]], config: dict) -> di
 
     if not any(cases.values()):
         raise ValueError(f"{dataset}: no cases were made (the split has no humanoid family for h2h and no "
-                         "cross-category pair for cct); the existing cases are left as they were")
+                         "cross-category pair for cct, or no characters); the existing cases are kept. "
+                         "Try another split (--split all)")
     config = {**config, CONFIG_KEY: cases_inputs(dataset)}
     counts = {}
     for protocol, recs in cases.items():

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 from mimicbench.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
 

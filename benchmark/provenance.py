@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Sequence
 
 from mimicbench import __version__ as TOOLKIT_VERSION
+from mimicbench.errors import UserError
 from schemas.fingerprint import digest_of, table_fingerprint
 from schemas.manifest import load_manifest
 
@@ -34,7 +35,7 @@ CASES_INPUTS = ("characters", "motions")
 CONFIG_KEY = "input_fingerprints"
 
 
-class ProvenanceError(RuntimeError):
+class ProvenanceError(UserError):
     """Results, cases or a dataset do not come from the same inputs."""
 
 

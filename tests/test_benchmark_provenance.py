@@ -131,9 +131,10 @@ def test_copied_results_folder_keeps_the_retried_rows(bench_data, tmp_path, monk
     summary = run_benchmark(bench_data, ["hostile"], ["h2h"], res, progress=False, retry_failed=True,
                             in_process=True)
     assert summary["computed"] == 2
-    os.utime(failed_part, (4e9, 4e9))  # the stale part is now the newest by modification time
     subprocess.run(["cp", "-r", str(res), str(tmp_path / "copy")], check=True)
     copy = method_dir(tmp_path / "copy", "hostile", "1")
+    # cp -r stamps the copies in directory order: make the stale part the newest, as it can happen
+    os.utime(copy / failed_part.name, (4e9, 4e9))
     newest = max(copy.glob("part-*.parquet"), key=lambda p: p.stat().st_mtime_ns)
     assert newest.name == failed_part.name  # modification order would pick the failed rows
     rows = {r.case_id: r for r in read_result_records(copy)}
@@ -188,7 +189,7 @@ def test_cases_split_bogus_and_empty_results_keep_the_cases(bench_data, tmp_path
         main(["bench", "cases", str(data), "--split", "bogus"])
     assert exc.value.code == 2 and "invalid choice: 'bogus'" in capsys.readouterr().err
     assert main(["bench", "cases", str(data), "--h2h-pairs", "0", "--cct-pairs", "0"]) == 2
-    assert "no cases made" in capsys.readouterr().err
+    assert "mimicbench: error: " in (err := capsys.readouterr().err) and "no cases were made" in err
     with pytest.raises(ValueError, match="no cases were made"):
         write_cases(data, build_cases(data, "bogus"), {"stage": "t"})
     assert case_shards(data) == before
