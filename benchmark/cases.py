@@ -45,19 +45,19 @@ def write_cases(dataset, cases: dict[str, list[CaseRecord]], config: dict) -> di
     """Write the cases table, one shard group per protocol (split = protocol name).
 
     The manifest's ``configs.cases`` records ``config`` plus the fingerprints of the characters
-    and motions tables the cases were built from (``bench run`` refuses cases that no longer
-    match the dataset).
+    and motions tables the cases were built from (``configs.cases.fingerprint.inputs``):
+    ``bench run`` refuses, and ``validate`` reports, cases that no longer match the dataset.
 
     Raises:
         ValueError: no protocol has any case: nothing is written, existing cases are kept.
     """
-    from benchmark.provenance import CONFIG_KEY, cases_inputs
+    from benchmark.provenance import cases_config
 
     if not any(cases.values()):
         raise ValueError(f"{dataset}: no cases were made (the split has no humanoid family for h2h and no "
                          "cross-category pair for cct, or no characters); the existing cases are kept. "
                          "Try another split (--split all)")
-    config = {**config, CONFIG_KEY: cases_inputs(dataset)}
+    config = cases_config(dataset, config)
     counts = {}
     for protocol, recs in cases.items():
         write_records(dataset, "cases", recs, split=protocol, rows_per_shard=5000, config=config)

@@ -1,9 +1,10 @@
 """What made a set of results: dataset fingerprints, the method's metadata, the toolkit version.
 
-``bench cases`` records in the manifest (``configs.cases.input_fingerprints``) the fingerprints
-of the ``characters`` and ``motions`` tables it read; ``bench run`` refuses cases whose
-recorded fingerprints differ from the tables now in the dataset (the dataset was regenerated
-after the cases were made).
+``bench cases`` records in the manifest the fingerprints of the ``characters`` and ``motions``
+tables it read (``configs.cases.fingerprint.inputs``, see :func:`schemas.fingerprint.stage_config`;
+``validate`` reports cases made from other tables too); ``bench run`` refuses cases whose recorded
+fingerprints differ from the tables now in the dataset (the dataset was regenerated after the
+cases were made).
 
 ``bench run`` writes ``RESULTS/<method>/<version>/meta.json``::
 
@@ -27,12 +28,11 @@ from typing import Sequence
 
 from mimicbench import __version__ as TOOLKIT_VERSION
 from mimicbench.errors import UserError
-from schemas.fingerprint import digest_of, table_fingerprint
-from schemas.manifest import load_manifest
+from schemas.fingerprint import digest_of, stage_config, stale_inputs, table_fingerprint
+from schemas.manifest import atomic_write_bytes, load_manifest
 
 META_FILE = "meta.json"
 CASES_INPUTS = ("characters", "motions")
-CONFIG_KEY = "input_fingerprints"
 
 
 class ProvenanceError(UserError):
@@ -47,27 +47,26 @@ def split_fingerprint(manifest: dict, table: str, split: str) -> str | None:
     return digest_of(sorted((s["path"], s["rows"], s["sha256"]) for s in shards))
 
 
-def cases_inputs(dataset) -> dict[str, str]:
-    """``{"characters": fp, "motions": fp}``: what ``bench cases`` records it was built from."""
+def cases_config(dataset, params: dict) -> dict:
+    """The manifest config of the cases table: ``params`` plus the fingerprints of the characters
+    and motions tables of ``dataset`` (:func:`schemas.fingerprint.stage_config`)."""
     manifest = load_manifest(dataset)
-    return {t: table_fingerprint(dataset, t, manifest) for t in CASES_INPUTS}
+    return stage_config(params, {t: table_fingerprint(dataset, t, manifest) for t in CASES_INPUTS})
 
 
 def check_cases_current(dataset, manifest: dict | None = None) -> None:
     """Raise :class:`ProvenanceError` unless the cases were built from the dataset's current
     characters and motions (as recorded by ``bench cases``)."""
     manifest = load_manifest(dataset) if manifest is None else manifest
-    recorded = manifest.get("configs", {}).get("cases", {}).get(CONFIG_KEY)
+    recorded = (manifest.get("configs", {}).get("cases") or {}).get("fingerprint", {}).get("inputs", {})
     rebuild = f"run `mimicbench bench cases {dataset}` again"
-    if not recorded:
+    if not all(t in recorded for t in CASES_INPUTS):
         raise ProvenanceError(f"{dataset}: the cases do not record which characters and motions they were built "
                               f"from (made by an older toolkit); {rebuild}")
-    for table in CASES_INPUTS:
-        now = table_fingerprint(dataset, table, manifest)
-        if recorded.get(table) != now:
-            raise ProvenanceError(
-                f"{dataset}: the cases were built from another state of the {table} table (fingerprint "
-                f"{str(recorded.get(table))[:12]}, now {now[:12]}): the dataset changed after `bench cases`; {rebuild}")
+    stale = stale_inputs(dataset, manifest, "cases")
+    if stale:
+        raise ProvenanceError(f"{stale}: the dataset changed after its cases were made, so they no longer match "
+                              f"it; {rebuild}")
 
 
 def cases_are_current(dataset) -> bool:
@@ -146,16 +145,13 @@ def check_method_folder(folder, meta: dict) -> None:
 def write_method_meta(folder, meta: dict) -> None:
     """Write ``folder/meta.json``: the method's metadata as now, the cases fingerprints of earlier
     protocols kept, ``created`` kept from the first run."""
-    from benchmark.results import write_file_durably
-
     folder = Path(folder)
     old = read_meta(folder) or {}
     merged = dict(meta, fingerprints=dict(meta["fingerprints"]))
     merged["fingerprints"]["cases"] = {**old.get("fingerprints", {}).get("cases", {}), **meta["fingerprints"]["cases"]}
     merged["created"] = old.get("created", meta["created"])
     folder.mkdir(parents=True, exist_ok=True)
-    data = (json.dumps(merged, indent=2, sort_keys=True) + "\n").encode()
-    write_file_durably(folder / META_FILE, lambda f: f.write(data))
+    atomic_write_bytes(folder / META_FILE, (json.dumps(merged, indent=2, sort_keys=True) + "\n").encode())
 
 
 def method_folders(results) -> list[Path]:

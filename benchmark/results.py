@@ -26,6 +26,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
+from schemas.manifest import atomic_write_bytes
 from schemas.result import ResultRecord
 from schemas.tables import schema_of
 
@@ -69,30 +70,10 @@ def append_results(folder: Path, records: list[ResultRecord], rank: int = 0) -> 
     folder.mkdir(parents=True, exist_ok=True)
     table = records_to_table(records, ResultRecord, "results")
     final = folder / f"part-{next_sequence(folder):010d}-r{rank:03d}-{uuid.uuid4().hex[:12]}.parquet"
-    write_file_durably(final, lambda f: pq.write_table(table, f))
+    buf = pa.BufferOutputStream()
+    pq.write_table(table, buf)
+    atomic_write_bytes(final, buf.getvalue().to_pybytes())  # fsynced, then renamed; umask mode
     return final
-
-
-def write_file_durably(final: Path, write) -> None:
-    """Call ``write(file)`` on a new temporary file beside ``final``, fsync it, rename it to
-    ``final`` and fsync the folder. The file gets the mode the user's umask gives (not 0600)."""
-    tmp = final.with_name(f".{final.name}.{uuid.uuid4().hex[:8]}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, final)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    dir_fd = os.open(final.parent, os.O_RDONLY)
-    try:
-        os.fsync(dir_fd)
-    finally:
-        os.close(dir_fd)
 
 
 def _report(path: Path, reason: str) -> None:
@@ -150,9 +131,7 @@ def write_run_info(results, info: dict) -> None:
             current[key].update(value)
         else:
             current[key] = value
-    data = (json.dumps(current, indent=2, sort_keys=True) + "\n").encode()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_file_durably(path, lambda f: f.write(data))
+    atomic_write_bytes(path, (json.dumps(current, indent=2, sort_keys=True) + "\n").encode())
 
 
 def read_run_info(results) -> dict:

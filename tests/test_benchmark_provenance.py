@@ -22,6 +22,7 @@ from mimicbench import __version__
 from schemas.fingerprint import table_fingerprint
 from schemas.manifest import load_manifest, sha256_of
 from schemas.shards import read_records
+from schemas.validate import validate_dataset
 from tests.bench_fixtures import make_bench_dataset
 from tests.hostile_methods import ENV, HostileMethod, hostile_env
 
@@ -54,7 +55,7 @@ def test_meta_json_records_fingerprints_metadata_and_version(bench_data, tmp_pat
     assert fps["pairs"] is None
     assert set(fps["cases"]) == {"h2h", "cct"} and fps["cases"]["h2h"] != fps["cases"]["cct"]
     # the cases record the tables they were built from
-    recorded = load_manifest(bench_data)["configs"]["cases"]["input_fingerprints"]
+    recorded = load_manifest(bench_data)["configs"]["cases"]["fingerprint"]["inputs"]
     assert recorded == {"characters": fps["characters"], "motions": fps["motions"]}
     assert check_results_provenance(tmp_path)["characters"] == fps["characters"]
 
@@ -66,10 +67,12 @@ def test_cases_of_a_regenerated_zoo_are_refused(bench_data, tmp_path):
 
     data = copy_dataset(bench_data, tmp_path / "data")
     build_zoo(data, 14, seed=1, progress=False)  # regenerate in place: the old cases stay behind
-    with pytest.raises(ProvenanceError, match="another state of the characters table.*bench cases"):
+    with pytest.raises(ProvenanceError, match="made from other characters, motions than.*dataset changed.*bench cases"):
         run_benchmark(data, ["name_copy"], ["h2h", "cct"], tmp_path / "res", progress=False)
     assert not (tmp_path / "res").exists()  # refused before writing anything
+    assert any("table 'cases' was made from other characters, motions" in p for p in validate_dataset(data))
     write_cases(data, build_cases(data, "test", h2h_pairs=4, h2h_poses=2, cct_pairs=3, cct_poses=1), {"stage": "t"})
+    assert validate_dataset(data) == []
     run_benchmark(data, ["name_copy"], ["h2h"], tmp_path / "res", progress=False)
     rows = read_result_records(method_dir(tmp_path / "res", "name_copy", "1"))
     assert rows and all(r.status == "ok" and r.pmd < 1.0 for r in rows)
@@ -78,7 +81,7 @@ def test_cases_of_a_regenerated_zoo_are_refused(bench_data, tmp_path):
 def test_cases_without_recorded_inputs_are_refused(bench_data, tmp_path):
     data = copy_dataset(bench_data, tmp_path / "data")
     manifest = json.loads((data / "manifest.json").read_text())
-    del manifest["configs"]["cases"]["input_fingerprints"]
+    del manifest["configs"]["cases"]["fingerprint"]
     (data / "manifest.json").write_text(json.dumps(manifest))
     with pytest.raises(ProvenanceError, match="do not record which characters and motions"):
         run_benchmark(data, ["identity"], ["h2h"], tmp_path / "res", progress=False)
