@@ -114,11 +114,20 @@ def _has_parts(folder: Path) -> bool:
     return any(folder.glob("part-*.parquet"))
 
 
+def _cases(fingerprints: dict) -> dict:
+    """``{protocol: fingerprint}`` of a fingerprints dict (a lone value, as a hand-written meta.json
+    may hold, counts as protocol ``*``)."""
+    cases = fingerprints.get("cases")
+    if isinstance(cases, dict):
+        return cases
+    return {} if cases is None else {"*": cases}
+
+
 def _differences(a: dict, b: dict) -> list[str]:
     """Names of the fingerprints that differ between two ``fingerprints`` dicts (cases per protocol
     compared only where both have the protocol)."""
     diff = [k for k in ("characters", "motions", "pairs") if a.get(k) != b.get(k)]
-    ca, cb = a.get("cases", {}), b.get("cases", {})
+    ca, cb = _cases(a), _cases(b)
     diff += [f"cases/{p}" for p in sorted(set(ca) & set(cb)) if ca[p] != cb[p]]
     return diff
 
@@ -148,7 +157,7 @@ def write_method_meta(folder, meta: dict) -> None:
     folder = Path(folder)
     old = read_meta(folder) or {}
     merged = dict(meta, fingerprints=dict(meta["fingerprints"]))
-    merged["fingerprints"]["cases"] = {**old.get("fingerprints", {}).get("cases", {}), **meta["fingerprints"]["cases"]}
+    merged["fingerprints"]["cases"] = {**_cases(old.get("fingerprints", {})), **meta["fingerprints"]["cases"]}
     merged["created"] = old.get("created", meta["created"])
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(folder / META_FILE, (json.dumps(merged, indent=2, sort_keys=True) + "\n").encode())
@@ -166,30 +175,32 @@ def method_folders(results) -> list[Path]:
 def check_results_provenance(results) -> dict:
     """Check that every method version in ``results`` was run on the same dataset state.
 
+    A method version without ``meta.json`` (results written by hand or by an older toolkit) is
+    not checked: the leaderboard shows its provenance as unknown.
+
     Returns:
-        The common fingerprints (cases: the union over protocols), or {} for an empty folder.
+        The common fingerprints (cases: the union over protocols), or {} when none is recorded.
 
     Raises:
-        ProvenanceError: a folder with parts lacks meta.json, or two folders' fingerprints differ
-            (the message names both folders and what differs).
+        ProvenanceError: two folders' fingerprints differ (the message names both folders and
+            what differs), or a meta.json is unreadable.
     """
     common: dict = {}
     first: Path | None = None
     for folder in method_folders(results):
         meta = read_meta(folder)
         if meta is None:
-            raise ProvenanceError(f"{folder}: result parts without {META_FILE}: cannot tell which dataset made "
-                                  "them; re-run that method into a new results folder")
+            continue
         fps = meta.get("fingerprints", {})
         if first is None:
-            first, common = folder, {**fps, "cases": dict(fps.get("cases", {}))}
+            first, common = folder, {**fps, "cases": dict(_cases(fps))}
             continue
         diff = _differences(common, fps)
         if diff:
             raise ProvenanceError(f"{results}: results from different dataset states cannot be compared: "
                                   f"{folder} and {first} differ in {', '.join(diff)}; run every method on one "
                                   "dataset state, into its own results folder")
-        common["cases"].update(fps.get("cases", {}))
+        common["cases"].update(_cases(fps))
     return common
 
 

@@ -116,8 +116,7 @@ def test_parts_without_meta_json_are_refused(bench_data, tmp_path):
     (method_dir(tmp_path, "identity", "1") / META_FILE).unlink()
     with pytest.raises(ProvenanceError, match="without meta.json"):
         run_benchmark(bench_data, ["identity"], ["h2h"], tmp_path, progress=False)
-    with pytest.raises(ProvenanceError, match="without meta.json"):
-        check_results_provenance(tmp_path)
+    assert check_results_provenance(tmp_path) == {}  # the leaderboard shows it, provenance unknown
 
 
 def test_copied_results_folder_keeps_the_retried_rows(bench_data, tmp_path, monkeypatch):
