@@ -54,8 +54,8 @@ def write_cases(dataset, cases: dict[str, list[CaseRecord]], config: dict) -> di
     from benchmark.provenance import cases_config
 
     if not any(cases.values()):
-        raise ValueError(f"{dataset}: no cases were made (the split has no humanoid family for h2h and no "
-                         "cross-category pair for cct, or no characters); the existing cases are kept. "
+        raise ValueError(f"{dataset}: no cases were made (no two characters of the split share a skeleton_id "
+                         "for h2h, no cross-category pair for cct, or no characters); the existing cases are kept. "
                          "Try another split (--split all)")
     config = cases_config(dataset, config)
     counts = {}

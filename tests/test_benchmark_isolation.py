@@ -7,7 +7,7 @@ import pytest
 
 from benchmark.evaluator import run_benchmark
 from benchmark.method import MethodMetadata, PoseTransferMethod
-from benchmark.registry import register
+from benchmark.registry import get_method, register
 from benchmark.request import TransferRequest
 from benchmark.results import method_dir, read_result_records
 from benchmark.rigs import load_characters
@@ -25,12 +25,13 @@ def bench_data(small_zoo, tmp_path_factory):
                               cct_poses=1)
 
 
-def rows_by_case(results, name, version="1"):
+def rows_by_case(results, name):
+    version = get_method(name).metadata.version
     return {r.case_id: r for r in read_result_records(method_dir(results, name, version))}
 
 
 def assert_same_scores(a: dict, b: dict):
-    assert a.keys() == b.keys()
+    assert a and a.keys() == b.keys()
     for cid in a:
         assert a[cid].status == b[cid].status == "ok", (cid, a[cid].error, b[cid].error)
         for m in METRICS:

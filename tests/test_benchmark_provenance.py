@@ -12,6 +12,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from baselines.identity import Identity
+from baselines.name_copy import NameCopy
 from benchmark.aggregate import aggregate
 from benchmark.cases import build_cases, write_cases
 from benchmark.evaluator import run_benchmark
@@ -71,11 +72,11 @@ def test_cases_of_a_regenerated_zoo_are_refused(bench_data, tmp_path):
         run_benchmark(data, ["name_copy"], ["h2h", "cct"], tmp_path / "res", progress=False)
     assert not (tmp_path / "res").exists()  # refused before writing anything
     assert any("table 'cases' was made from other characters, motions" in p for p in validate_dataset(data))
-    write_cases(data, build_cases(data, "test", h2h_pairs=4, h2h_poses=2, cct_pairs=3, cct_poses=1), {"stage": "t"})
+    write_cases(data, build_cases(data, "all", h2h_pairs=4, h2h_poses=2, cct_pairs=3, cct_poses=1), {"stage": "t"})
     assert validate_dataset(data) == []
     run_benchmark(data, ["name_copy"], ["h2h"], tmp_path / "res", progress=False)
-    rows = read_result_records(method_dir(tmp_path / "res", "name_copy", "1"))
-    assert rows and all(r.status == "ok" and r.pmd < 1.0 for r in rows)
+    rows = read_result_records(method_dir(tmp_path / "res", "name_copy", NameCopy.metadata.version))
+    assert rows and all(r.status == "ok" and r.pmd < 1.0 for r in rows)  # scored on its own zoo again
 
 
 def test_cases_without_recorded_inputs_are_refused(bench_data, tmp_path):
@@ -99,7 +100,7 @@ def test_results_of_another_dataset_are_not_resumed_or_mixed(bench_data, tmp_pat
         with pytest.raises(ProvenanceError, match="another dataset state.*cases/h2h"):
             run_benchmark(other, methods, ["h2h"], res, progress=False)
     assert {p.name: sha256_of(p) for p in part_files(method_dir(res, "identity", "1"))} == before
-    assert not method_dir(res, "name_copy", "1").exists()
+    assert not method_dir(res, "name_copy", NameCopy.metadata.version).exists()
     # a results folder assembled from two runs on different dataset states is refused by the leaderboard
     run_benchmark(other, ["name_copy"], ["h2h"], tmp_path / "res2", progress=False)
     shutil.copytree(tmp_path / "res2" / "name_copy", res / "name_copy")
