@@ -109,7 +109,8 @@ def test_torchrun_two_processes_give_the_same_aggregate(bench_data, tmp_path):
                           env=dict(os.environ, OMP_NUM_THREADS="1"))
     assert proc.returncode == 0, proc.stderr[-3000:]
     run_benchmark(bench_data, ["name_copy", "identity"], ["h2h", "cct"], tmp_path / "single", progress=False)
-    parts = list(method_dir(tmp_path / "dist", "name_copy", get_method("name_copy").metadata.version).glob("part-*-r001-*.parquet"))
+    version = get_method("name_copy").metadata.version
+    parts = list(method_dir(tmp_path / "dist", "name_copy", version).glob("part-*-r001-*.parquet"))
     assert parts, "rank 1 wrote no results"
     da, sa = aggregate(tmp_path / "dist"), aggregate(tmp_path / "single")
     for protocol in ("h2h", "cct"):
