@@ -93,7 +93,8 @@ def test_same_skeleton_copy_with_translated_bones_scores_zero(small_zoo, tmp_pat
     write_cases(data, cases, {"test": True})
     register("scaled_copy", ScaledSourceCopy)
     ScaledSourceCopy.calls = 0
-    summary = run_benchmark(data, ["scaled_copy", "name_copy"], ["h2h", "cct"], tmp_path / "res", progress=False)
+    summary = run_benchmark(data, ["scaled_copy", "name_copy"], ["h2h", "cct"], tmp_path / "res", progress=False,
+                            in_process=True)  # calls are counted in this process
     assert ScaledSourceCopy.calls == len(cases["h2h"])  # never called on cct
     assert summary["not_supported"] == len(cases["cct"])
     rows = {r.case_id: r for r in read_result_records(method_dir(tmp_path / "res", "scaled_copy", "1"))}
