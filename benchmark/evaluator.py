@@ -176,8 +176,8 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
     """
     check_run_options(methods, batch_size, case_timeout)
     instances = [get_method(m) for m in methods]  # fail fast on unknown names
+    check_cases_current(dataset)  # before the reader refuses stale cases, to name the fix
     cases = load_cases(dataset, protocols)
-    check_cases_current(dataset)
     fingerprints = dataset_fingerprints(dataset, list(cases))
     check_results_folder(out, fingerprints)
     metas = [method_meta(m.metadata, dataset, fingerprints) for m in instances]
