@@ -4,9 +4,11 @@ from __future__ import annotations
 from schemas.case import CaseRecord
 from schemas.character import CharacterRecord
 from schemas.columns import arrow_schema
+from schemas.joint import JointRecord
 from schemas.motion import MotionRecord
 from schemas.pair import PairRecord
 from schemas.result import ResultRecord
+from schemas.rigid_body import RigidBodyRecord
 from schemas.status import StatusRecord
 
 RECORD_TYPES = {
@@ -16,10 +18,13 @@ RECORD_TYPES = {
     "cases": CaseRecord,
     "status": StatusRecord,
     "results": ResultRecord,
+    "rigid_bodies": RigidBodyRecord,
+    "joints": JointRecord,
 }
 
 # Rows per Parquet row group: small for large per-row arrays, so one record reads on its own.
-ROW_GROUP_SIZE = {"characters": 8, "motions": 16, "pairs": 256, "cases": 256, "status": 4096, "results": 4096}
+ROW_GROUP_SIZE = {"characters": 8, "motions": 16, "pairs": 256, "cases": 256, "status": 4096, "results": 4096,
+                  "rigid_bodies": 4096, "joints": 4096}
 
 
 def record_type(table: str) -> type:

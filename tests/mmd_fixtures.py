@@ -66,7 +66,7 @@ def pmx_bytes(version: float = 2.0, encoding: int = 0, extra_uv: int = 0, qdef: 
     out += t("髪") + t("hair") + struct.pack("<bBHB", 1, 3, 0xFFFF, 2) + struct.pack("<9f", 0.5, 2, 0, 1, 8, -2, 0.1, 0.2, 0.3)
     out += struct.pack("<5fB", 2, 0.9, 0.8, 0.1, 0.4, 1)
     out += struct.pack("<i", 1) + t("j") + t("j") + bytes([0]) + struct.pack("<bb", 0, 1)
-    out += struct.pack("<24f", 1, 9, -1, 0.1, 0.2, 0.3, -1, -2, -3, 1, 2, 3, -0.1, -0.2, -0.3, 0.4, 0.5, 0.6,
+    out += struct.pack("<24f", 1, 9, -1, 0.1, 0.2, 0.3, -1, -2, -3, 1, 2, 5, -0.1, -0.2, -0.3, 0.4, 0.5, 0.6,
                        10, 20, 30, 1, 2, 3)
     return out
 
@@ -96,3 +96,21 @@ def pmd_bytes() -> bytes:
     out += struct.pack("<5fB", 2, 0.9, 0.8, 0.1, 0.4, 1)
     out += struct.pack("<I", 1) + name("j", 20) + struct.pack("<ii", 0, 1) + struct.pack("<24f", *range(24))
     return out
+
+
+def vmd_bytes(keys, morphs=(), model: str = "model") -> bytes:
+    """A VMD (version 0002) with bone keys ``(name, frame, (x, y, z), (qx, qy, qz, qw), curves)``,
+    ``curves`` a dict channel index (0 x, 1 y, 2 z, 3 rotation) -> (x1, y1, x2, y2) bytes 0..127
+    (unlisted channels linear: 20, 20, 107, 107), laid out as MMD writes them (the first 16 bytes:
+    x1 of the four channels, y1, x2, y2; the other 48 bytes MMD's shifted copies)."""
+    name = lambda s, n: s.encode("cp932")[:n].ljust(n, b"\0")  # noqa: E731
+    out = b"Vocaloid Motion Data 0002".ljust(30, b"\0") + name(model, 20) + struct.pack("<I", len(keys))
+    for bone, frame, pos, rot, curves in keys:
+        cp = [curves.get(c, (20, 20, 107, 107)) for c in range(4)]
+        row = bytes(cp[c][j] for j in range(4) for c in range(4))
+        ip = row + row[1:] + b"\0" + row[2:] + b"\0\0" + row[3:] + b"\0\0\0"
+        out += name(bone, 15) + struct.pack("<I3f4f", frame, *pos, *rot) + ip[:64]
+    out += struct.pack("<I", len(morphs))
+    for morph, frame, weight in morphs:
+        out += name(morph, 15) + struct.pack("<If", frame, weight)
+    return out + struct.pack("<III", 0, 0, 0)

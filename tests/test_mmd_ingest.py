@@ -1,26 +1,61 @@
-"""``datagen ingest`` routes .pmx/.pmd files to datagen.mmd (no Blender): records and status rows."""
+"""``datagen ingest`` routes .pmx/.pmd/.vmd files to datagen.mmd (no Blender): characters, motions,
+rigid bodies, joints and status rows."""
 from __future__ import annotations
 
-import shutil
+import numpy as np
+import pytest
 
 from datagen.ingest.runner import ingest_assets
 from schemas.shards import read_records
-from tests.mmd_fixtures import pmd_bytes, pmx_bytes
+from tests.mmd_fixtures import pmd_bytes, pmx_bytes, vmd_bytes
 
 
-def test_ingest_mmd_models_and_bad_files(tmp_path, assets_dir):
-    (tmp_path / "in").mkdir()
-    (tmp_path / "in" / "small.pmx").write_bytes(pmx_bytes(version=2.1, encoding=1, extra_uv=1, qdef=True))
-    (tmp_path / "in" / "old.pmd").write_bytes(pmd_bytes())
-    (tmp_path / "in" / "cut.pmx").write_bytes(pmx_bytes()[:300])
-    paths = [assets_dir / "mmd" / "Gene.pmx"] + sorted((tmp_path / "in").iterdir())
+def test_ingest_mmd_models_motions_physics_and_bad_files(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "small.pmx").write_bytes(pmx_bytes(version=2.1, encoding=1, extra_uv=1, qdef=True))
+    (src / "old.pmd").write_bytes(pmd_bytes())
+    (src / "cut.pmx").write_bytes(pmx_bytes()[:300])
+    # beside small.pmx: a clip that lifts the IK goal and names one bone the model lacks
+    (src / "small_lift.vmd").write_bytes(vmd_bytes([("左足ＩＫ", 0, (0, 0, 0), (0, 0, 0, 1), {}),
+                                                    ("左足ＩＫ", 4, (0, 1, 0), (0, 0, 0, 1), {}),
+                                                    ("尻尾", 0, (0, 0, 0), (0, 0, 0, 1), {})], [("あ", 0, 1.0)]))
+    (src / "broken.vmd").write_bytes(b"Vocaloid Motion Data 0002")
     out = tmp_path / "ds"
-    s = ingest_assets(paths, out, progress=False)
-    assert s["characters"] == 3 and s["failed"] == 1
+    s = ingest_assets(sorted(src.glob("*.pm*")) + [src / "broken.vmd"], out, progress=False)
+    assert s["characters"] == 2 and s["motions"] == 1
     chars = {c.character_id: c for c in read_records(out, "characters")}
-    assert set(chars) == {"assets/Gene", "assets/small", "assets/old"}
-    assert chars["assets/Gene"].category == "humanoid" and len(chars["assets/Gene"].vertices) == 28646
+    assert set(chars) == {"assets/small", "assets/old"}
     status = {st.asset.rsplit("/", 1)[-1]: st for st in read_records(out, "status")}
     assert status["cut.pmx"].status == "failed" and "cut.pmx" in status["cut.pmx"].reason
     assert "truncated" in status["cut.pmx"].reason
-    assert status["Gene.pmx"].status == "ok"
+    assert status["broken.vmd"].status == "failed" and "broken.vmd" in status["broken.vmd"].reason
+    assert status["small_lift.vmd"].status == "ok" and "1 unmatched (尻尾)" in status["small_lift.vmd"].reason
+    (motion,) = read_records(out, "motions")
+    assert motion.motion_id == "assets/small/lift" and motion.transforms.shape == (5, 3, 7)
+    small = chars["assets/small"]
+    assert small.meta["mmd"]["motions"]["lift"]["ignored_morph_keys"] == 1
+    ik = small.bone_names.index("左足ＩＫ")
+    np.testing.assert_allclose(motion.transforms[4, ik, 4:], small.keypoints[ik] + [0, 0.08, 0], atol=1e-6)
+    bodies = read_records(out, "rigid_bodies")
+    joints = read_records(out, "joints")
+    assert sorted(b.character_id for b in bodies) == ["assets/old", "assets/old", "assets/small", "assets/small"]
+    assert len(joints) == 2 and {j.kind for j in joints} == {"spring_6dof"}
+
+
+@pytest.mark.slow
+def test_ingest_gene_with_its_motion(tmp_path, assets_dir):
+    out = tmp_path / "ds"
+    s = ingest_assets([assets_dir / "mmd" / "Gene.pmx"], out, progress=False)
+    assert s["characters"] == 1 and s["motions"] == 1 and s["failed"] == 0
+    (gene,) = read_records(out, "characters")
+    (stand,) = read_records(out, "motions")
+    assert gene.category == "humanoid" and len(gene.vertices) == 28646
+    assert stand.name == "stand" and stand.num_frames == 121 and stand.fps == 30
+    assert len(read_records(out, "rigid_bodies")) == 87 and len(read_records(out, "joints")) == 92
+    report = gene.meta["mmd"]["motions"]["stand"]
+    assert report["unmatched"] == [] and report["duplicate_keys"] == 2
+    # feet on the ground where the VMD puts them: the ankles stay at their rest height (+-1 cm)
+    for name in ("左足首", "右足首"):
+        k = gene.bone_names.index(name)
+        assert np.abs(stand.transforms[:, k, 5] - gene.keypoints[k, 1]).max() < 0.01

@@ -10,10 +10,12 @@ from schemas.case import CaseRecord
 from schemas.character import CharacterRecord
 from schemas.columns import records_to_table, table_to_records
 from schemas.format_doc import FORMAT_MD, render
+from schemas.joint import JointRecord
 from schemas.manifest import load_manifest
 from schemas.motion import MotionRecord
 from schemas.pair import PairRecord
 from schemas.result import ResultRecord
+from schemas.rigid_body import RigidBodyRecord
 from schemas.shards import read_records, write_records
 from schemas.status import StatusRecord
 from schemas.tables import RECORD_TYPES
@@ -51,6 +53,11 @@ def example_records(tube):
         "status": [StatusRecord("assets/Fox.glb", "ingest", "failed", "timeout after 5 s", 5.0)],
         "results": [ResultRecord("h2h/a->b/walk#3", "h2h", "identity", "1", "ok", None, 0.01, 3.2, 0.1, 0.98,
                                  None, "humanoid", "humanoid")],
+        "rigid_bodies": [RigidBodyRecord("a", 0, "髪", "hair", 1, "capsule", np.float32([0.1, 0.2, 0]),
+                                         np.float32([0, 1, 0]), np.float32([1, 0, 0, 0]), 1.0, 0.5, 0.5, 0.0, 0.5,
+                                         3, 0xFFF7, "dynamic")],
+        "joints": [JointRecord("a", 0, "j", "", "spring_6dof", 0, 1, np.float32([0, 1, 0]), np.float32([1, 0, 0, 0]),
+                               *np.float32([[-1, 0, 0], [1, 0, 0], [0, 0, -1], [0, 0, 1], [0, 0, 0], [5, 5, 5]]))],
     }
 
 

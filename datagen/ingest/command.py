@@ -11,7 +11,9 @@ def register(subparsers) -> None:
         "(all skinned meshes of the armature merged, triangulated, Y up), deform bones, skin weights and every "
         "animation clip as per-frame transforms that reproduce Blender's own deformation by linear blend "
         "skinning. A crash, timeout or unreadable file becomes a status row; a re-run skips assets already "
-        "done. MMD models (.pmx, .pmd) are read without Blender (datagen/mmd): 1 MMD unit = 0.08 m, z mirrored "
+        "done. MMD models (.pmx, .pmd) are read without Blender (datagen/mmd): 1 MMD unit = 0.08 m, z mirrored, "
+        "rigid bodies and joints in the tables rigid_bodies and joints, and each <stem>.vmd or <stem>_<clip>.vmd "
+        "beside a model (or given with it) played on it with MMD's IK and grants "
         "(see schemas/FORMAT.md). Example:\n  mimicbench datagen ingest 'assets/*.glb' mocap/run.bvh --out data/mine --jobs 2",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", help="asset files or glob patterns")

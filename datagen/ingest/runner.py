@@ -124,7 +124,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
             c, m = records_from_cache(a, cache, category_for(a, category_map))
             chars.append(c)
             motions.extend(m)
-    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), progress=progress)
+    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), progress=progress, out_dir=out_dir)
     chars, motions, statuses = chars + mmd.characters, motions + mmd.motions, statuses + mmd.statuses
     config = {"stage": "ingest", "timeout": timeout, "category_map": category_map or {}}
     for split in sorted({c.split for c in chars}):

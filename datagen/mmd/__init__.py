@@ -1,10 +1,12 @@
 """MikuMikuDance characters and motions: bounded PMX/PMD/VMD readers, conversion to the dataset's
 frame and records, physics (rigid bodies, joints) as records, apparel from physics.
 
-One concept a file: :mod:`.binary` (bounded reading), :mod:`.pmx`, :mod:`.pmd` (readers),
-:mod:`.model` (the file's contents), :mod:`.frame` (MMD -> dataset frame), :mod:`.names`
-(English canonical names), :mod:`.records` (character records), :mod:`.apparel`,
-:mod:`.physics` (rigid-body/joint records), :mod:`.ingest` (the ``datagen ingest`` path).
+One concept a file: :mod:`.binary` (bounded reading), :mod:`.pmx`, :mod:`.pmd`, :mod:`.vmd`
+(readers), :mod:`.model` (the file's contents), :mod:`.frame` (MMD -> dataset frame),
+:mod:`.names` (English canonical names), :mod:`.records` (character records), :mod:`.apparel`,
+:mod:`.physics` (rigid-body/joint records), :mod:`.bezier` (keyframe curves), :mod:`.pose`
+(MMD's bone evaluation order), :mod:`.grant` (付与), :mod:`.ik` (CCD), :mod:`.motion` (a VMD
+on a model as a motion record), :mod:`.ingest` (the ``datagen ingest`` path).
 """
 from __future__ import annotations
 

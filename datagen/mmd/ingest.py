@@ -1,14 +1,18 @@
 """The ``datagen ingest`` path for MMD files: no Blender, the bounded readers of this package.
 
-A .pmx/.pmd file becomes a character (``assets/<stem>``); each .vmd given with it becomes a
-motion on it. A malformed file becomes a ``failed`` status row naming the file and the problem,
-and the other files go on.
+A .pmx/.pmd file becomes a character (``assets/<stem>``) with its rigid bodies and joints
+(tables ``rigid_bodies`` and ``joints``). Motions: a .vmd beside a model named ``<stem>.vmd`` or
+``<stem>_<clip>.vmd`` plays on that model, and so does a .vmd given on the command line with such
+a name; any other .vmd given on the command line plays on every model of the run. A malformed
+file becomes a ``failed`` status row naming the file and the problem; the other files go on.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from datagen.mmd import MODEL_SUFFIXES, MOTION_SUFFIXES, read_model
 from datagen.mmd.frame import MMD_UNIT_METRES
@@ -34,19 +38,52 @@ def split_mmd_paths(paths) -> tuple[list[Path], list[Path]]:
     return [Path(p) for p in paths if Path(p) not in mmd], mmd
 
 
-def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progress: bool = False) -> MMDIngest:
-    """Read MMD models (and motions) into records.
+def clip_name(model: Path, motion: Path) -> str | None:
+    """The clip name of ``motion`` if its name ties it to ``model`` (``<stem>.vmd`` -> ``<stem>``,
+    ``<stem>_<clip>.vmd`` -> ``<clip>``), else None."""
+    if motion.stem == model.stem:
+        return motion.stem
+    if motion.stem.startswith(model.stem + "_") and len(motion.stem) > len(model.stem) + 1:
+        return motion.stem[len(model.stem) + 1:]
+    return None
+
+
+def motions_for(model: Path, models: list[Path], given: list[Path]) -> list[tuple[Path, str]]:
+    """(.vmd path, clip name) pairs that play on ``model`` (see the module docstring): the .vmd
+    files beside it or ``given`` whose names tie them to it, and the ``given`` ones that no model
+    of ``models`` claims by name."""
+    out: dict[Path, str] = {}
+    beside = sorted(p for p in model.parent.glob("*") if p.suffix.lower() in MOTION_SUFFIXES)
+    for p in beside + list(given):
+        name = clip_name(model, p)
+        if name is not None:
+            out[p.resolve()] = name
+    for p in given:
+        if not any(clip_name(m, p) for m in models):
+            out.setdefault(p.resolve(), p.stem)
+    return sorted(out.items(), key=lambda kv: str(kv[0]))
+
+
+def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progress: bool = False,
+               out_dir=None) -> MMDIngest:
+    """Read MMD models and their motions into records.
 
     Args:
         paths: .pmx/.pmd/.vmd files.
         category_for: ``Path -> category`` (``unknown`` keeps the MMD guess: ``humanoid`` when the
             standard humanoid bones are present).
         scale: metres per MMD unit (default 0.08).
+        out_dir: when given, the ``rigid_bodies`` and ``joints`` tables are written there (per split).
     """
     from tqdm.auto import tqdm
 
+    from datagen.mmd.motion import motion_from_vmd
+    from datagen.mmd.physics import physics_records
+    from datagen.mmd.vmd import read_vmd
+
     out = MMDIngest()
     models = [Path(p) for p in paths if Path(p).suffix.lower() in MODEL_SUFFIXES]
+    given = [Path(p) for p in paths if Path(p).suffix.lower() in MOTION_SUFFIXES]
     for path in tqdm(models, desc="ingest mmd", unit="model", disable=not progress):
         start = time.perf_counter()
         cid = f"assets/{path.stem}"
@@ -54,16 +91,49 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
             model = read_model(path)
             category = category_for(path) if category_for else "unknown"
             char = character_from_mmd(model, cid, str(path), split_of(cid), category, scale)
+            new_index = np.empty(len(model.bones), np.int64)
+            new_index[char.meta["mmd"]["file_bone_index"]] = np.arange(len(model.bones))
+            bodies, joints = physics_records(model, cid, new_index, scale)
         except (ValueError, OSError) as e:  # MMDFormatError is a ValueError
             out.statuses.append(StatusRecord(str(path), "ingest", "failed", _reason(e, path), time.perf_counter() - start))
             continue
         out.characters.append(char)
+        out.rigid_bodies += bodies
+        out.joints += joints
         out.statuses.append(StatusRecord(str(path), "ingest", "ok", "", time.perf_counter() - start))
-    for path in (Path(p) for p in paths if Path(p).suffix.lower() in MOTION_SUFFIXES):
-        if not models:
-            out.statuses.append(StatusRecord(str(path), "ingest", "failed",
-                                             "a .vmd motion needs a .pmx/.pmd model in the same run", 0.0))
+        reports = char.meta["mmd"].setdefault("motions", {})
+        for vmd_path, name in motions_for(path, models, given):
+            start = time.perf_counter()
+            try:
+                rec, report = motion_from_vmd(read_vmd(vmd_path), model, char, name, str(vmd_path), scale)
+            except (ValueError, OSError) as e:
+                out.statuses.append(StatusRecord(str(vmd_path), "ingest", "failed", _reason(e, vmd_path),
+                                                 time.perf_counter() - start))
+                continue
+            out.motions.append(rec)
+            reports[name] = report
+            note = f"on {cid}: {report['matched']} bones matched, {len(report['unmatched'])} unmatched" \
+                   + (f" ({', '.join(report['unmatched'][:5])})" if report["unmatched"] else "") \
+                   + f"; {report['ignored_morph_keys']} morph keys ignored"
+            out.statuses.append(StatusRecord(str(vmd_path), "ingest", "ok", note, time.perf_counter() - start))
+    if not models:
+        for p in given:
+            out.statuses.append(StatusRecord(str(p), "ingest", "failed",
+                                             f"{p}: a .vmd motion needs a .pmx/.pmd model in the same run", 0.0))
+    if out_dir is not None and out.characters:
+        _write_physics(out_dir, out)
     return out
+
+
+def _write_physics(out_dir, out: MMDIngest) -> None:
+    from schemas.shards import write_records
+
+    split = {c.character_id: c.split for c in out.characters}
+    for split_name in sorted(set(split.values())):
+        write_records(out_dir, "rigid_bodies", [r for r in out.rigid_bodies if split[r.character_id] == split_name],
+                      split_name, rows_per_shard=100000, config={"stage": "ingest", "source": "mmd"})
+        write_records(out_dir, "joints", [j for j in out.joints if split[j.character_id] == split_name],
+                      split_name, rows_per_shard=100000, config={"stage": "ingest", "source": "mmd"})
 
 
 def _reason(e: Exception, path: Path) -> str:

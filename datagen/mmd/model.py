@@ -88,7 +88,7 @@ class MMDRigidBody:
     name_en: str
     bone: int
     group: int
-    mask: int  # 16 bits as stored in the file: a set bit means "does NOT collide" with that group
+    mask: int  # 16 bits as stored: bit g set = collides with group g (as MMD players pass it to Bullet)
     shape: int
     size: np.ndarray
     position: np.ndarray
