@@ -31,13 +31,14 @@ COMMAND_MODULES = (
     ("datagen", "datagen.resample.command"),
     ("datagen", "datagen.correspond.command"),
     ("datagen", "datagen.ingest.command"),
+    ("datagen", "datagen.retarget.command"),
     (None, "benchmark.command"),
     (None, "benchmark.demo"),
     (None, "datagen.render.command"),
 )
 
 GROUP_HELP = {
-    "datagen": "dataset stages: ingest real assets, resample meshes, compute correspondences",
+    "datagen": "dataset stages: ingest real assets, resample meshes, compute correspondences, retarget clips",
 }
 
 DESCRIPTION = """\
@@ -47,6 +48,7 @@ Typical flow:
   mimicbench demo                                   build a small zoo and print a leaderboard
   mimicbench zoo --out data/zoo --characters 40     procedural rigged, animated characters
   mimicbench datagen ingest assets/*.glb --out data/mine    real assets through Blender
+  mimicbench datagen retarget data/mine data/mmd data/out   humanoid clips onto other humanoids
   mimicbench datagen resample data/zoo data/zoo5k   5,000-face meshes, weights re-skinned
   mimicbench datagen correspond data/zoo5k          bone-name correspondences (pairs/)
   mimicbench bench cases data/zoo5k                 benchmark cases (cases/)

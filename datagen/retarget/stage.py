@@ -1,0 +1,69 @@
+"""``datagen retarget`` as a stage: every clip of a motions dataset onto every humanoid of a
+characters dataset, into a new dataset, with a status row and a report per pair."""
+from __future__ import annotations
+
+import fnmatch
+import json
+import time
+from pathlib import Path
+
+from datagen.retarget.retarget import retarget_clip
+from datagen.retarget.roles import humanoid_roles
+from schemas.shards import read_records, write_records
+from schemas.status import StatusRecord
+from schemas.validate import validate_dataset
+
+MIN_ROLES = 8
+
+
+def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", targets: str = "*",
+                      progress: bool = True) -> dict:
+    """Retarget the clips of ``motions_dir`` (characters matching the glob ``sources``) onto the
+    characters of ``characters_dir`` matching ``targets`` that have at least 8 humanoid bone roles.
+
+    Writes ``out_dir``: the target characters, the retargeted clips (``<target>/<source>/<clip>``),
+    ``status`` (stage ``retarget``, one row per pair) and ``retarget_report.json`` (mapped and
+    unmapped bones per pair). Returns a summary."""
+    from tqdm.auto import tqdm
+
+    start = time.perf_counter()
+    src_chars = {c.character_id: c for c in read_records(motions_dir, "characters")
+                 if fnmatch.fnmatch(c.character_id, sources)}
+    clips = [m for m in read_records(motions_dir, "motions") if m.character_id in src_chars]
+    tgts = [c for c in read_records(characters_dir, "characters") if fnmatch.fnmatch(c.character_id, targets)]
+    statuses, reports, out_motions, used = [], [], [], {}
+    humanoid = [t for t in tgts if len(humanoid_roles(t.bone_names)) >= MIN_ROLES]
+    for t in tgts:
+        if t not in humanoid:
+            statuses.append(StatusRecord(t.character_id, "retarget", "skipped",
+                                         f"fewer than {MIN_ROLES} humanoid bone roles in its names", 0.0))
+    pairs = [(m, t) for m in clips for t in humanoid if t.character_id != m.character_id]
+    for m, t in tqdm(pairs, desc="retarget", unit="clip", disable=not progress):
+        t0 = time.perf_counter()
+        asset = f"{m.motion_id} -> {t.character_id}"
+        try:
+            rec, report = retarget_clip(src_chars[m.character_id], m, t)
+        except ValueError as e:
+            statuses.append(StatusRecord(asset, "retarget", "failed", str(e), time.perf_counter() - t0))
+            continue
+        out_motions.append(rec)
+        reports.append(report)
+        used[t.character_id] = t
+        statuses.append(StatusRecord(asset, "retarget", "ok", f"{len(report['mapped'])} roles mapped, "
+                                     f"{len(report['target_unmapped'])} target bones at rest", time.perf_counter() - t0))
+    out = Path(out_dir)
+    config = {"stage": "retarget", "motions": str(motions_dir), "characters": str(characters_dir),
+              "sources": sources, "targets": targets}
+    chars = list(used.values())
+    for split in sorted({c.split for c in chars}):
+        write_records(out, "characters", [c for c in chars if c.split == split], split, rows_per_shard=200, config=config)
+        write_records(out, "motions", [r for r in out_motions if r.split == split], split, rows_per_shard=200,
+                      config=config)
+    write_records(out, "status", statuses, split="retarget", config=config)
+    (out / "retarget_report.json").write_text(json.dumps(reports, ensure_ascii=False, indent=1))
+    problems = validate_dataset(out)
+    if problems:
+        raise RuntimeError("retarget wrote an invalid dataset:\n" + "\n".join(problems))
+    return {"pairs": len(pairs), "clips": len(out_motions), "characters": len(chars),
+            "failed": sum(s.status == "failed" for s in statuses), "statuses": statuses,
+            "seconds": time.perf_counter() - start}
