@@ -59,3 +59,21 @@ def test_ingest_gene_with_its_motion(tmp_path, assets_dir):
     for name in ("左足首", "右足首"):
         k = gene.bone_names.index(name)
         assert np.abs(stand.transforms[:, k, 5] - gene.keypoints[k, 1]).max() < 0.01
+
+
+def test_cli_motions_folder_plays_on_every_model(tmp_path):
+    from mimicbench.cli import main
+
+    (tmp_path / "models").mkdir()
+    (tmp_path / "mocap").mkdir()
+    (tmp_path / "models" / "a.pmx").write_bytes(pmx_bytes())
+    (tmp_path / "models" / "b.pmx").write_bytes(pmx_bytes(encoding=1))
+    (tmp_path / "mocap" / "hop.vmd").write_bytes(vmd_bytes([("センター", 0, (0, 0, 0), (0, 0, 0, 1), {}),
+                                                           ("センター", 2, (0, 2, 0), (0, 0, 0, 1), {})]))
+    out = tmp_path / "ds"
+    assert main(["datagen", "ingest", str(tmp_path / "models" / "*.pmx"), "--out", str(out), "--motions",
+                 str(tmp_path / "mocap"), "--quiet"]) == 0
+    motions = sorted(m.motion_id for m in read_records(out, "motions"))
+    assert motions == ["assets/a/hop", "assets/b/hop"]
+    assert main(["datagen", "ingest", str(tmp_path / "models" / "a.pmx"), "--out", str(out), "--motions",
+                 str(tmp_path / "nowhere"), "--quiet"]) == 2

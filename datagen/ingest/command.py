@@ -23,6 +23,8 @@ def register(subparsers) -> None:
     p.add_argument("--category-map", default=None,
                    help="JSON file mapping a glob or file stem to a category (default: unknown)")
     p.add_argument("--export", default="", help="comma-separated of obj,bvh: also write OUT/export/ files")
+    p.add_argument("--motions", default=None, metavar="DIR",
+                   help="folder of .vmd motions to play on every MMD model of the run (besides <stem>_<clip>.vmd)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)
 
@@ -38,6 +40,12 @@ def run(args) -> int:
     for pattern in args.paths:
         matches = sorted(glob.glob(pattern))
         paths.extend(matches or [pattern])
+    if args.motions:  # MMD motions for every model (datagen/mmd/ingest.py); a missing folder is an error
+        from pathlib import Path
+
+        if not Path(args.motions).is_dir():
+            raise NotADirectoryError(f"--motions: {args.motions} is not a folder of .vmd files")
+        paths.extend(str(p) for p in sorted(Path(args.motions).glob("*.vmd")))
     cmap = json.loads(open(args.category_map).read()) if args.category_map else None
     export = tuple(x for x in args.export.split(",") if x)
     s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, export, not args.quiet)
