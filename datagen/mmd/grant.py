@@ -10,33 +10,25 @@ translation, e.g. 腕捩連 turns with half of 腕捩, 目 with 0.15 of 両目. 
 """
 from __future__ import annotations
 
-import numpy as np
-
 from datagen.mmd.model import BONE_GRANT_LOCAL
 from datagen.mmd.pose import IDENTITY, qmul
 from mimicbench.quaternion import quat_slerp
 
 
 def apply_grant(poser, i: int) -> None:
-    """Set ``poser.grant_rot[i]``/``grant_trans[i]`` from bone i's grant parent, then update its local
-    transform (the caller updates globals)."""
+    """Set ``poser.grant_rot[:, i]``/``grant_trans[:, i]`` (all frames) from bone i's grant parent,
+    then update its local transform (the caller updates globals)."""
     b = poser.model.bones[i]
     g = b.grant_parent
     parent = poser.model.bones[g]
     local = bool(b.flags & BONE_GRANT_LOCAL)
     parent_granted = parent.grant_rotation or parent.grant_translation
     if b.grant_rotation:
-        if local:
-            src = poser.anim_rot[g]
-        else:
-            src = poser.grant_rot[g] if parent_granted else poser.anim_rot[g]
+        src = poser.anim_rot[:, g] if local or not parent_granted else poser.grant_rot[:, g]
         if poser.is_ik_link[g]:
-            src = qmul(poser.ik_rot[g], src)
-        poser.grant_rot[i] = quat_slerp(IDENTITY, src, float(b.grant_ratio))
+            src = qmul(poser.ik_rot[:, g], src)
+        poser.grant_rot[:, i] = quat_slerp(IDENTITY, src, float(b.grant_ratio))
     if b.grant_translation:
-        if local or not parent_granted:
-            src_t = poser.anim_trans[g]
-        else:
-            src_t = poser.grant_trans[g]
-        poser.grant_trans[i] = np.asarray(src_t) * float(b.grant_ratio)
+        src_t = poser.anim_trans[:, g] if local or not parent_granted else poser.grant_trans[:, g]
+        poser.grant_trans[:, i] = src_t * float(b.grant_ratio)
     poser.update_local(i)

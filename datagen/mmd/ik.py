@@ -1,32 +1,38 @@
-"""MMD's IK: cyclic coordinate descent as MMD players do it (Saba's ``MMDIkSolver``).
+"""MMD's IK: cyclic coordinate descent as MMD players do it (Saba's ``MMDIkSolver``), on all
+frames at once.
 
 For an IK bone (the goal, e.g. 左足ＩＫ) with target bone (the effector, e.g. 左足首) and links
 (e.g. 左ひざ, 左足), repeat up to the file's loop count: for each link, turn it so that the
 effector points at the goal as seen from the link, by at most the file's unit angle; a link
 limited to one axis (the knee: x only) turns about that axis only, its accumulated angle clamped
 to the limits (on the first iteration a wrong-signed angle is flipped, which bends knees forward);
-other limited links are clamped per Euler angle (R = Rx Ry Rz). The loop stops when the distance
-stops shrinking, keeping the best rotations.
+other limited links are clamped per Euler angle (R = Rx Ry Rz). A frame stops when its distance
+stops shrinking, keeping its best rotations.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from datagen.mmd.pose import IDENTITY, qmul, quat_to_mat
+from datagen.mmd.pose import IDENTITY, qmul, quat_to_mat, unrotate
 
 AXES = np.eye(3)
 
 
-def axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Quaternion (w, x, y, z) turning ``angle`` radians about the unit ``axis`` (3,)."""
-    s = math.sin(0.5 * angle)
-    return np.array([math.cos(0.5 * angle), axis[0] * s, axis[1] * s, axis[2] * s])
+def axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Quaternions (F, 4) turning ``angle`` (F,) radians about unit axes (3,) or (F, 3)."""
+    half = 0.5 * np.asarray(angle, np.float64)
+    axis = np.broadcast_to(axis, half.shape + (3,))
+    return np.concatenate([np.cos(half)[:, None], axis * np.sin(half)[:, None]], axis=1)
 
 
 def conj(q: np.ndarray) -> np.ndarray:
-    return np.array([q[0], -q[1], -q[2], -q[3]])
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _rodrigues(v: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Vectors v (F, 3) turned by ``angle`` (F,) about the unit ``axis`` (3,)."""
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    return v * c + np.cross(axis, v) * s + axis * (v @ axis)[:, None] * (1 - c)
 
 
 def _plane_axis(lo: np.ndarray, hi: np.ndarray) -> int | None:
@@ -39,93 +45,97 @@ def _plane_axis(lo: np.ndarray, hi: np.ndarray) -> int | None:
 
 
 def euler_xyz(m: np.ndarray) -> np.ndarray:
-    """Angles (a, b, c) with m = Rx(a) Ry(b) Rz(c)."""
-    b = np.arcsin(np.clip(m[0, 2], -1.0, 1.0))
-    return np.array([np.arctan2(-m[1, 2], m[2, 2]), b, np.arctan2(-m[0, 1], m[0, 0])])
+    """Angles (..., 3) (a, b, c) with m = Rx(a) Ry(b) Rz(c), for rotations m (..., 3, 3)."""
+    b = np.arcsin(np.clip(m[..., 0, 2], -1.0, 1.0))
+    return np.stack([np.arctan2(-m[..., 1, 2], m[..., 2, 2]), b, np.arctan2(-m[..., 0, 1], m[..., 0, 0])], axis=-1)
 
 
 def euler_xyz_to_quat(e: np.ndarray) -> np.ndarray:
-    q = IDENTITY
+    """Quaternions (F, 4) of Rx(a) Ry(b) Rz(c) for angles (F, 3)."""
+    q = np.broadcast_to(IDENTITY, e.shape[:-1] + (4,))
     for a in range(3):
-        q = qmul(q, axis_angle(AXES[a], e[a]))
+        q = qmul(q, axis_angle(AXES[a], e[..., a]))
     return q
 
 
 def solve_ik(poser, ik_bone: int) -> None:
-    """Run CCD for ``ik_bone``'s chain, writing the links' ``poser.ik_rot`` (and their globals)."""
+    """Run CCD for ``ik_bone``'s chain on every frame, writing the links' ``poser.ik_rot``."""
     chain = poser.model.bones[ik_bone].ik
-    target = chain.target
-    links = chain.links
-    plane_angle = np.zeros(len(links))
+    target, links = chain.target, chain.links
+    f = poser.t.shape[0]
     for link in links:
-        poser.ik_rot[link.bone] = IDENTITY
+        poser.ik_rot[:, link.bone] = IDENTITY
         poser.update_local(link.bone)
         poser.update_global(link.bone)
-    best = np.inf
-    saved = [poser.ik_rot[l.bone].copy() for l in links]
+    plane_angle = np.zeros((f, len(links)))
+    best = np.full(f, np.inf)
+    saved = [poser.ik_rot[:, l.bone].copy() for l in links]
+    active = np.ones(f, bool)
     for it in range(chain.loop):
-        _iterate(poser, ik_bone, chain, target, plane_angle, it)
-        d = poser.t[target] - poser.t[ik_bone]
-        dist = math.sqrt(d @ d)
-        if dist < best:
-            best = dist
-            saved = [poser.ik_rot[l.bone].copy() for l in links]
-        else:
-            for l, q in zip(links, saved):
-                poser.ik_rot[l.bone] = q
-                poser.update_local(l.bone)
+        if not active.any():
             break
+        _iterate(poser, ik_bone, chain, target, plane_angle, it, active)
+        dist = np.linalg.norm(poser.t[:, target] - poser.t[:, ik_bone], axis=1)
+        improved = active & (dist < best)
+        best = np.where(improved, dist, best)
+        stop = active & ~improved
+        for n, l in enumerate(links):
+            saved[n] = np.where(improved[:, None], poser.ik_rot[:, l.bone], saved[n])
+            if stop.any():  # frames that stopped improving go back to their best rotations
+                poser.ik_rot[stop, l.bone] = saved[n][stop]
+                poser.update_local(l.bone)
+        active = improved
     for l in reversed(links):  # links run from the effector up: refresh from the top link down
         poser.update_global(l.bone)
 
 
-def _iterate(poser, ik_bone: int, chain, target: int, plane_angle: np.ndarray, it: int) -> None:
-    goal = poser.t[ik_bone].copy()
+def _iterate(poser, ik_bone: int, chain, target: int, plane_angle: np.ndarray, it: int, active: np.ndarray) -> None:
+    goal = poser.t[:, ik_bone].copy()
     for li, link in enumerate(chain.links):
         j = link.bone
         if j == target:
             continue
-        R, t = poser.R[j], poser.t[j]
-        to_goal = R.T @ (goal - t)
-        to_eff = R.T @ (poser.t[target] - t)
-        ng, ne = math.sqrt(to_goal @ to_goal), math.sqrt(to_eff @ to_eff)
-        if ng < 1e-12 or ne < 1e-12:
-            continue
-        to_goal, to_eff = to_goal / ng, to_eff / ne
-        angle = math.acos(min(1.0, max(-1.0, float(to_eff @ to_goal))))
+        R, t = poser.R[:, j], poser.t[:, j]
+        to_goal = unrotate(R, goal - t)
+        to_eff = unrotate(R, poser.t[:, target] - t)
+        ng, ne = np.linalg.norm(to_goal, axis=1), np.linalg.norm(to_eff, axis=1)
+        valid = active & (ng > 1e-12) & (ne > 1e-12)
+        to_goal = to_goal / np.maximum(ng, 1e-12)[:, None]
+        to_eff = to_eff / np.maximum(ne, 1e-12)[:, None]
+        angle = np.arccos(np.clip(np.sum(to_eff * to_goal, axis=1), -1.0, 1.0))
         limited = link.limit_min is not None
         axis_i = _plane_axis(link.limit_min, link.limit_max) if limited else None
         if axis_i is not None:
-            angle = min(angle, chain.limit_angle)
+            angle = np.minimum(angle, chain.limit_angle)
             axis = AXES[axis_i]
-            r1 = quat_to_mat(axis_angle(axis, angle)) @ to_eff
-            r2 = quat_to_mat(axis_angle(axis, -angle)) @ to_eff
-            new = plane_angle[li] + (angle if np.dot(r1, to_goal) > np.dot(r2, to_goal) else -angle)
+            d1 = np.sum(_rodrigues(to_eff, axis, angle) * to_goal, axis=1)
+            d2 = np.sum(_rodrigues(to_eff, axis, -angle) * to_goal, axis=1)
+            new = plane_angle[:, li] + np.where(d1 > d2, angle, -angle)
             lo, hi = float(link.limit_min[axis_i]), float(link.limit_max[axis_i])
-            if it == 0 and not lo <= new <= hi:
-                if lo < -new < hi:
-                    new = -new
-                elif abs(0.5 * (lo + hi) - new) > abs(0.5 * (lo + hi) + new):
-                    new = -new
-            new = float(np.clip(new, lo, hi))
-            plane_angle[li] = new
-            ik = qmul(axis_angle(axis, new), conj(poser.anim_rot[j]))
+            if it == 0:
+                out = (new < lo) | (new > hi)
+                flip = out & (lo < -new) & (-new < hi)
+                mid = 0.5 * (lo + hi)
+                flip |= out & ~flip & (np.abs(mid - new) > np.abs(mid + new))
+                new = np.where(flip, -new, new)
+            new = np.clip(new, lo, hi)
+            plane_angle[:, li] = np.where(valid, new, plane_angle[:, li])
+            ik = qmul(axis_angle(axis, new), conj(poser.anim_rot[:, j]))
         else:
-            if np.degrees(angle) < 1e-3:
-                continue
-            angle = min(angle, chain.limit_angle)
+            valid &= np.degrees(angle) >= 1e-3
+            angle = np.minimum(angle, chain.limit_angle)
             cross = np.cross(to_eff, to_goal)
-            n = math.sqrt(cross @ cross)
-            if n < 1e-12:
-                continue
-            rot = axis_angle(cross / n, angle)
-            full = qmul(qmul(poser.ik_rot[j], poser.anim_rot[j]), rot)
+            n = np.linalg.norm(cross, axis=1)
+            valid &= n > 1e-12
+            rot = axis_angle(cross / np.maximum(n, 1e-12)[:, None], angle)
+            full = qmul(qmul(poser.ik_rot[:, j], poser.anim_rot[:, j]), rot)
             if limited:
                 e = np.clip(euler_xyz(quat_to_mat(full)), link.limit_min, link.limit_max)
                 full = euler_xyz_to_quat(e)
-            ik = qmul(full, conj(poser.anim_rot[j]))
-        poser.ik_rot[j] = ik / math.sqrt(ik @ ik)
+            ik = qmul(full, conj(poser.anim_rot[:, j]))
+        if not valid.any():
+            continue
+        ik = ik / np.linalg.norm(ik, axis=1, keepdims=True)
+        poser.ik_rot[:, j] = np.where(valid[:, None], ik, poser.ik_rot[:, j])
         poser.update_local(j)
         poser.update_chain(j, target)
-
-

@@ -88,14 +88,15 @@ def sample_channels(vmd: VMDMotion, model: MMDModel, num_frames: int | None = No
     return rot, trans, report
 
 
-def pose_clip(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None):
-    """Global rotations (F, K, 3, 3) and bone heads (F, K, 3) in the file's frame, and the report."""
+def pose_clip(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None, chunk: int = 512):
+    """Global rotations (F, K, 3, 3) and bone heads (F, K, 3) in the file's frame, and the report
+    (frames posed ``chunk`` at a time)."""
     rot, trans, report = sample_channels(vmd, model, num_frames)
     poser = MMDPoser(model)
     R = np.empty(rot.shape[:2] + (3, 3))
     t = np.empty(rot.shape[:2] + (3,))
-    for i in range(len(rot)):
-        R[i], t[i] = poser.evaluate(rot[i], trans[i])
+    for s in range(0, len(rot), chunk):
+        R[s:s + chunk], t[s:s + chunk] = poser.evaluate(rot[s:s + chunk], trans[s:s + chunk])
     return R, t, report
 
 
