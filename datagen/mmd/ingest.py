@@ -3,7 +3,8 @@
 A .pmx/.pmd file becomes a character (``assets/<stem>``) with its rigid bodies and joints
 (tables ``rigid_bodies`` and ``joints``). Motions: a .vmd beside a model named ``<stem>.vmd`` or
 ``<stem>_<clip>.vmd`` plays on that model, and so does a .vmd given on the command line with such
-a name; any other .vmd given on the command line plays on every model of the run. A malformed
+a name; any other .vmd given on the command line (or found in ``--motions DIR``) plays on every
+model of the run. A malformed
 file becomes a ``failed`` status row naming the file and the problem; the other files go on.
 """
 from __future__ import annotations
