@@ -55,7 +55,8 @@ def test_gene_round_trip(assets_dir, tmp_path):
 
 def _zoo_apparel_physics(c):
     """Capsules on every apparel bone (dynamic) and on each chain's parent (static), a joint from
-    each body to its parent's, with limits and springs."""
+    each body to its parent's, with limits and springs (written here, independently of
+    datagen.mmd.chain_physics, with asymmetric limits and a tilted orientation)."""
     bodies, joints, body_of = [], [], {}
     kp = np.asarray(c.keypoints, np.float64)
     parents = np.asarray(c.parents)
@@ -102,3 +103,28 @@ def test_zoo_apparel_character_round_trip():
     np.testing.assert_array_equal(c2.apparel_bone_mask, c.apparel_bone_mask)
     _same_physics(bodies, bodies2)
     _same_physics(joints, joints2)
+
+
+def test_zoo_export_pmx_brings_the_apparel_back(tmp_path):
+    """``zoo --export pmx``: the apparel chains travel as rigid bodies and joints, and ingesting the
+    file finds the same apparel bones and vertices."""
+    from datagen.mmd.ingest import ingest_mmd
+    from datagen.zoo import build_zoo
+    from schemas.shards import read_records
+
+    build_zoo(tmp_path / "zoo", 2, seed=3, categories=["apparel"], clips_per_character=1, export=("pmx",),
+              progress=False)
+    zoo = {c.character_id.split("/", 1)[1]: c for c in read_records(tmp_path / "zoo", "characters")}
+    files = sorted((tmp_path / "zoo" / "export").glob("*.pmx"))
+    assert len(files) == 2
+    out = ingest_mmd(files)
+    assert [s.status for s in out.statuses] == ["ok", "ok"]
+    for c in out.characters:
+        src = zoo[c.character_id.split("/", 1)[1]]
+        np.testing.assert_allclose(c.vertices, src.vertices, atol=2e-6)
+        assert c.bone_names == src.bone_names
+        np.testing.assert_array_equal(c.apparel_bone_mask, src.apparel_bone_mask)
+        assert c.apparel_vertex_mask.sum() > 0
+    dynamic = [b for b in out.rigid_bodies if b.mode == "dynamic"]
+    assert len(dynamic) == sum(int(c.apparel_bone_mask.sum()) for c in out.characters)
+    assert out.joints and all(j.body_a != j.body_b for j in out.joints)

@@ -34,9 +34,10 @@ def register(subparsers) -> None:
                    "commas (default all)")
     p.add_argument("--clips-per-character", type=int_in(1, MAX_CLIPS), default=3,
                    help=f"clips per character, 1 to {MAX_CLIPS} (default 3)")
-    p.add_argument("--export", type=comma_choices(("obj", "bvh")), default=(),
-                   help="also write files: comma-separated of obj,bvh "
-                   "(OUT/export/<character>.obj, OUT/export/<character>/<clip>.bvh)")
+    p.add_argument("--export", type=comma_choices(("obj", "bvh", "pmx")), default=(),
+                   help="also write files: comma-separated of obj,bvh,pmx "
+                   "(OUT/export/<character>.obj, OUT/export/<character>/<clip>.bvh, OUT/export/<character>.pmx: "
+                   "an MMD model with apparel chains as rigid bodies and joints)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--no-contact-sheet", action="store_true",
                    help="skip rendering OUT/card/contact_sheet.png (Blender) for CARD.md")

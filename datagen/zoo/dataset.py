@@ -19,14 +19,15 @@ from schemas.fingerprint import stage_config
 from schemas.manifest import MANIFEST, atomic_write_bytes, load_manifest_for_write, mark_complete, mark_incomplete
 from schemas.shards import SPLITS, write_records
 
-EXPORT_FORMATS = ("obj", "bvh")
+EXPORT_FORMATS = ("obj", "bvh", "pmx")
 SPLIT_RULE = ("Split rule (stratified, deterministic; datagen/zoo/plan.py): per stratum (each category, the H2H "
               "family its own), IDs sorted by sha256; the first max(1, round(0.1 n)) go to test (the H2H family at "
               "least min(3, n - 1)), the next round(0.1 n) to val, the rest to train.")
 
 
 def export_character(out: Path, built: BuiltCharacter, export: tuple[str, ...]) -> None:
-    """Write ``export/<name>.obj`` and ``export/<name>/<clip>.bvh`` (name: the ID after ``zoo/``)."""
+    """Write ``export/<name>.obj``, ``export/<name>/<clip>.bvh`` and ``export/<name>.pmx`` (MMD model, apparel
+    chains as rigid bodies and joints; name: the ID after ``zoo/``)."""
     r = built.record
     name = r.character_id.split("/", 1)[-1]
     if "obj" in export:
@@ -35,6 +36,11 @@ def export_character(out: Path, built: BuiltCharacter, export: tuple[str, ...]) 
         for m in built.motions:
             write_bvh(out / "export" / name / f"{m.name}.bvh", r.bone_names, r.parents, r.keypoints,
                       built.skeleton.tails, m.transforms, m.fps)
+    if "pmx" in export:
+        from datagen.mmd.chain_physics import chain_physics
+        from datagen.mmd.pmx_writer import write_pmx
+
+        write_pmx(out / "export" / f"{name}.pmx", r, *chain_physics(r))
 
 
 def _refuse_foreign_dataset(out: Path) -> None:
