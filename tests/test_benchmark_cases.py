@@ -63,7 +63,10 @@ def test_ground_truth_on_a_copy_is_the_source_pose_and_scales_with_size(small_zo
     chars = {c.character_id: c for c in read_records(data, "characters")}
     clip = next(m for m in read_records(data, "motions") if m.character_id == base and m.name.endswith("-ik"))
     src = chars[base]
+    batched = local_translations(clip.transforms, src.keypoints, src.parents)  # (F, K, 3) at once
+    assert batched.shape == (clip.num_frames, len(src.parents), 3)
     for f in range(1, clip.num_frames, 7):
+        np.testing.assert_allclose(batched[f], local_translations(clip.transforms[f], src.keypoints, src.parents))
         pose = clip.transforms[f]
         q, t = array_to_transforms(pose)
         # the clip translates non-root bones: rotations and the root alone do not give it back

@@ -35,9 +35,12 @@ def local_translations(source_transforms: np.ndarray, rest_keypoints: np.ndarray
     displacement from rest ``t_k - cbar_k``. All zero for a pose made of rotations only.
 
     Args:
-        source_transforms: (K, 7) pose.
+        source_transforms: (..., K, 7) poses.
         rest_keypoints: (K, 3) rest joint heads.
         parents: (K,) parents, -1 for roots.
+
+    Returns:
+        (..., K, 3) translations, metres.
     """
     q, t = array_to_transforms(source_transforms)
     rest = np.asarray(rest_keypoints, np.float64)
@@ -45,7 +48,8 @@ def local_translations(source_transforms: np.ndarray, rest_keypoints: np.ndarray
     out = t - rest
     child = parents >= 0
     p = parents[child]
-    out[child] = quat_apply(quat_conjugate(q[p]), t[child] - t[p]) - (rest[child] - rest[p])
+    out[..., child, :] = (quat_apply(quat_conjugate(q[..., p, :]), t[..., child, :] - t[..., p, :])
+                          - (rest[child] - rest[p]))
     return out
 
 
