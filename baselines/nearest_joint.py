@@ -1,23 +1,25 @@
-"""``nearest_joint``: match joints by rest position, copy rotations.
+"""``nearest_joint``: match joints by rest position, copy rotations and local translations.
 
 Rest keypoints of both characters are normalised to unit height (each by its own rest mesh),
 matched one-to-one by the Hungarian algorithm on Euclidean distance, and each matched target bone
-takes its source bone's global rotation; unmatched bones follow their parent. Positions come
-from forward kinematics on the target's skeleton.
+takes its source bone's global rotation, and its translation relative to its parent when the
+parents are matched too (scaled by the size ratio); unmatched bones follow their parent. The
+root moves like the source's root. Positions come from forward kinematics on the target's
+skeleton.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from baselines.posing import inherit_unmatched, pose_target, size_ratio, source_pose
+from baselines.posing import carried_translations, inherit_unmatched, pose_target_local, size_ratio, source_pose
 from benchmark.method import MethodMetadata, PoseTransferMethod
 from mimicbench.hungarian import hungarian_match
 from mimicbench.mesh import normalize_unit_height
 
 
 class NearestJoint(PoseTransferMethod):
-    metadata = MethodMetadata(name="nearest_joint", version="2", licence="MIT",
+    metadata = MethodMetadata(name="nearest_joint", version="3", licence="MIT",
                               description="Hungarian matching of unit-height rest joints")
 
     def transfer(self, requests):
@@ -34,6 +36,9 @@ class NearestJoint(PoseTransferMethod):
         q[pairs[:, 1]] = q_src[pairs[:, 0]]
         matched[pairs[:, 1]] = True
         q = inherit_unmatched(q, matched, r.target.parents)
+        match = np.full(len(kt), -1)
+        match[pairs[:, 1]] = pairs[:, 0]
+        moved = carried_translations(r, q_src, t_src, match)
         src_root = int(np.flatnonzero(r.source.parents < 0)[0])
-        disp = (t_src[src_root] - r.source.keypoints[src_root]) * size_ratio(r)
-        return pose_target(r.target, q, disp)
+        moved[r.target.parents < 0] = (t_src[src_root] - r.source.keypoints[src_root]) * size_ratio(r)
+        return pose_target_local(r.target, q, moved)

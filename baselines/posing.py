@@ -58,3 +58,40 @@ def inherit_unmatched(global_rotations: np.ndarray, matched: np.ndarray, parents
         if not matched[k]:
             q[k] = q[p] if p >= 0 else np.array([1.0, 0.0, 0.0, 0.0])
     return q
+
+
+def carried_translations(request: TransferRequest, q_src: np.ndarray, t_src: np.ndarray,
+                         match: np.ndarray) -> np.ndarray:
+    """Local translations (Kt, 3) for the target's bones from a one-to-one bone match.
+
+    ``match[j]`` is the source bone of target bone j, or -1. A root takes its match's
+    displacement from rest (the source's first root's when unmatched); another bone takes its
+    match's translation relative to its parent beyond the rest offset (see
+    :func:`benchmark.protocols.h2h.local_translations`) when its parent is matched to that
+    bone's parent, else none. All scaled by :func:`size_ratio`.
+    """
+    from benchmark.protocols.h2h import local_translations
+
+    src, tgt = request.source, request.target
+    ratio = size_ratio(request)
+    moved_src = local_translations(transforms_to_array(q_src, t_src), src.keypoints, src.parents) * ratio
+    src_root = int(np.flatnonzero(src.parents < 0)[0])
+    moved = np.zeros((len(tgt.parents), 3))
+    for j, p in enumerate(tgt.parents):
+        i = int(match[j])
+        if p < 0:
+            k = src_root if i < 0 else i
+            moved[j] = (t_src[k] - src.keypoints[k]) * ratio
+        elif i >= 0 and src.parents[i] >= 0 and match[p] == src.parents[i]:
+            moved[j] = moved_src[i]
+    return moved
+
+
+def pose_target_local(target: Rig, global_rotations: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """Target vertices (Nt, 3) float32 posed by global rotations (Kt, 4) and local translations
+    (Kt, 3) (:func:`carried_translations`) via forward kinematics and LBS."""
+    from benchmark.protocols.h2h import transforms_from_local
+
+    transforms = transforms_from_local(local_from_global(global_rotations, target.parents), moved,
+                                       target.keypoints, target.parents)
+    return linear_blend_skinning(target.vertices, target.keypoints, target.weights, transforms).astype(np.float32)
