@@ -352,3 +352,18 @@ def test_a_resample_where_every_character_fails_leaves_the_earlier_output_untouc
     assert snapshot(out) == before and validate_dataset(out) == []
     code, err = cli(["datagen", "resample", str(src), str(tmp_path / "new"), "--faces", "400", "--quiet"], capsys)
     assert code == 2 and "nothing written" in err and not (tmp_path / "new").exists()
+
+
+def test_resume_redoes_a_split_whose_shard_no_longer_matches_the_manifest(tube, tmp_path):
+    """A kill between renaming a final shard and rewriting the manifest leaves a listed shard with
+    another checksum: the resume redoes those rows instead of failing or trusting them."""
+    src = toy_dataset(tmp_path / "in", tube)
+    out = tmp_path / "out"
+    resample_dataset(src, out, faces=200, progress=False)
+    shard = out / manifest_of(out)["tables"]["characters"]["shards"][0]["path"]
+    data = bytearray(shard.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    shard.write_bytes(bytes(data))
+    summary = resample_dataset(src, out, faces=200, progress=False)
+    assert summary["resampled"] == 3 and "cannot be reused and are redone" in summary["notes"][0]
+    assert validate_dataset(out) == []

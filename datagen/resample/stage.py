@@ -133,19 +133,29 @@ def _reusable_rows(out_dir: Path, config: dict) -> tuple[dict, list[str]]:
     why = fingerprint_mismatch(final_config, config) if final_splits else None
     if final_splits and why is None:
         for split in final_splits:
-            done.update((r.character_id, r) for r in read_records(out_dir, "characters", split, allow_incomplete=True))
+            done.update(_rows_or_note(out_dir, split, notes))
     elif final_splits:
         notes.append(f"{out_dir} holds a run that does not match ({why}): every character is redone (the old "
                      f"rows are replaced once this run has produced some)")
     why_parts = fingerprint_mismatch(pending.get("config"), config) if part_splits else None
     for split in part_splits:
         if why_parts is None:
-            done.update((r.character_id, r) for r in read_records(out_dir, "characters", split, allow_incomplete=True))
+            done.update(_rows_or_note(out_dir, split, notes))
         else:
             remove_split(out_dir, "characters", split)
     if part_splits and why_parts is not None:
         notes.append(f"dropped the parts of an interrupted run that does not match ({why_parts})")
     return done, notes
+
+
+def _rows_or_note(out_dir: Path, split: str, notes: list[str]) -> dict:
+    """``{character_id: record}`` of one split of ``out_dir``; a split that fails its checks (e.g. a
+    shard replaced by a run killed before it updated the manifest) is redone, with a note."""
+    try:
+        return {r.character_id: r for r in read_records(out_dir, "characters", split, allow_incomplete=True)}
+    except DatasetError as exc:
+        notes.append(f"the rows of split {split!r} cannot be reused and are redone ({exc})")
+        return {}
 
 
 def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
