@@ -19,6 +19,12 @@ Requests travel efficiently: each rig is sent to a worker once and kept there by
 a request then carries only the two IDs, the posed source vertices and the extras. Outputs come
 back as numpy arrays (torch tensors are moved to the CPU in the worker).
 
+The method is built twice: once in the evaluator (for its metadata; keep ``__init__`` light and
+load weights in ``setup``) and once in the worker. The worker is not a member of the evaluator's
+``torch.distributed`` process group (under torchrun each rank has its own worker, and
+``on_distributed_init`` there only tells the method its rank): a method that needs collectives
+runs with ``--in-process``.
+
 A class that a fresh process cannot import (defined inside a function, in ``__main__``, or in an
 ``exec``'d string) cannot run in a worker: :func:`open_runner` then runs it in process and logs a
 warning saying so. A script that calls the evaluator must guard its top level with
