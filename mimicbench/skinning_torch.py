@@ -31,6 +31,7 @@ def linear_blend_skinning_torch(
     weights: torch.Tensor,
     transforms: torch.Tensor,
     weight_indices: torch.Tensor | None = None,
+    scale: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Pose a mesh by linear blend skinning (MimiCAT Eq. 1).
 
@@ -40,6 +41,8 @@ def linear_blend_skinning_torch(
         weights: dense FloatTensor (N, K), or sparse values (N, J) when ``weight_indices`` is given.
         transforms: FloatTensor (..., K, 7): quaternion (w, x, y, z) then translation.
         weight_indices: optional LongTensor (N, J) of keypoint indices for sparse weights.
+        scale: optional FloatTensor (..., K, 6) symmetric stretch per keypoint
+            (``s_xx, s_yy, s_zz, s_xy, s_xz, s_yz``); the map becomes ``R U (v - c) + t``.
 
     Returns:
         FloatTensor (..., N, 3) posed vertices, dtype of ``transforms``.
@@ -47,6 +50,13 @@ def linear_blend_skinning_torch(
     if transforms.shape[-1] != 7:
         raise ValueError(f"transforms: expected shape (..., K, 7), got {tuple(transforms.shape)}")
     r = quat_to_matrix_torch(transforms[..., :4])
+    if scale is not None:
+        if scale.shape[-1] != 6 or scale.shape[:-1] != transforms.shape[:-1]:
+            raise ValueError(f"scale: expected shape {tuple(transforms.shape[:-1]) + (6,)}, got {tuple(scale.shape)}")
+        xx, yy, zz, xy, xz, yz = scale.to(transforms.dtype).unbind(-1)
+        u = torch.stack([torch.stack([xx, xy, xz], -1), torch.stack([xy, yy, yz], -1),
+                         torch.stack([xz, yz, zz], -1)], -2)
+        r = r @ u
     t = transforms[..., 4:]
     rest_k = rest_keypoints.to(transforms.dtype)
     offset = t - torch.einsum("...kij,kj->...ki", r, rest_k)

@@ -1,48 +1,116 @@
-"""Runs inside a child process: import one asset with Blender (bpy) and dump what ingest needs.
+"""Runs inside a child process: import assets with Blender (bpy) and dump what ingest needs.
 
-    python -m datagen.ingest.blender_child ASSET OUT.npz
+    python -m datagen.ingest.blender_child ASSET OUT.npz [OPTIONS_JSON]   one asset, then exit
+    python -m datagen.ingest.blender_child --serve                        one asset per stdin line
 
-Writes ``OUT.npz`` (arrays) and ``OUT.json`` (status and names). Only bpy, numpy, the
-standard library and mimicbench's NumPy quaternions are imported here: bpy must be loaded before libraries that bring their own
-Embree (pymeshlab), and a crash in Blender must not take the parent with it.
+``--serve`` reads one JSON job a line (``{"asset": ..., "out": ..., "options": {...}}``), resets
+Blender to its factory state (empty scene) before each asset and prints ``DONE_MARKER OUT`` when
+the job's result files are complete, so one Blender process ingests many assets. Each job writes
+``OUT.npz`` (arrays) and then ``OUT.json`` (status, names, per-clip notes), both under temporary
+names renamed when complete: a job that has ``OUT.json`` is finished. Only bpy, numpy, the
+standard library and mimicbench's NumPy quaternions are imported here: bpy must be loaded before
+libraries that bring their own Embree (pymeshlab), and a crash in Blender must not take the
+parent with it.
 
 Frames: Blender Z up is converted to the dataset's Y up, +Z forward by (x, y, z) -> (x, z, -y).
 Bones: the armature's deform bones, parents before children. Rest mesh: every mesh deformed by
 that armature (skinned, or rigidly attached to a bone), other modifiers applied ahead of the
 armature, in world space at the rest pose, shape keys at their basis, triangulated.
-Clips: every action, sampled at each frame of its range at the scene frame rate; per bone the
-world rotation relative to rest and the posed head position.
+
+glTF: every clip is first resampled at the frame times by the specification
+(:mod:`datagen.ingest.gltf_resample`: slerp, STEP, CUBICSPLINE tangents, which Blender's
+importer does not all honour), so Blender only reads keys. The armature's rest pose is the bind pose (from the inverse bind matrices, as linear blend
+skinning needs: a rest pose other than the bind pose would blend multi-bone vertices wrongly);
+the file's default pose (every node at its own TRS, glTF 2.0 section 3.5) is computed from the
+file's JSON (:mod:`datagen.ingest.gltf_defaults`) and is the pose of every bone a clip does not
+animate. Objects attached to a bone are moved to where the file places them (see
+:func:`_fix_bone_children_offsets`).
+
+Clips: every action, each sampled on its own: before a clip every pose bone goes back to rest
+(the file's default pose), every object to the transform it was imported with, and the action
+drives the armature (and any other object it has a slot for) with no NLA, so a bone the clip
+does not animate holds the default pose whatever clip came before. Frame f of a clip is Blender
+frame ``start + f`` (time ``t0 + f / fps``, ``t0`` the clip's first key). Per frame and bone:
+the rotation and symmetric stretch of the polar decomposition ``M = R U`` of the bone's world
+change from rest, and the posed head position.
 """
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
-import time
 
 import bpy  # noqa: I001  (first, before anything that loads another Embree)
 import numpy as np
 
+from datagen.ingest.blender_pool import DONE_MARKER  # standard library only
 from mimicbench.quaternion import matrix_to_quat  # numpy only
 
 C = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # Blender Z-up -> Y-up
-EVAL_FRAMES_PER_CLIP = 3
+STRETCH_TOLERANCE = 1e-5  # below this a bone counts as rigid (Blender's pose matrices are float32)
 
 
-def _import(path: str) -> None:
+def _reset() -> None:
+    """An empty scene with Blender's factory settings, auto-run scripts off."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.preferences.filepaths.use_scripts_auto_execute = False
+
+
+def _import(path: str, options: dict, scratch: str) -> list[str]:
+    """Import ``path`` into the empty scene; returns notes (clips dropped by the glTF resampling)."""
     ext = os.path.splitext(path)[1].lower()
     if ext in (".glb", ".gltf"):
-        bpy.ops.import_scene.gltf(filepath=path)
+        from datagen.ingest.gltf_resample import load_gltf, resampled_document, write_glb
+
+        scene = bpy.context.scene
+        doc, buffers = load_gltf(path)
+        moving = {a.get("name", f"animation {i}") for i, a in enumerate(doc.get("animations", []))
+                  if any(c["target"].get("path") in ("translation", "rotation", "scale") for c in a["channels"])}
+        dropped = [a.get("name", f"animation {i}") for i, a in enumerate(doc.get("animations", []))
+                   if a.get("name", f"animation {i}") not in moving]
+        doc, blob = resampled_document(doc, buffers, scene.render.fps / scene.render.fps_base)
+        write_glb(scratch, doc, blob)
+        try:
+            bpy.ops.import_scene.gltf(filepath=scratch, bone_heuristic="BLENDER", guess_original_bind_pose=True)
+        finally:
+            os.remove(scratch)
+        _fix_bone_children_offsets()
+        return dropped
     elif ext == ".fbx":
         bpy.ops.import_scene.fbx(filepath=path)
     elif ext == ".bvh":
-        bpy.ops.import_anim.bvh(filepath=path, update_scene_fps=True, update_scene_duration=True)
+        bpy.ops.import_anim.bvh(filepath=path, global_scale=float(options.get("bvh_scale", 0.01)),
+                                update_scene_fps=True, update_scene_duration=True)
     elif ext == ".obj":
         bpy.ops.wm.obj_import(filepath=path)
     elif ext == ".blend":
         bpy.ops.wm.open_mainfile(filepath=path, load_ui=False, use_scripts=False)
+        bpy.context.preferences.filepaths.use_scripts_auto_execute = False
     else:
         raise ValueError(f"unsupported file type {ext!r}; expected .glb, .gltf, .fbx, .bvh, .obj or .blend")
+    return []
+
+
+def _fix_bone_children_offsets() -> None:
+    """Place objects parented to a bone where the glTF file says.
+
+    Blender hangs a bone's child from the bone's tail. The glTF importer (BLENDER heuristic)
+    moves each such child back by the bone length it computed, then shortens the bone by the
+    armature object's largest scale; so with an armature scaled by s, children sit
+    ``length * (s - 1)`` too far along the bone. Undo that difference (object translations are
+    in the bone's frame, in the armature's scaled units).
+    """
+    for obj in bpy.context.scene.objects:
+        arm = obj.parent
+        if obj.parent_type != "BONE" or arm is None or arm.type != "ARMATURE" or obj.parent_bone not in arm.data.bones:
+            continue
+        s = max(arm.scale)
+        length = arm.data.bones[obj.parent_bone].length
+        obj.location.y += length * (s - 1.0)
+        rest = getattr(obj, "gltf2_animation_rest", None)
+        if rest is not None:
+            obj.gltf2_animation_rest = obj.matrix_basis.copy()
 
 
 def _apply_other_modifiers(objs) -> list[str]:
@@ -87,7 +155,7 @@ def _deform_parent(b, index):
 
 
 def _attached_bone(obj, arm):
-    """The bone an object hangs from rigidly (parented to a bone, directly or via empties), or None."""
+    """The bone an object hangs from rigidly (parented to a bone, directly or via other objects), or None."""
     p = obj
     while p.parent is not None:
         if p.parent == arm:
@@ -116,15 +184,17 @@ def _evaluated_world_vertices(objs):
         mesh = ev.to_mesh()
         co = np.empty(len(mesh.vertices) * 3)
         mesh.vertices.foreach_get("co", co)
-        co = co.reshape(-1, 3) @ np.array(ev.matrix_world)[:3, :3].T + np.array(ev.matrix_world)[:3, 3]
-        chunks.append(co)
+        mw = np.array(ev.matrix_world)
+        chunks.append(co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3])
         ev.to_mesh_clear()
     return np.concatenate(chunks) @ C.T if chunks else np.zeros((0, 3))
 
 
 def _rest_mesh(objs, bone_names, arm):
+    """Rest vertices (N, 3), faces (M, 3), dense weights (N, K), per-object vertex counts and the
+    number of vertices that had no deform-bone weight."""
     index = {n: i for i, n in enumerate(bone_names)}
-    verts, faces, weights, offset = [], [], [], 0
+    verts, faces, weights, counts, offset, unweighted = [], [], [], [], 0, 0
     for obj in objs:
         me = obj.data
         mw = np.array(obj.matrix_world)
@@ -135,12 +205,13 @@ def _rest_mesh(objs, bone_names, arm):
         tri = np.empty(len(me.loop_triangles) * 3, dtype=np.int64)
         me.loop_triangles.foreach_get("vertices", tri)
         w = np.zeros((len(me.vertices), len(bone_names)), np.float32)
-        bone = _attached_bone(obj, arm)
-        if bone is not None and not any(m.type == "ARMATURE" for m in obj.modifiers):
-            b = arm.data.bones[bone]
-            while b is not None and b.name not in index:
-                b = b.parent
-            w[:, index[b.name] if b is not None else 0] = 1.0  # rigid attachment
+        attached = _attached_bone(obj, arm)
+        while attached is not None and attached not in index:  # a non-deform bone: its deform ancestor
+            parent = arm.data.bones[attached].parent
+            attached = parent.name if parent is not None else None
+        if not any(m.type == "ARMATURE" for m in obj.modifiers):
+            if attached is not None:
+                w[:, index[attached]] = 1.0  # rigid attachment
         else:
             groups = {g.index: g.name for g in obj.vertex_groups}
             for v in me.vertices:
@@ -148,111 +219,338 @@ def _rest_mesh(objs, bone_names, arm):
                     name = groups.get(g.group)
                     if name in index and g.weight > 0:
                         w[v.index, index[name]] += g.weight
+            loose = w.sum(axis=1) <= 0
+            unweighted += int(loose.sum())
+            if attached is not None:  # unweighted vertices of a bone-parented skinned mesh follow that bone
+                w[loose, index[attached]] = 1.0
         verts.append(co)
         faces.append(tri.reshape(-1, 3) + offset)
         weights.append(w)
+        counts.append(len(co))
         offset += len(co)
-    return np.concatenate(verts) @ C.T, np.concatenate(faces), np.concatenate(weights)
+    return np.concatenate(verts) @ C.T, np.concatenate(faces), np.concatenate(weights), counts, unweighted
 
 
-def _assign(arm, action):
-    ad = arm.animation_data or arm.animation_data_create()
-    ad.action = action
+def _slot_for(action, obj):
+    """The action slot that animates ``obj`` (Blender 4.4+ slotted actions), or None."""
     slots = getattr(action, "slots", None)
-    if slots and getattr(ad, "action_slot", None) is None:
-        ad.action_slot = slots[0]
+    if not slots:
+        return None
+    for s in slots:
+        if s.identifier == "OB" + obj.name:
+            return s
+    return None
 
 
-def _pose_transforms(arm, bones):
-    mw = np.array(arm.matrix_world)
-    out = np.zeros((len(bones), 7))
-    for k, b in enumerate(bones):
-        pb = arm.pose.bones[b.name]
-        posed = mw @ np.array(pb.matrix)
-        rest = mw @ np.array(b.matrix_local)
-        delta = posed @ np.linalg.inv(rest)
-        r = delta[:3, :3]
-        u, _, vt = np.linalg.svd(r)  # drop any scale: nearest rotation
-        r = u @ vt
-        if np.linalg.det(r) < 0:
-            r = u @ np.diag([1, 1, -1]) @ vt
-        r = C @ r @ C.T
-        head = C @ (posed[:3, 3])
-        out[k, :4] = matrix_to_quat(r)
-        out[k, 4:] = head
+def _animates(action, obj) -> bool:
+    slots = getattr(action, "slots", None)
+    if slots is None:  # legacy actions: one ID type
+        return getattr(action, "id_root", "OBJECT") in ("OBJECT", "")
+    return _slot_for(action, obj) is not None or (obj.type == "ARMATURE" and len(slots) == 1
+                                                  and slots[0].target_id_type == "OBJECT")
+
+
+def _bone_curves(action, arm) -> int:
+    """How many F-curves of the action drive pose bones of ``arm``."""
+    curves = []
+    if hasattr(action, "layers") and getattr(action, "slots", None):
+        slot = _slot_for(action, arm) or action.slots[0]
+        for layer in action.layers:
+            for strip in layer.strips:
+                bag = strip.channelbag(slot) if hasattr(strip, "channelbag") else None
+                if bag is not None:
+                    curves.extend(bag.fcurves)
+    else:
+        curves = list(getattr(action, "fcurves", []))
+    return sum(fc.data_path.startswith("pose.bones[") for fc in curves)
+
+
+def _stop_animation(scene) -> None:
+    """No action, no NLA on any object; shape keys at their basis (LBS has no shape keys)."""
+    for obj in scene.objects:
+        ad = obj.animation_data
+        if ad is not None:
+            ad.action = None
+            ad.use_nla = False
+        if obj.type == "MESH" and obj.data.shape_keys:
+            obj.data.shape_keys.animation_data_clear()
+            for kb in obj.data.shape_keys.key_blocks:
+                kb.value = 0.0
+
+
+def _default_pose(arm, path: str) -> tuple[dict, int]:
+    """Pose-bone values (location, quaternion, scale) of the file's default pose, by bone name,
+    and how many bones took a value from the file (others stay at rest).
+
+    glTF: each bone's armature-space matrix is its node's default world matrix brought into
+    the armature's frame (the importer's BLENDER heuristic keeps node axes as bone axes, up to
+    the Y-up to Z-up turn); the pose-bone basis follows from the rest matrices as Blender
+    composes them (``P = P_parent @ R_parent^-1 @ R @ basis``). Other formats: the rest pose.
+    """
+    if os.path.splitext(path)[1].lower() not in (".glb", ".gltf"):
+        return {}, 0
+    from datagen.ingest.gltf_defaults import default_world_matrices
+    from datagen.ingest.uris import gltf_json
+
+    worlds = default_world_matrices(gltf_json(path))
+    c4 = np.eye(4)
+    c4[:3, :3] = C.T  # Y-up -> Blender Z-up
+    to_arm = np.linalg.inv(np.array(arm.matrix_world)) @ c4
+    target, values = {}, {}
+    for b in arm.data.bones:  # parents before children
+        rest = np.array(b.matrix_local)
+        if b.name in worlds:
+            target[b.name] = to_arm @ worlds[b.name]
+        elif b.parent is not None and b.parent.name in target:  # no node: keeps its rest offset to the parent
+            target[b.name] = target[b.parent.name] @ np.linalg.inv(np.array(b.parent.matrix_local)) @ rest
+        else:
+            target[b.name] = rest
+        if b.parent is None:
+            basis = np.linalg.inv(rest) @ target[b.name]
+        else:
+            prest = np.array(b.parent.matrix_local)
+            basis = np.linalg.inv(rest) @ prest @ np.linalg.inv(target[b.parent.name]) @ target[b.name]
+        values[b.name] = bpy_matrix(basis).decompose()
+    return values, sum(b.name in worlds for b in arm.data.bones)
+
+
+def bpy_matrix(m: np.ndarray):
+    import mathutils
+
+    return mathutils.Matrix([list(row) for row in m])
+
+
+def _set_defaults(arm, scene, object_defaults, pose_defaults=None) -> None:
+    """Every pose bone at the file's default pose (rest when none), every object at its imported transform."""
+    pose_defaults = pose_defaults or {}
+    for pb in arm.pose.bones:
+        loc, rot, scale = pose_defaults.get(pb.name, ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), (1.0, 1.0, 1.0)))
+        pb.location = loc
+        pb.rotation_quaternion = rot
+        pb.rotation_euler = (0.0, 0.0, 0.0)
+        pb.rotation_axis_angle = (0.0, 0.0, 1.0, 0.0)
+        pb.scale = scale
+    for obj in scene.objects:
+        if obj.name in object_defaults:
+            obj.matrix_basis = object_defaults[obj.name]
+
+
+def _assign(action, objs) -> list:
+    """Let ``action`` drive every object it has a slot for; returns those objects."""
+    driven = []
+    for obj in objs:
+        if not _animates(action, obj):
+            continue
+        ad = obj.animation_data or obj.animation_data_create()
+        ad.action = action
+        slot = _slot_for(action, obj)
+        if slot is not None:
+            ad.action_slot = slot
+        ad.use_nla = False
+        ad.action_influence = 1.0
+        driven.append(obj)
+    return driven
+
+
+def _object_defaults(scene) -> dict:
+    """Each object's transform as imported: glTF's importer stores the node's own TRS in
+    ``gltf2_animation_rest`` (the pose the first clip may already have overwritten)."""
+    out = {}
+    for obj in scene.objects:
+        rest = getattr(obj, "gltf2_animation_rest", None)
+        if rest is not None and any(any(abs(x) > 0 for x in row) for row in rest):
+            out[obj.name] = rest.copy()
+        else:
+            out[obj.name] = obj.matrix_basis.copy()
     return out
 
 
-def ingest_one(path: str, out_npz: str) -> dict:
-    hang = os.environ.get("MIMICBENCH_TEST_HANG")  # test hook: simulate an asset that hangs
-    if hang and hang in os.path.basename(path):
-        time.sleep(3600)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.context.preferences.filepaths.use_scripts_auto_execute = False
-    _import(path)
-    arms = [o for o in bpy.context.scene.objects if o.type == "ARMATURE"]
+def _bone_matrices(arm, order: np.ndarray) -> np.ndarray:
+    """(K, 4, 4) world matrices of the deform bones (``order`` indexes ``arm.pose.bones``)."""
+    buf = np.empty(len(arm.pose.bones) * 16, np.float32)
+    arm.pose.bones.foreach_get("matrix", buf)
+    pose = buf.reshape(-1, 4, 4).transpose(0, 2, 1)[order].astype(np.float64)  # stored column-major
+    return np.array(arm.matrix_world) @ pose
+
+
+def pose_transforms(posed: np.ndarray, rest_inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame and bone the transform (..., K, 7) and stretch (..., K, 6) in the dataset frame.
+
+    Args:
+        posed: (..., K, 4, 4) bone world matrices (Blender frame).
+        rest_inverse: (K, 4, 4) inverses of the bones' rest world matrices.
+
+    The bone's world change ``M = posed @ rest^-1`` (3x3 part) is split by polar decomposition
+    ``M = R U`` (R a proper rotation, U symmetric): R as a quaternion (w, x, y, z), U as
+    ``s_xx, s_yy, s_zz, s_xy, s_xz, s_yz``; the translation is the posed head.
+    """
+    m = (posed @ rest_inverse)[..., :3, :3]
+    rot, sym = m.copy(), np.broadcast_to(np.eye(3), m.shape).copy()
+    gram = np.swapaxes(m, -1, -2) @ m
+    scaled = (np.abs(gram - np.eye(3)).max(axis=(-1, -2)) > STRETCH_TOLERANCE) | (np.linalg.det(m) < 0)
+    if scaled.any():  # the SVD only where the bone does not move rigidly
+        u, s, vt = np.linalg.svd(m[scaled])
+        flip = np.linalg.det(u @ vt) < 0  # a mirroring stays in the stretch; the rotation stays proper
+        u[flip, :, -1] *= -1
+        s[flip, -1] *= -1
+        rot[scaled] = u @ vt
+        sym[scaled] = np.swapaxes(vt, -1, -2) @ (s[..., None] * vt)
+    r = C @ rot @ C.T
+    st = C @ sym @ C.T
+    out = np.concatenate([matrix_to_quat(r), posed[..., :3, 3] @ C.T], axis=-1)
+    stretch = np.stack([st[..., 0, 0], st[..., 1, 1], st[..., 2, 2], st[..., 0, 1], st[..., 0, 2], st[..., 1, 2]], -1)
+    return out, stretch
+
+
+def _set_frame(scene, frame: float) -> None:
+    scene.frame_set(int(math.floor(frame)), subframe=frame - math.floor(frame))
+
+
+def _clip_frames(action) -> tuple[float, int]:
+    """First frame (Blender frame, may be fractional) and number of whole frames of an action."""
+    start, end = (float(x) for x in action.frame_range)
+    if abs(start - round(start)) < 1e-3:
+        start = float(round(start))
+    return start, int(math.floor(end - start + 1e-3)) + 1
+
+
+def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
+    """Import one asset into the (reset) scene and write its arrays to ``out_npz``; returns the
+    result dict that :func:`run_job` writes as JSON."""
+    options = options or {}
+    _reset()
+    dropped = _import(path, options, out_npz + ".resampled.glb")
+    scene = bpy.context.scene
+    arms = [o for o in scene.objects if o.type == "ARMATURE"]
     if not arms:
         return {"status": "failed", "reason": "no armature: the file has no skeleton to ingest"}
     arm = max(arms, key=lambda a: sum(b.use_deform for b in a.data.bones))
     bones = _deform_bones(arm)
+    if not bones:
+        return {"status": "failed", "reason": f"armature {arm.name!r} has no deform bones"}
     names = [b.name for b in bones]
     index = {n: i for i, n in enumerate(names)}
     parents = np.array([_deform_parent(b, index) for b in bones], np.int32)
+    _stop_animation(scene)
+    object_defaults = _object_defaults(scene)
+    _set_defaults(arm, scene, object_defaults)
+    bpy.context.view_layer.update()
+    pose_defaults, from_file = _default_pose(arm, path)
     meshes = _meshes_of(arm)
     applied = _apply_other_modifiers(meshes)
-    for obj in meshes:  # morph targets at their basis: LBS has no shape keys
-        if obj.data.shape_keys:
-            for kb in obj.data.shape_keys.key_blocks:
-                kb.value = 0.0
     actions = list(bpy.data.actions)
     arm.data.pose_position = "REST"
     bpy.context.view_layer.update()
     mw = np.array(arm.matrix_world)
+    rest_inverse = np.array([np.linalg.inv(mw @ np.array(b.matrix_local)) for b in bones])
+    order = np.array([list(arm.pose.bones).index(arm.pose.bones[b.name]) for b in bones])
     keypoints = np.array([C @ (mw @ np.append(np.array(b.head_local), 1.0))[:3] for b in bones])
+    unweighted = 0
     if meshes:
-        verts, faces, weights = _rest_mesh(meshes, names, arm)
-        loose = weights.sum(axis=1) <= 0  # vertices no deform bone weights: follow the nearest joint
+        verts, faces, weights, counts, unweighted = _rest_mesh(meshes, names, arm)
+        loose = weights.sum(axis=1) <= 0  # no deform weight and attached to no bone: the nearest joint
         if loose.any():
             nearest = np.argmin(np.linalg.norm(verts[loose, None, :] - keypoints[None], axis=2), axis=1)
             weights[np.flatnonzero(loose), nearest] = 1.0
     else:
-        verts, faces, weights = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, len(names)), np.float32)
+        verts, faces, weights, counts = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, len(names)), np.float32), []
     arm.data.pose_position = "POSE"
-    scene = bpy.context.scene
+    _set_defaults(arm, scene, object_defaults, pose_defaults)
+    bpy.context.view_layer.update()
+    default_keypoints = _bone_matrices(arm, order)[:, :3, 3] @ C.T  # joints in the file's default pose
     fps = scene.render.fps / scene.render.fps_base
-    arrays = {"vertices": verts, "faces": faces, "weights": weights, "keypoints": keypoints, "parents": parents}
+    arrays = {"vertices": verts, "faces": faces, "weights": weights, "keypoints": keypoints, "parents": parents,
+              "default_keypoints": default_keypoints,
+              "mesh_vertex_counts": np.array(counts, np.int64)}
     clips = []
-    for ci, action in enumerate(actions):
-        _assign(arm, action)
-        start, end = (int(round(x)) for x in action.frame_range)
-        frames = list(range(start, end + 1))
-        transforms = np.zeros((len(frames), len(bones), 7))
-        eval_at = sorted({frames[0], frames[len(frames) // 2], frames[-1]})
-        evaluated = []
-        for fi, f in enumerate(frames):
-            scene.frame_set(f)
-            transforms[fi] = _pose_transforms(arm, bones)
-            if meshes and f in eval_at:
+    clip_errors = [{"name": n, "reason": "the clip animates only morph-target weights, no bone"} for n in dropped]
+    animatable = [o for o in scene.objects if o.name in object_defaults]
+    for action in actions:
+        try:
+            if _bone_curves(action, arm) == 0:
+                clip_errors.append({"name": action.name, "reason": "the action animates no bone of the armature"})
+                continue
+            _stop_animation(scene)
+            _set_defaults(arm, scene, object_defaults, pose_defaults)
+            _assign(action, animatable)
+            start, n = _clip_frames(action)
+            eval_at = sorted({n // 2, n - 1})
+            for obj in meshes:  # the deformed meshes are only needed at eval_at
+                obj.hide_viewport = True
+            posed = np.zeros((n, len(bones), 4, 4))
+            for f in range(n):
+                _set_frame(scene, start + f)
+                posed[f] = _bone_matrices(arm, order)
+            for obj in meshes:
+                obj.hide_viewport = False
+            evaluated = []
+            for f in eval_at if meshes else []:
+                _set_frame(scene, start + f)
                 evaluated.append(_evaluated_world_vertices(meshes))
-        arrays[f"clip{ci}_transforms"] = transforms
-        arrays[f"clip{ci}_eval_frames"] = np.array([frames.index(f) for f in eval_at])
-        if meshes:
-            arrays[f"clip{ci}_eval_vertices"] = np.stack(evaluated)
-        clips.append({"name": action.name, "frames": len(frames), "fps": fps})
-    np.savez_compressed(out_npz, **arrays)
-    return {"status": "ok", "reason": "", "bone_names": names, "clips": clips,
+            transforms, stretch = pose_transforms(posed, rest_inverse)
+            ci = len(clips)
+            arrays[f"clip{ci}_transforms"] = transforms
+            identity = np.array([1.0, 1, 1, 0, 0, 0])
+            if np.abs(stretch - identity).max() > STRETCH_TOLERANCE:
+                arrays[f"clip{ci}_scale"] = stretch
+            arrays[f"clip{ci}_eval_frames"] = np.array(eval_at)
+            if meshes:
+                arrays[f"clip{ci}_eval_vertices"] = np.stack(evaluated)
+            clips.append({"name": action.name, "frames": n, "fps": fps, "t0": start / fps,
+                          "first_frame": start, "scaled": f"clip{ci}_scale" in arrays})
+        except Exception as exc:  # one unreadable clip becomes a status row; the others go on
+            clip_errors.append({"name": action.name, "reason": f"{type(exc).__name__}: {exc}"})
+    _stop_animation(scene)
+    _save_npz(out_npz, arrays)
+    return {"status": "ok", "reason": "", "bone_names": names, "clips": clips, "clip_errors": clip_errors,
             "blender": bpy.app.version_string, "meshes": [o.name for o in meshes],
-            "applied_modifiers": applied}
+            "applied_modifiers": applied, "unweighted_vertices": unweighted, "fps": fps,
+            "default_pose_bones": from_file}
 
 
-def main() -> int:
-    path, out_npz = sys.argv[1], sys.argv[2]
+def _save_npz(out_npz: str, arrays: dict) -> None:
+    tmp = out_npz + ".part.npz"
+    np.savez(tmp, **arrays)
+    os.replace(tmp, out_npz)
+
+
+def result_path(out_npz: str) -> str:
+    return out_npz[: -len(".npz")] + ".json"
+
+
+def run_job(path: str, out_npz: str, options: dict | None = None) -> dict:
+    """Ingest one asset and write ``OUT.json`` (last, atomically); errors become a failed result."""
     try:
-        result = ingest_one(path, out_npz)
+        result = ingest_one(path, out_npz, options)
     except Exception as exc:  # reported to the parent as a status row
         result = {"status": "failed", "reason": f"{type(exc).__name__}: {exc}"}
-    with open(out_npz[: -len(".npz")] + ".json", "w") as f:
+    final = result_path(out_npz)
+    with open(final + ".part", "w") as f:
         json.dump(result, f)
+    os.replace(final + ".part", final)
+    return result
+
+
+def serve(stdin=None, stdout=None) -> int:
+    """Run jobs read as JSON lines from stdin until it closes; print ``DONE_MARKER out`` after each."""
+    stdin = stdin or sys.stdin
+    stdout = stdout or sys.stdout
+    for line in stdin:
+        if not line.strip():
+            continue
+        job = json.loads(line)
+        run_job(job["asset"], job["out"], job.get("options"))
+        stdout.write(f"\n{DONE_MARKER} {job['out']}\n")
+        stdout.flush()
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--serve"]:
+        return serve()
+    path, out_npz = argv[0], argv[1]
+    run_job(path, out_npz, json.loads(argv[2]) if len(argv) > 2 else None)
     return 0
 
 

@@ -3,29 +3,63 @@ from __future__ import annotations
 
 import argparse
 
+from mimicbench.argtypes import MAX_JOBS, comma_choices, job_count, positive_float
+
+EXPORT_FORMATS = ("obj", "bvh")  # as datagen.ingest.runner.EXPORT_FORMATS (kept here so --help stays fast)
+
+DESCRIPTION = """\
+Import rigged assets with Blender (bpy) into a dataset: rest mesh (all meshes the armature drives,
+merged, triangulated, metres, Y up), deform bones, skin weights, and every animation clip as
+per-frame transforms (plus a per-bone stretch for bones that scale) that linear blend skinning
+turns back into the file's own deformation. Each clip starts from the file's default pose, so
+clips do not depend on each other; frame f of a clip is at time t0 + f / fps.
+
+Ingest is additive and resumable: characters already in DATASET stay, a re-run skips files whose
+content and options are unchanged (cache key = content hash), and two files with the same name
+get different IDs (assets/<stem>-<path hash>). A crash, a timeout, an unreadable file or clip, or
+a glTF resource outside the asset's folder becomes a status row and the rest goes on. One Blender
+process ingests many assets (factory reset in between; a fresh one after a crash).
+
+MMD models (.pmx, .pmd) are read without Blender (datagen/mmd): 1 MMD unit = 0.08 m, z mirrored,
+rigid bodies and joints in the tables rigid_bodies and joints, and each <stem>.vmd or
+<stem>_<clip>.vmd beside a model (or given with it) played on it with MMD's IK and grants
+(see schemas/FORMAT.md).
+
+Categories come from --category-map, or are inferred from bone names and the skeleton
+(meta.category says how). Characters with equal bone names and parents share a skeleton_id.
+
+Examples:
+  mimicbench datagen ingest 'assets/*.glb' --out data/mine --jobs 2
+  mimicbench datagen ingest mocap/run.bvh --out data/mine --bvh-scale 0.01 --split test
+"""
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ, .blend through Blender; MMD .pmx/.pmd without) into a dataset",
-        description="Import each asset with Blender (bpy) in its own child process with a timeout: rest mesh "
-        "(all skinned meshes of the armature merged, triangulated, Y up), deform bones, skin weights and every "
-        "animation clip as per-frame transforms that reproduce Blender's own deformation by linear blend "
-        "skinning. A crash, timeout or unreadable file becomes a status row; a re-run skips assets already "
-        "done. MMD models (.pmx, .pmd) are read without Blender (datagen/mmd): 1 MMD unit = 0.08 m, z mirrored, "
-        "rigid bodies and joints in the tables rigid_bodies and joints, and each <stem>.vmd or <stem>_<clip>.vmd "
-        "beside a model (or given with it) played on it with MMD's IK and grants "
-        "(see schemas/FORMAT.md). Example:\n  mimicbench datagen ingest 'assets/*.glb' mocap/run.bvh --out data/mine --jobs 2",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ, .blend through Blender; MMD .pmx/.pmd "
+        "without) into a dataset",
+        description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", help="asset files or glob patterns")
-    p.add_argument("--out", required=True, help="dataset folder")
-    p.add_argument("--jobs", type=int, default=1, help="Blender processes at once (default 1)")
-    p.add_argument("--timeout", type=float, default=300.0, help="seconds per asset (default 300)")
+    p.add_argument("--out", required=True, help="dataset folder (created, or added to)")
+    p.add_argument("--jobs", type=job_count, default=1, help=f"Blender processes at once, 1 to {MAX_JOBS} (default 1)")
+    p.add_argument("--timeout", type=positive_float, default=300.0,
+                   help="seconds per asset before its Blender process is killed, > 0 (default 300)")
     p.add_argument("--category-map", default=None,
-                   help="JSON file mapping a glob or file stem to a category (default: unknown)")
-    p.add_argument("--export", default="", help="comma-separated of obj,bvh: also write OUT/export/ files")
+                   help="JSON file mapping a glob or file stem to a category; assets it does not name get an "
+                        "inferred category")
+    p.add_argument("--bvh-scale", type=positive_float, default=0.01,
+                   help="metres per BVH file unit, > 0 (default 0.01: centimetres; CMU conversions use 0.056444)")
+    p.add_argument("--export", type=comma_choices(EXPORT_FORMATS), default=(), help="comma-separated of obj,bvh: also write OUT/export/ files")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--split", choices=("train", "val", "test"), default=None,
+                       help="put every asset of this run in one split (default: a hash of the character ID)")
+    group.add_argument("--split-file", default=None,
+                       help="JSON mapping split name to a list of character IDs (others: hashed split)")
+    p.add_argument("--allow-external-uris", action="store_true",
+                   help="let glTF buffers and images point outside the asset's folder (refused by default)")
     p.add_argument("--motions", default=None, metavar="DIR",
                    help="folder of .vmd motions to play on every MMD model of the run (besides <stem>_<clip>.vmd)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
@@ -47,9 +81,12 @@ def run(args) -> int:
             raise NotADirectoryError(f"--motions: {args.motions} is not a folder of .vmd files")
         paths.extend(str(p) for p in sorted(Path(args.motions).glob("*.vmd")))
     cmap = json.loads(open(args.category_map).read()) if args.category_map else None
-    export = tuple(x for x in args.export.split(",") if x)
-    s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, export, not args.quiet)
+    s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, args.export, not args.quiet,
+                      bvh_scale=args.bvh_scale, allow_external_uris=args.allow_external_uris, split=args.split,
+                      split_file=args.split_file)
     print(summarize_statuses([x for x in s["statuses"] if x.status != "skipped"]))
-    print(f"{s['characters']} characters and {s['motions']} clips in {args.out} ({s['skipped']} already done) "
-          f"in {s['seconds']:.1f} s")
+    for w in s["warnings"]:
+        print(f"warning: {w}")
+    print(f"{s['characters']} characters and {s['motions']} clips in {args.out} ({s['skipped']} already done, "
+          f"{s['failed']} failed, {s['failed_clips']} clips unreadable) in {s['seconds']:.1f} s")
     return 1 if s["failed"] else 0

@@ -1,72 +1,159 @@
-"""Ingest assets through Blender, one child process per asset, into a dataset.
+"""Ingest assets through Blender child processes into a dataset, additively.
 
-Each asset runs ``python -m datagen.ingest.blender_child`` with a timeout; its result is cached
-as ``DATASET/.ingest/<stem>.npz`` + ``.json``, so a re-run skips assets already done. A crash, a
-timeout or an unreadable file becomes a status row (split ``ingest``) with the reason, and the
-other assets go on. At the end the ``characters``/``motions`` tables are rebuilt from every
-cached result.
+Each asset is imported by a Blender child (:mod:`.blender_pool`; one process ingests many assets,
+with a factory reset between them and a fresh process after a crash or a timeout). Its result is
+cached as ``DATASET/.ingest/<key>.npz`` + ``.json`` where the key holds the file's content hash
+and the options (:mod:`.identity`), so a re-run skips assets already done and a changed file is
+ingested again. A crash, a timeout, an unreadable file or clip, or a glTF URI outside the asset's
+folder becomes a status row (split ``ingest``) with the reason, and the other assets go on; the
+files a failed job wrote are deleted, never used.
+
+Ingest is additive: the ``characters``/``motions``/``status`` tables keep what earlier runs put
+in the dataset, and this run's assets replace only their own rows (by character ID).
 """
 from __future__ import annotations
 
 import fnmatch
 import json
-import subprocess
-import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from pathlib import Path
+from queue import Queue
 
 import numpy as np
 from tqdm.auto import tqdm
 
+from datagen.ingest import blender_pool
+from datagen.ingest.category import infer_category
+from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
+from datagen.ingest.uris import external_uri_problems
 from datagen.splits import split_of
+from mimicbench.argtypes import MAX_JOBS
 from mimicbench.kinematics import transforms_to_array
+from mimicbench.skinning import linear_blend_skinning
 from mimicbench.weights import SparseWeights
-from schemas.character import CharacterRecord
+from schemas.character import CATEGORIES, CharacterRecord
+from schemas.manifest import MANIFEST, mark_complete, mark_incomplete
 from schemas.motion import MotionRecord
-from schemas.shards import write_records
+from schemas.shards import has_table, read_records, write_records
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
 
 CACHE = ".ingest"
+SUPPORTED = (".glb", ".gltf", ".fbx", ".bvh", ".obj", ".blend")
+EXPORT_FORMATS = ("obj", "bvh")
+DEFAULT_BVH_SCALE = 0.01  # BVH offsets in centimetres -> metres
 
 
-def run_child(asset: Path, cache: Path, timeout: float) -> StatusRecord:
-    """Ingest one asset in a child process; return its status row."""
-    out = cache / f"{asset.stem}.npz"
+@dataclass
+class IngestOptions:
+    """What ``datagen ingest`` may be asked; :meth:`check` says what is allowed."""
+
+    jobs: int = 1
+    timeout: float = 300.0
+    bvh_scale: float = DEFAULT_BVH_SCALE
+    allow_external_uris: bool = False
+    export: tuple = ()
+    split: str | None = None
+    split_file: str | None = None
+    assets_per_process: int = 50
+    category_map: dict = field(default_factory=dict)
+
+    def check(self) -> None:
+        """Raise ValueError naming the option and the allowed range."""
+        if not isinstance(self.jobs, int) or not 1 <= self.jobs <= MAX_JOBS:
+            raise ValueError(f"--jobs: expected a whole number of Blender processes from 1 to {MAX_JOBS}, got {self.jobs!r}")
+        if not self.timeout > 0:
+            raise ValueError(f"--timeout: expected seconds per asset greater than 0, got {self.timeout!r}")
+        if not self.bvh_scale > 0:
+            raise ValueError(f"--bvh-scale: expected metres per BVH unit greater than 0 (0.01 for centimetres), "
+                             f"got {self.bvh_scale!r}")
+        if not isinstance(self.assets_per_process, int) or self.assets_per_process < 1:
+            raise ValueError(f"assets_per_process: expected at least 1, got {self.assets_per_process!r}")
+        unknown = [x for x in self.export if x not in EXPORT_FORMATS]
+        if unknown:
+            raise ValueError(f"--export: unknown format(s) {', '.join(map(repr, unknown))}; expected a comma-separated "
+                             f"list of {', '.join(EXPORT_FORMATS)}")
+        bad = {k: v for k, v in self.category_map.items() if v not in CATEGORIES}
+        if bad:
+            raise ValueError(f"--category-map: unknown categories {bad}; expected one of {', '.join(CATEGORIES)}")
+        if self.split is not None and self.split_file is not None:
+            raise ValueError("--split and --split-file: give one of them, not both")
+        if self.split is not None and self.split not in ("train", "val", "test"):
+            raise ValueError(f"--split: expected train, val or test, got {self.split!r}")
+
+    def child_options(self) -> dict:
+        """The options that change what a child writes (part of the cache key)."""
+        return {"bvh_scale": float(self.bvh_scale)}
+
+
+def category_from_map(asset: Path, category_map: dict | None) -> str | None:
+    """The first glob or file stem in the map that matches the asset, else None."""
+    for pattern, category in (category_map or {}).items():
+        if fnmatch.fnmatch(asset.name, pattern) or fnmatch.fnmatch(str(asset), pattern) or asset.stem == pattern:
+            return category
+    return None
+
+
+def category_for(asset: Path, category_map: dict | None) -> str:
+    """Category of an asset from the map alone (``unknown`` when it names none); see
+    :func:`records_from_cache` for inference."""
+    return category_from_map(asset, category_map) or "unknown"
+
+
+def _remove_outputs(out_npz: Path) -> None:
+    """Delete whatever a job wrote (final or partial files)."""
+    stem = out_npz.with_suffix("")
+    for p in (out_npz, stem.with_suffix(".json"), Path(str(out_npz) + ".part.npz"), Path(str(stem) + ".json.part")):
+        if p.exists():
+            p.unlink()
+
+
+def run_job(worker: blender_pool.BlenderWorker, asset: Path, out_npz: Path, options: dict,
+            timeout: float) -> StatusRecord:
+    """Ingest one asset with ``worker``; return its status row (failed jobs leave no files)."""
     start = time.perf_counter()
-    try:
-        proc = subprocess.run([sys.executable, "-m", "datagen.ingest.blender_child", str(asset), str(out)],
-                              capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return StatusRecord(str(asset), "ingest", "failed", f"timed out after {timeout:g} s", time.perf_counter() - start)
+    _remove_outputs(out_npz)
+    finished, reason = worker.run(str(asset), str(out_npz), options, timeout)
     seconds = time.perf_counter() - start
-    result_file = out.with_suffix(".json")
-    if not result_file.exists():
-        tail = (proc.stderr or proc.stdout or "").strip().splitlines()[-1:] or ["no output"]
-        return StatusRecord(str(asset), "ingest", "failed",
-                            f"Blender process ended with code {proc.returncode} ({tail[0][:200]})", seconds)
+    result_file = out_npz.with_suffix(".json")
+    if not finished or not result_file.exists() or not out_npz.exists() and _status_of(result_file) == "ok":
+        _remove_outputs(out_npz)
+        return StatusRecord(str(asset), "ingest", "failed", reason or "the Blender job wrote no result", seconds)
     result = json.loads(result_file.read_text())
     if result["status"] != "ok":
-        result_file.unlink()
+        _remove_outputs(out_npz)
         return StatusRecord(str(asset), "ingest", "failed", result["reason"], seconds)
     return StatusRecord(str(asset), "ingest", "ok", "", seconds)
 
 
-def category_for(asset: Path, category_map: dict | None) -> str:
-    """Category of an asset: the first glob or name in the map that matches, else ``unknown``."""
-    for pattern, category in (category_map or {}).items():
-        if fnmatch.fnmatch(asset.name, pattern) or fnmatch.fnmatch(str(asset), pattern) or asset.stem == pattern:
-            return category
-    return "unknown"
+def _status_of(result_file: Path) -> str:
+    try:
+        return json.loads(result_file.read_text()).get("status", "")
+    except (OSError, ValueError):
+        return ""
 
 
-def records_from_cache(asset: Path, cache: Path, category: str) -> tuple[CharacterRecord, list[MotionRecord]]:
+def reproduction_error(char: CharacterRecord, transforms: np.ndarray, scale: np.ndarray | None, frames: np.ndarray,
+                       evaluated: np.ndarray) -> dict:
+    """Mean and max distance (percent of height) between the stored clip posed by LBS and the
+    mesh Blender evaluated from the file at ``frames``."""
+    if not len(char.vertices) or not char.height:
+        return {}
+    pred = linear_blend_skinning(char.vertices, char.keypoints, char.weights, transforms[frames],
+                                 None if scale is None else scale[frames])
+    d = np.linalg.norm(pred - evaluated, axis=-1) / char.height * 100
+    return {"mean_pct": round(float(d.mean()), 5), "max_pct": round(float(d.max()), 5),
+            "frames": [int(f) for f in frames]}
+
+
+def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, split: str,
+                       category_map: dict | None = None, bvh_scale: float | None = None
+                       ) -> tuple[CharacterRecord, list[MotionRecord]]:
     """Character and motion records of one cached child result."""
-    meta = json.loads((cache / f"{asset.stem}.json").read_text())
-    d = np.load(cache / f"{asset.stem}.npz")
-    cid = f"assets/{asset.stem}"
-    split = split_of(cid)
+    meta = json.loads((cache / f"{key}.json").read_text())
+    d = np.load(cache / f"{key}.npz")
     verts = d["vertices"].astype(np.float32)
     k = len(meta["bone_names"])
     if len(verts):
@@ -74,63 +161,178 @@ def records_from_cache(asset: Path, cache: Path, category: str) -> tuple[Charact
     else:
         w = SparseWeights(np.zeros((0, 8), np.int32), np.zeros((0, 8), np.float32), k)
     height = float(np.ptp(verts[:, 1])) if len(verts) else None
+    parents = d["parents"].astype(np.int32)
+    mapped = category_from_map(asset, category_map)
+    pose_for_category = d["default_keypoints"] if "default_keypoints" in d else d["keypoints"]
+    guess, evidence = infer_category(meta["bone_names"], parents, pose_for_category)
+    category = mapped or guess
+    info = {"blender": meta.get("blender"), "meshes": meta.get("meshes"), "clips": meta["clips"],
+            "applied_modifiers": meta.get("applied_modifiers", []), "unweighted_vertices": meta.get("unweighted_vertices", 0),
+            "default_pose_bones": meta.get("default_pose_bones", 0), "cache_key": key}
+    if asset.suffix.lower() == ".bvh":
+        kp = d["keypoints"]
+        info["bvh_scale"] = bvh_scale
+        info["skeleton_height_m"] = round(float(np.ptp(kp[:, 1])), 4)
     char = CharacterRecord(
-        character_id=cid, category=category, source=str(asset), split=split, vertices=verts,
-        faces=d["faces"].astype(np.int32), keypoints=d["keypoints"].astype(np.float32),
-        parents=d["parents"].astype(np.int32), bone_names=meta["bone_names"], weight_indices=w.indices,
-        weight_values=w.values, apparel_vertex_mask=np.zeros(len(verts), bool), apparel_bone_mask=np.zeros(k, bool),
-        bone_roles=None, skeleton_id=None, height=height,
-        meta={"ingest": {"blender": meta.get("blender"), "meshes": meta.get("meshes"), "clips": meta["clips"],
-                         "applied_modifiers": meta.get("applied_modifiers", [])}})
+        character_id=character_id, category=category, source=str(asset), split=split, vertices=verts,
+        faces=d["faces"].astype(np.int32), keypoints=d["keypoints"].astype(np.float32), parents=parents,
+        bone_names=meta["bone_names"], weight_indices=w.indices, weight_values=w.values,
+        apparel_vertex_mask=np.zeros(len(verts), bool), apparel_bone_mask=np.zeros(k, bool),
+        bone_roles=None, skeleton_id=skeleton_id(meta["bone_names"], parents), height=height,
+        meta={"ingest": info, "category": {"value": category, "source": "map" if mapped else "inferred",
+                                           "inferred": guess, "evidence": evidence}})
     motions = []
     for ci, clip in enumerate(meta["clips"]):
         t = d[f"clip{ci}_transforms"]
-        motions.append(MotionRecord(f"{cid}/{clip['name']}", cid, clip["name"], split, float(clip["fps"]), len(t), k,
-                                    transforms_to_array(t[..., :4], t[..., 4:]), str(asset)))
+        scale = d[f"clip{ci}_scale"] if f"clip{ci}_scale" in d else None
+        if f"clip{ci}_eval_vertices" in d:
+            clip["reproduction_error"] = reproduction_error(char, t, scale, d[f"clip{ci}_eval_frames"],
+                                                            d[f"clip{ci}_eval_vertices"])
+        motions.append(MotionRecord(f"{character_id}/{clip['name']}", character_id, clip["name"], split,
+                                    float(clip["fps"]), len(t), k, transforms_to_array(t[..., :4], t[..., 4:]),
+                                    str(asset), None if scale is None else scale.astype(np.float32)))
     return char, motions
 
 
+def _existing(out_dir: Path, table: str) -> list:
+    """Rows an earlier run put in ``table`` (none when the folder is not a dataset yet)."""
+    if not (out_dir / MANIFEST).is_file() or not has_table(out_dir, table, allow_incomplete=True):
+        return []
+    return read_records(out_dir, table, allow_incomplete=True)
+
+
 def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, category_map: dict | None = None,
-                  export=(), progress: bool = True) -> dict:
-    """Ingest assets into ``out_dir``; returns a summary with the status rows.
+                  export=(), progress: bool = True, bvh_scale: float = DEFAULT_BVH_SCALE,
+                  allow_external_uris: bool = False, split: str | None = None, split_file: str | None = None,
+                  assets_per_process: int = 50) -> dict:
+    """Ingest assets into ``out_dir`` (keeping what earlier runs put there); returns a summary.
 
     Args:
-        paths: asset files (.glb, .gltf, .fbx, .bvh, .obj).
+        paths: asset files (.glb, .gltf, .fbx, .bvh, .obj, .blend through Blender; .pmx, .pmd, .vmd
+            through :mod:`datagen.mmd` without it).
         out_dir: dataset folder.
-        jobs: child processes at once.
-        timeout: seconds per asset before its child is killed.
-        category_map: glob or file stem -> category.
-        export: ``("obj", "bvh")`` to also write ``out_dir/export/<stem>.obj`` and ``<stem>/<clip>.bvh``.
+        jobs: Blender processes at once (at least 1).
+        timeout: seconds per asset before its process is killed (> 0).
+        category_map: glob or file stem -> category; assets it does not name get an inferred one.
+        export: formats of ``("obj", "bvh")`` to also write ``out_dir/export/<stem>.obj`` and ``<stem>/<clip>.bvh``.
+        bvh_scale: metres per BVH unit (0.01: the file is in centimetres).
+        allow_external_uris: let glTF buffers and images point outside the asset's folder.
+        split: put every asset of this run in this split (``train``, ``val`` or ``test``).
+        split_file: JSON split name -> list of character IDs (IDs it lacks get the hashed split).
+        assets_per_process: assets one Blender process ingests before a fresh one starts.
+
+    Raises:
+        ValueError: an option out of range (the message says what is allowed).
     """
+    from datagen.splits import load_split_file
+
+    opts = IngestOptions(jobs, timeout, bvh_scale, allow_external_uris, tuple(export), split, split_file,
+                         assets_per_process, dict(category_map or {}))
+    opts.check()
+    split_map = load_split_file(split_file) if split_file else {}
     start = time.perf_counter()
     out_dir = Path(out_dir)
     cache = out_dir / CACHE
     cache.mkdir(parents=True, exist_ok=True)
-    assets = [Path(p).resolve() for p in paths]
+    old_chars, old_motions, old_status = (_existing(out_dir, t) for t in ("characters", "motions", "status"))
+    taken = {c.character_id: c.source for c in old_chars}
+    assets, seen = [], set()
+    for p in paths:
+        a = Path(p).resolve()
+        if a not in seen:
+            seen.add(a)
+            assets.append(a)
     from datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)
+
     assets, mmd_assets = split_mmd_paths(assets)
-    done = [a for a in assets if (cache / f"{a.stem}.json").exists() and (cache / f"{a.stem}.npz").exists()]
-    todo = [a for a in assets if a not in done]
-    statuses = [StatusRecord(str(a), "ingest", "skipped", "already ingested", 0.0) for a in done]
-    bar = tqdm(total=len(todo), desc="ingest", unit="asset", disable=not progress)
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        for status in pool.map(lambda a: run_child(a, cache, timeout), todo):
-            statuses.append(status)
-            bar.update(1)
-    bar.close()
-    chars, motions = [], []
+    statuses: list[StatusRecord] = []
+    jobs_todo, plan = [], {}
     for a in assets:
-        if (cache / f"{a.stem}.json").exists():
-            c, m = records_from_cache(a, cache, category_for(a, category_map))
-            chars.append(c)
-            motions.extend(m)
+        problem = None
+        if not a.is_file():
+            problem = "file not found"
+        elif a.suffix.lower() not in SUPPORTED:
+            problem = f"unsupported file type {a.suffix!r}; expected one of {', '.join(SUPPORTED)}"
+        elif a.suffix.lower() in (".gltf", ".glb") and not allow_external_uris:
+            uris = external_uri_problems(a)
+            if uris:
+                problem = ("refused: " + "; ".join(uris) + " (resources outside the asset's folder are read only with "
+                           "--allow-external-uris)")
+        if problem:
+            statuses.append(StatusRecord(str(a), "ingest", "failed", problem, 0.0))
+            continue
+        key = cache_key(a, file_sha256(a), opts.child_options())
+        cid = character_id_for(a, taken)
+        taken[cid] = str(a)
+        plan[a] = (key, cid)
+        if _status_of(cache / f"{key}.json") == "ok" and (cache / f"{key}.npz").exists():
+            statuses.append(StatusRecord(str(a), "ingest", "skipped", "already ingested", 0.0))
+        else:
+            jobs_todo.append(a)
+    skipped = sum(s.status == "skipped" for s in statuses)
+    workers: Queue = Queue()
+    for _ in range(min(jobs, max(1, len(jobs_todo)))):
+        workers.put(blender_pool.BlenderWorker(blender_pool.CHILD_MODULE, assets_per_process))
+
+    def job(a: Path) -> StatusRecord:
+        w = workers.get()
+        try:
+            return run_job(w, a, cache / f"{plan[a][0]}.npz", opts.child_options(), timeout)
+        finally:
+            workers.put(w)
+
+    bar = tqdm(total=len(jobs_todo), desc="ingest", unit="asset", disable=not progress)
+    try:
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            for status in pool.map(job, jobs_todo):
+                statuses.append(status)
+                bar.update(1)
+    finally:
+        bar.close()
+        while not workers.empty():
+            workers.get().stop()
+    chars, motions = [], []
+    for a, (key, cid) in plan.items():
+        if _status_of(cache / f"{key}.json") != "ok":
+            continue
+        sp = split or split_map.get(cid) or split_of(cid)
+        c, m = records_from_cache(a, cache, key, cid, sp, category_map, bvh_scale if a.suffix.lower() == ".bvh" else None)
+        chars.append(c)
+        motions.extend(m)
+        for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
+            statuses.append(StatusRecord(f"{a}#{e['name']}", "ingest", "failed", f"clip {e['name']!r}: {e['reason']}", 0.0))
     mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), progress=progress, out_dir=out_dir)
+    for c in mmd.characters:
+        c.split = split or split_map.get(c.character_id) or c.split
+    mmd_split = {c.character_id: c.split for c in mmd.characters}
+    for m in mmd.motions:
+        m.split = mmd_split.get(m.character_id, m.split)
     chars, motions, statuses = chars + mmd.characters, motions + mmd.motions, statuses + mmd.statuses
-    config = {"stage": "ingest", "timeout": timeout, "category_map": category_map or {}}
-    for split in sorted({c.split for c in chars}):
-        write_records(out_dir, "characters", [c for c in chars if c.split == split], split, rows_per_shard=200, config=config)
-        write_records(out_dir, "motions", [m for m in motions if m.split == split], split, rows_per_shard=200, config=config)
+    warnings = []
+    for c in chars:
+        h = ((c.meta or {}).get("ingest") or {}).get("skeleton_height_m")
+        if h is not None and not 0.3 <= h <= 3.0:
+            warnings.append(f"{c.character_id}: skeleton {h:.3g} m tall at --bvh-scale {bvh_scale:g}; if the file's "
+                            f"unit is not {'centimetres' if bvh_scale == 0.01 else 'that'}, pass --bvh-scale "
+                            f"(metres per file unit; CMU conversions use 0.056444)")
+    new_ids = {c.character_id for c in chars}
+    chars = [c for c in old_chars if c.character_id not in new_ids] + chars
+    motions = [m for m in old_motions if m.character_id not in new_ids] + motions
+    this_run = {str(a) for a in assets} | {str(a) for a in mmd_assets}
+    statuses = [s for s in old_status if s.asset.split("#")[0] not in this_run] + statuses
+    config = {"stage": "ingest", "timeout": timeout, "category_map": opts.category_map, "bvh_scale": bvh_scale,
+              "allow_external_uris": allow_external_uris, "split": split, "split_file": split_file,
+              "cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"}
+    mark_incomplete(out_dir, "ingest", config)  # until every table below is written
+    old_splits = {c.split for c in old_chars}
+    for sp in sorted({c.split for c in chars} | old_splits):
+        write_records(out_dir, "characters", [c for c in chars if c.split == sp], sp, rows_per_shard=200, config=config)
+        write_records(out_dir, "motions", [m for m in motions if m.split == sp], sp, rows_per_shard=200, config=config)
     write_records(out_dir, "status", statuses, split="ingest")
+    from datagen.ingest.card import write_card
+
+    write_card(out_dir, chars, motions, config)
+    mark_complete(out_dir)
     if export:
         from datagen.ingest.export import export_dataset
 
@@ -138,6 +340,9 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     problems = validate_dataset(out_dir)
     if problems:
         raise RuntimeError("ingest wrote an invalid dataset:\n" + "\n".join(problems))
-    return {"assets": len(assets), "ingested": sum(s.status == "ok" for s in statuses), "skipped": len(done),
-            "failed": sum(s.status == "failed" for s in statuses), "characters": len(chars), "motions": len(motions),
-            "seconds": time.perf_counter() - start, "statuses": statuses}
+    run_status = [s for s in statuses if s.asset.split("#")[0] in this_run]
+    return {"assets": len(assets) + len(mmd_assets), "ingested": sum(s.status == "ok" for s in run_status), "skipped": skipped,
+            "failed": sum(s.status == "failed" and "#" not in s.asset for s in run_status),
+            "failed_clips": sum(s.status == "failed" and "#" in s.asset for s in run_status),
+            "characters": len(chars), "motions": len(motions), "seconds": time.perf_counter() - start,
+            "statuses": run_status, "character_ids": {str(a): plan[a][1] for a in plan}, "warnings": warnings}

@@ -1,0 +1,197 @@
+"""Ingest pieces that need no Blender: the glTF reference evaluator against hand-computed values,
+IDs and cache keys, skeleton IDs, external URIs, option checks, scaled LBS, and category inference
+on the zoo (whose categories are known)."""
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from datagen.ingest.category import infer_category
+from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
+from datagen.ingest.runner import category_from_map, ingest_assets
+from datagen.ingest.uris import external_uri_problems
+from mimicbench.cli import main
+from mimicbench.skinning import linear_blend_skinning
+from mimicbench.skinning_torch import linear_blend_skinning_torch
+from tests.gltf_edit import add_accessor, write_glb
+from tests.gltf_reference import GltfReference, _interpolate, slerp
+
+
+# --- the reference evaluator, by hand ----------------------------------------------------------
+
+def test_slerp_cubic_and_step_samplers_by_hand():
+    qz90 = np.array([0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4)])  # (x, y, z, w): 90 deg about Z
+    half = slerp(np.array([0, 0, 0, 1.0]), qz90, 0.5)
+    np.testing.assert_allclose(half, [0, 0, math.sin(math.pi / 8), math.cos(math.pi / 8)], atol=1e-12)
+    # the shorter arc: -q is the same rotation
+    np.testing.assert_allclose(slerp(np.array([0, 0, 0, 1.0]), -qz90, 0.5), half, atol=1e-12)
+    times = np.array([0.0, 1.0, 3.0])
+    vals = np.array([[0.0], [10.0], [30.0]])
+    assert _interpolate(times, vals, "LINEAR", 2.0, False)[0] == pytest.approx(20.0)
+    assert _interpolate(times, vals, "STEP", 2.9, False)[0] == pytest.approx(10.0)
+    assert _interpolate(times, vals, "LINEAR", -1.0, False)[0] == 0.0 and _interpolate(times, vals, "LINEAR", 9, False)[0] == 30
+    # Hermite: p(s) = (2s^3-3s^2+1) p0 + (s^3-2s^2+s) td b0 + (-2s^3+3s^2) p1 + (s^3-s^2) td a1
+    cubic = np.array([[0.0], [1.0], [2.0],   # key 0: in-tangent, value, out-tangent
+                      [5.0], [3.0], [0.0]])  # key 1
+    s, td = 0.25, 2.0
+    want = (2 * s**3 - 3 * s**2 + 1) * 1 + (s**3 - 2 * s**2 + s) * td * 2 + (-2 * s**3 + 3 * s**2) * 3 + (s**3 - s**2) * td * 5
+    assert _interpolate(np.array([0.0, 2.0]), cubic, "CUBICSPLINE", 0.5, False)[0] == pytest.approx(want)
+
+
+def _two_bone_glb(path):
+    """A 2-joint skin: joint 0 at the origin, joint 1 at y = 1 (child), a LINEAR clip rotating joint 1
+    90 degrees about Z over 1 s, and a vertex at (0, 2, 0) bound to joint 1, one at (0, 1, 0) half/half,
+    and an unskinned node under joint 1 carrying a mesh at its local (1, 0, 0)."""
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 2]}],
+           "nodes": [{"name": "j0", "children": [1]}, {"name": "j1", "translation": [0, 1, 0], "children": [3]},
+                     {"name": "skinned", "mesh": 0, "skin": 0, "translation": [5, 5, 5]},
+                     {"name": "rigid", "mesh": 1, "translation": [1, 0, 0]}],
+           "meshes": [], "accessors": [], "bufferViews": [], "skins": [], "animations": []}
+    blob = bytearray()
+    pos = add_accessor(doc, blob, np.array([[0, 2, 0], [0, 1, 0]]))
+    joints = add_accessor(doc, blob, np.array([[1, 0, 0, 0], [0, 1, 0, 0]]), dtype=np.uint8)
+    weights = add_accessor(doc, blob, np.array([[1, 0, 0, 0], [0.5, 0.5, 0, 0]]))
+    ibm = np.stack([np.eye(4), np.linalg.inv(np.array([[1, 0, 0, 0], [0, 1, 0, 1], [0, 0, 1, 0], [0, 0, 0, 1.0]]))])
+    ibm_acc = add_accessor(doc, blob, ibm.transpose(0, 2, 1).reshape(2, 16), kind="MAT4")  # column-major
+    doc["meshes"] = [{"primitives": [{"attributes": {"POSITION": pos, "JOINTS_0": joints, "WEIGHTS_0": weights}}]},
+                     {"primitives": [{"attributes": {"POSITION": add_accessor(doc, blob, np.zeros((1, 3)))}}]}]
+    doc["skins"] = [{"joints": [0, 1], "inverseBindMatrices": ibm_acc}]
+    t = add_accessor(doc, blob, np.array([[0.0], [1.0]]))
+    r = add_accessor(doc, blob, np.array([[0, 0, 0, 1], [0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4)]]))
+    doc["animations"] = [{"name": "bend", "samplers": [{"input": t, "output": r}],
+                          "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}]}]
+    return write_glb(path, doc, blob)
+
+
+def test_reference_skins_with_inverse_bind_matrices_by_hand(tmp_path):
+    ref = GltfReference(_two_bone_glb(tmp_path / "two.glb"))
+    # default pose: the skinned node's own translation (5, 5, 5) is ignored; rigid mesh at j1 + (1, 0, 0)
+    np.testing.assert_allclose(ref.vertices(None), [[0, 2, 0], [0, 1, 0], [1, 1, 0]], atol=1e-6)
+    # at t = 1: j1 turned 90 deg about Z around (0, 1, 0): (0, 2, 0) -> (-1, 1, 0); the half/half vertex
+    # sits on the joint and stays; the rigid mesh (1, 1, 0) -> (0, 2, 0)
+    np.testing.assert_allclose(ref.vertices(0, 1.0), [[-1, 1, 0], [0, 1, 0], [0, 2, 0]], atol=1e-6)
+    # halfway: slerp gives 45 degrees
+    c = math.cos(math.pi / 4)
+    np.testing.assert_allclose(ref.vertices(0, 0.5)[0], [-c, 1 + c, 0], atol=1e-6)
+    assert ref.clip_range(0) == (0.0, 1.0)
+
+
+# --- identity, URIs, options -------------------------------------------------------------------
+
+def test_ids_cache_keys_and_skeleton_ids(tmp_path):
+    a, b = tmp_path / "a" / "Fox.glb", tmp_path / "b" / "Fox.glb"
+    a.parent.mkdir(), b.parent.mkdir()
+    a.write_bytes(b"one"), b.write_bytes(b"two")
+    taken = {}
+    ida = character_id_for(a, taken)
+    taken[ida] = str(a)
+    idb = character_id_for(b, taken)
+    assert ida == "assets/Fox" and idb.startswith("assets/Fox-") and len(idb) == len("assets/Fox-") + 8
+    assert character_id_for(a, taken) == "assets/Fox"  # the same file keeps its ID
+    ka, kb = cache_key(a, file_sha256(a), {}), cache_key(b, file_sha256(b), {})
+    assert ka != kb and ka.startswith("Fox-") and cache_key(a, file_sha256(a), {"bvh_scale": 1.0}) != ka
+    assert skeleton_id(["a", "b"], [-1, 0]) == skeleton_id(["a", "b"], [-1, 0])
+    assert skeleton_id(["a", "b"], [-1, 0]) != skeleton_id(["a", "b"], [-1, -1])
+    assert skeleton_id(["a", "b"], [-1, 0]) != skeleton_id(["a", "c"], [-1, 0])
+    # parents by name: the same skeleton listed in another order is the same family only if equal as stored
+    assert skeleton_id(["a", "b", "c"], [-1, 0, 0]) != skeleton_id(["a", "c", "b"], [-1, 0, 0])
+
+
+def _gltf(tmp_path, uri):
+    path = tmp_path / "asset" / "Thing.gltf"
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(json.dumps({"asset": {"version": "2.0"}, "buffers": [{"uri": uri, "byteLength": 4}],
+                                "images": [{"uri": "textures/skin.png"}]}))
+    return path
+
+
+@pytest.mark.parametrize("uri,bad", [("../secret.bin", True), ("/etc/passwd", True), ("file:///etc/passwd", True),
+                                     ("sub/../../x.bin", True), ("data.bin", False), ("sub/data%20x.bin", False),
+                                     ("data:application/octet-stream;base64,AAAA", False)])
+def test_external_uris_outside_the_folder_are_found(tmp_path, uri, bad):
+    assert bool(external_uri_problems(_gltf(tmp_path, uri))) == bad
+
+
+def test_external_uris_are_refused_with_a_status_row(tmp_path):
+    path = _gltf(tmp_path, "../secret.bin")
+    s = ingest_assets([path], tmp_path / "out", progress=False)
+    assert s["failed"] == 1 and "outside" in s["statuses"][0].reason and "--allow-external-uris" in s["statuses"][0].reason
+
+
+@pytest.mark.parametrize("kwargs,message", [({"timeout": 0}, "--timeout"), ({"jobs": 0}, "--jobs"),
+                                            ({"bvh_scale": -1}, "--bvh-scale"), ({"export": ("stl",)}, "--export"),
+                                            ({"category_map": {"x": "dragon"}}, "--category-map"),
+                                            ({"split": "holdout"}, "--split")])
+def test_options_are_range_checked(tmp_path, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        ingest_assets([tmp_path / "x.glb"], tmp_path / "out", progress=False, **kwargs)
+    assert not (tmp_path / "out").exists()  # nothing written
+
+
+@pytest.mark.parametrize("args,needle", [(["--timeout", "0"], "--timeout: expected a finite number > 0"),
+                                         (["--jobs", "0"], "--jobs: expected an integer >= 1"),
+                                         (["--export", "stl"], "--export: unknown 'stl'; expected a comma-separated list of obj, bvh"),
+                                         (["--bvh-scale", "x"], "--bvh-scale: expected a finite number > 0")])
+def test_cli_rejects_bad_options(tmp_path, capsys, args, needle):
+    with pytest.raises(SystemExit) as e:
+        main(["datagen", "ingest", "x.glb", "--out", str(tmp_path / "o")] + args)
+    assert e.value.code == 2 and needle in capsys.readouterr().err
+
+
+def test_cli_export_formats_match_the_runner():
+    from datagen.ingest import command, runner
+
+    assert command.EXPORT_FORMATS == runner.EXPORT_FORMATS
+
+
+def test_category_map_names_assets(tmp_path):
+    from pathlib import Path
+
+    assert category_from_map(Path("/x/Fox.glb"), {"Fox*": "quadruped"}) == "quadruped"
+    assert category_from_map(Path("/x/Fox.glb"), {"Fox": "quadruped"}) == "quadruped"
+    assert category_from_map(Path("/x/Cat.glb"), {"Fox*": "quadruped"}) is None
+
+
+# --- scaled LBS ----------------------------------------------------------------------------------
+
+def test_lbs_honours_a_bone_stretch_by_hand():
+    rest = np.array([[1.0, 0, 0], [0, 2, 0]])
+    keypoints = np.array([[0.0, 0, 0]])
+    weights = np.ones((2, 1))
+    t = np.array([[[math.cos(math.pi / 4), 0, 0, math.sin(math.pi / 4), 0, 0, 1]]])  # 90 deg about Z, moved up 1
+    scale = np.array([[[0.5, 2.0, 1.0, 0, 0, 0]]])  # U = diag(0.5, 2, 1) in the rest frame
+    # R U p + t: (1,0,0) -> U (0.5,0,0) -> R (0,0.5,0) -> (0,0.5,1); (0,2,0) -> (0,4,0) -> (-4,0,0) -> (-4,0,1)
+    got = linear_blend_skinning(rest, keypoints, weights, t, scale)
+    np.testing.assert_allclose(got[0], [[0, 0.5, 1], [-4, 0, 1]], atol=1e-6)
+    np.testing.assert_allclose(linear_blend_skinning(rest, keypoints, weights, t),
+                               linear_blend_skinning(rest, keypoints, weights, t, np.array([[[1, 1, 1, 0, 0, 0.0]]])))
+    # a shear term (s_xy) and the torch twin
+    sheared = np.array([[[1.0, 1.0, 1.0, 0.3, 0, 0]]])
+    want = linear_blend_skinning(rest, keypoints, weights, t, sheared)
+    # U = [[1, .3, 0], [.3, 1, 0], [0, 0, 1]]: (1,0,0) -> (1, .3, 0) -> R -> (-.3, 1, 0) -> + t
+    np.testing.assert_allclose(want[0, 0], [-0.3, 1, 1], atol=1e-6)
+    tt = torch.tensor(t, dtype=torch.float64)
+    got_t = linear_blend_skinning_torch(torch.tensor(rest), torch.tensor(keypoints), torch.tensor(weights), tt,
+                                        scale=torch.tensor(sheared))
+    np.testing.assert_allclose(got_t.numpy(), want, atol=1e-6)
+    with pytest.raises(ValueError, match="scale"):
+        linear_blend_skinning(rest, keypoints, weights, t, np.ones((1, 1, 3)))
+
+
+# --- categories on the zoo ---------------------------------------------------------------------
+
+def test_categories_are_inferred_on_the_zoo_and_on_renamed_copies(small_zoo):
+    from schemas.shards import read_records
+
+    chars = read_records(small_zoo, "characters")
+    assert len({c.category for c in chars}) >= 5
+    for c in chars:
+        cat, evidence = infer_category(c.bone_names, c.parents, c.keypoints)
+        assert cat == c.category, (c.character_id, evidence)
+        upper = [n.upper().replace("LEFT", "L_").replace("RIGHT", "R_") if "/" not in n else n for n in c.bone_names]
+        assert infer_category(upper, c.parents, c.keypoints)[0] == c.category, (c.character_id, upper[:8])
+        opaque, ev = infer_category([f"n{i}" for i in range(c.num_joints)], c.parents, c.keypoints)
+        assert opaque in (c.category, "unknown", "humanoid" if c.category == "apparel" else c.category), (c.character_id, ev)
+    assert infer_category(["a", "b"], [-1, 0], np.array([[0, 0, 0], [0, 0, 1.0]]))[0] == "unknown"
