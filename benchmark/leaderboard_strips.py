@@ -19,7 +19,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from benchmark.results import read_result_records
-from benchmark.samples import SAMPLES_DIR, _rank, read_sample
+from benchmark.samples import SAMPLES_DIR, read_sample, sample_rank
 from datagen.render.panel import Panel
 from mimicbench.skinning import linear_blend_skinning
 from schemas.columns import table_to_records
@@ -43,7 +43,7 @@ class Strip:
 
     @property
     def file_stem(self) -> str:
-        return f"{self.protocol}-{_rank(self.case_id)[:10]}"
+        return f"{self.protocol}-{sample_rank(self.case_id)[:10]}"
 
 
 def find_dataset(results, run_info: dict, methods_info: dict) -> Path | None:
@@ -67,7 +67,7 @@ def sampled_case_ids(results, protocol: str, method_versions) -> list[str]:
                 if "case_id" in d.files:
                     cid = str(d["case_id"])
                     count[cid] = count.get(cid, 0) + 1
-    return sorted(count, key=lambda c: (-count[c], _rank(c)))
+    return sorted(count, key=lambda c: (-count[c], sample_rank(c)))
 
 
 def _characters(dataset, ids) -> dict:

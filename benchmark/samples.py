@@ -30,7 +30,8 @@ SAMPLES_DIR = "samples"
 SAMPLES_PER_PROTOCOL = 3
 
 
-def _rank(case_id: str) -> str:
+def sample_rank(case_id: str) -> str:
+    """Sort key of a case in the sample (the sha256 hex digest of its ID)."""
     return hashlib.sha256(case_id.encode()).hexdigest()
 
 
@@ -41,7 +42,7 @@ def sample_case_ids(cases: Sequence, k: int = SAMPLES_PER_PROTOCOL) -> list[str]
     target category) pair is taken in rank order, then the rest by rank, so a sample spans
     category pairs where it can.
     """
-    ranked = sorted(cases, key=lambda c: _rank(c.case_id))
+    ranked = sorted(cases, key=lambda c: sample_rank(c.case_id))
     picked, seen = [], set()
     for c in ranked:
         key = (c.source_category, c.target_category)
@@ -59,7 +60,7 @@ def sample_case_ids(cases: Sequence, k: int = SAMPLES_PER_PROTOCOL) -> list[str]
 def sample_path(method_folder, protocol: str, case_id: str) -> Path:
     """Where the sample of ``case_id`` lives under ``RESULTS/<method>/<version>``."""
     safe = re.sub(r"[^A-Za-z0-9._-]+", "_", case_id).strip("_")[:80]
-    return Path(method_folder) / SAMPLES_DIR / protocol / f"{safe}-{_rank(case_id)[:8]}.npz"
+    return Path(method_folder) / SAMPLES_DIR / protocol / f"{safe}-{sample_rank(case_id)[:8]}.npz"
 
 
 def read_sample(method_folder, protocol: str, case_id: str) -> dict[str, np.ndarray]:

@@ -119,7 +119,7 @@ def test_render_matches_orthographic_projection():
 
 
 @pytest.mark.blender
-def test_render_command_and_contact_sheet(small_zoo, tmp_path):
+def test_render_command_and_contact_sheet(small_zoo, tmp_path, capsys):
     import shutil
 
     from PIL import Image
@@ -133,7 +133,8 @@ def test_render_command_and_contact_sheet(small_zoo, tmp_path):
     arr = np.asarray(Image.open(out).convert("RGB")).astype(float)
     body = (arr < 250).any(axis=2)
     assert 0.03 < body.mean() < 0.9 and arr.std() > 20  # a figure, not a blank or a filled frame
-    assert main(["render", str(small_zoo), "zoo/humanoid-0000", "--motion", "nope", "--out", str(out)]) == 1
+    assert main(["render", str(small_zoo), "zoo/humanoid-0000", "--motion", "nope", "--out", str(out)]) == 2
+    assert "has no motion 'nope'; its motions: walk" in capsys.readouterr().err
 
     data = tmp_path / "zoo"
     shutil.copytree(small_zoo, data)

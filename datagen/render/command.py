@@ -31,6 +31,7 @@ def run(args) -> int:
 
     from datagen.render.character import character_panel
     from datagen.render.render import RenderError, render_sheet
+    from mimicbench.errors import UserError
 
     start = time.perf_counter()
     try:
@@ -41,13 +42,11 @@ def run(args) -> int:
             what = "contact sheet"
         else:
             if not args.character_id:
-                print("render: expected CHARACTER_ID (or --contact-sheet); see `mimicbench render --help`")
-                return 2
+                raise UserError("render: expected CHARACTER_ID (or --contact-sheet); see `mimicbench render --help`")
             panel = character_panel(args.dataset, args.character_id, args.motion, args.frame)
             out = render_sheet([panel], args.out, width=args.size, height=args.size, timeout=args.timeout)
             what = args.character_id
-    except (KeyError, IndexError, ValueError, FileNotFoundError, RenderError) as exc:
-        print(f"render: {exc.args[0] if isinstance(exc, KeyError) else exc}")
-        return 1
+    except (KeyError, IndexError, RenderError) as exc:  # unknown ID, motion or frame; Blender missing or failed
+        raise UserError(f"render: {exc.args[0] if exc.args else exc}") from exc
     print(f"rendered {what} in {time.perf_counter() - start:.1f} s -> {out}")
     return 0
