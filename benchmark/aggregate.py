@@ -16,21 +16,19 @@ matrix per protocol.
 """
 from __future__ import annotations
 
-import importlib
 import json
 from pathlib import Path
 
 import numpy as np
 
+from benchmark.protocols.base import HUMANOID_LIKE
 from benchmark.results import method_versions, read_result_records, read_run_info
 from schemas.result import ResultRecord
 
-HUMANOID_LIKE = ("humanoid", "apparel")
 # Headline metric per protocol, first column present wins: h2h keeps the paper's unit height,
 # cross-category views use the largest extent (a flat snake is a few centimetres tall).
 HEADLINE_PREFERENCE = {"h2h": ("pmd_height", "pmd"), "cct": ("pmd_extent", "pmd")}
 DEFAULT_HEADLINE = ("pmd_extent", "pmd")
-HIGHER_IS_BETTER = ("els", "els_forward", "els_aligned")
 ALL = "all"
 PROTOCOL_ORDER = ("h2h", "cct", "apparel")  # shown in this order, others after them by name
 
@@ -45,21 +43,29 @@ def metric_columns() -> list[str]:
             and c.name != "seconds"]
 
 
-def headline_metric(protocol: str, columns=None) -> str:
-    """The metric a protocol ranks by: the protocol module's ``HEADLINE`` if it declares one,
-    else the first of :data:`HEADLINE_PREFERENCE` present in the results table."""
-    columns = list(columns or metric_columns())
+def _protocol(name: str):
+    """The registered protocol object, or None for a name no longer registered."""
     try:
-        module = importlib.import_module(f"benchmark.protocols.{protocol}")
-        declared = getattr(module, "HEADLINE", None) or getattr(module, "HEADLINE_METRIC", None)
-        if declared in columns:
-            return declared
-    except ImportError:
-        pass
+        from benchmark.protocols import get_protocol
+
+        return get_protocol(name)
+    except ValueError:
+        return None
+
+
+def headline_metric(protocol: str, columns=None) -> str:
+    """The metric a protocol ranks by: ``pmd_<headline>`` for a registered protocol that names its
+    headline normalisation (``height`` or ``extent``), else the first of
+    :data:`HEADLINE_PREFERENCE` present in the results table, else ``pmd``."""
+    columns = list(columns or metric_columns())
+    proto = _protocol(protocol)
+    declared = f"pmd_{proto.headline}" if proto is not None and getattr(proto, "headline", None) else None
+    if declared in columns:
+        return declared
     for name in HEADLINE_PREFERENCE.get(protocol, DEFAULT_HEADLINE):
         if name in columns:
             return name
-    return columns[0]
+    return "pmd" if "pmd" in columns else columns[0]
 
 
 def lower_is_better(metric: str) -> bool:
@@ -160,7 +166,8 @@ def aggregate(results) -> dict:
     Returns:
         ``{"protocols": {protocol: [entry per method version]}, "categories": {protocol: [entry per
         method version and matrix column]}, "matrix": {protocol: {"headline", "lower_is_better",
-        "columns", "rows"}}, "headline": {protocol: metric}, "metrics": [metric columns],
+        "columns", "rows"}}, "headline": {protocol: metric}, "titles": {protocol: what it measures},
+        "metrics": [metric columns],
         "methods": {"method/version": method_info}, "run": run.json}``. Each entry: method,
         version, cases, ok, failed, missing, not_supported, complete, every metric (means; null
         unless complete), seconds_per_case, first_error.
@@ -168,8 +175,8 @@ def aggregate(results) -> dict:
     info = read_run_info(results)
     expected = info.get("protocols", {})
     metrics = metric_columns()
-    out = {"protocols": {}, "categories": {}, "matrix": {}, "headline": {}, "metrics": metrics, "methods": {},
-           "run": info}
+    out = {"protocols": {}, "categories": {}, "matrix": {}, "headline": {}, "titles": {}, "metrics": metrics,
+           "methods": {}, "run": info}
     grouped: dict[str, list] = {}
     for method, version in method_versions(results):
         minfo = method_info(results, method, version)
@@ -196,6 +203,8 @@ def aggregate(results) -> dict:
     for protocol, entries in out["protocols"].items():
         head = headline_metric(protocol, metrics)
         out["headline"][protocol] = head
+        proto = _protocol(protocol)
+        out["titles"][protocol] = getattr(proto, "title", None) or protocol
         sign = 1.0 if lower_is_better(head) else -1.0
         entries.sort(key=lambda e: (e[head] is None, sign * e[head] if e[head] is not None else 0.0, e["method"]))
         order = [(e["method"], e["version"]) for e in entries]

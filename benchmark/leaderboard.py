@@ -22,9 +22,6 @@ from benchmark.aggregate import ALL, aggregate
 from benchmark.provenance import check_results_provenance
 
 FILES_DIR = "leaderboard_files"
-PROTOCOL_TITLES = {"h2h": "h2h: humanoid to humanoid, against ground truth",
-                   "cct": "cct: cross-category cycle, source -> target -> source (scored on the return)",
-                   "apparel": "apparel: motion transfer onto characters with apparel"}
 COUNT_COLUMNS = (("cases", "cases"), ("ok", "ok"), ("failed", "failed"), ("missing", "missing"),
                  ("not_supported", "not supported"))
 STATUS_HEADER = "missing / failed / not supported"
@@ -61,6 +58,11 @@ def _short_fingerprints(fps) -> str:
     return str(fps)[:12]
 
 
+def _title(agg: dict, protocol: str) -> str:
+    title = agg.get("titles", {}).get(protocol)
+    return f"{protocol}: {title}" if title and title != protocol else protocol
+
+
 def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str = FILES_DIR) -> str:
     """The leaderboard as Markdown: per protocol the matrix and the summary; then the methods."""
     lines = []
@@ -69,7 +71,7 @@ def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str 
     for protocol, matrix in agg.get("matrix", {}).items():
         head = matrix["headline"]
         better = "lower is better" if matrix["lower_is_better"] else "higher is better"
-        lines += [f"### {PROTOCOL_TITLES.get(protocol, protocol)}", "",
+        lines += [f"### {_title(agg, protocol)}", "",
                   f"Mean `{head}` per category ({better}); `—`: no average (failed, missing or unsupported cases).", ""]
         cols = matrix["columns"]
         lines.append("| method | " + " | ".join(cols) + f" | {STATUS_HEADER} |")
@@ -136,6 +138,7 @@ def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dic
              "<style>body{font-family:sans-serif;margin:2em;max-width:1600px}table{border-collapse:collapse;"
              "margin:.5em 0 1em}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eee}"
              "td:first-child,th:first-child{text-align:left}td.status{text-align:left;color:#555}"
+             "table.methods td,table.methods th{text-align:left;vertical-align:top}"
              "figure{margin:1em 0}figcaption{font-size:90%;color:#444}img{max-width:100%}"
              "pre{white-space:pre-wrap;margin:0;font-size:85%;text-align:left}</style></head><body>",
              "<h1>mimicbench leaderboard</h1>"]
@@ -155,7 +158,7 @@ def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dic
     for protocol, matrix in agg.get("matrix", {}).items():
         head, cols = matrix["headline"], matrix["columns"]
         better = "lower is better" if matrix["lower_is_better"] else "higher is better"
-        parts.append(f"<section class='protocol' id='{e(protocol)}'><h2>{e(PROTOCOL_TITLES.get(protocol, protocol))}</h2>")
+        parts.append(f"<section class='protocol' id='{e(protocol)}'><h2>{e(_title(agg, protocol))}</h2>")
         parts.append(f"<p>Mean <code>{e(head)}</code> per category ({better}).</p>")
         parts.append("<table class='matrix'><tr><th>method</th>" + "".join(f"<th>{e(c)}</th>" for c in cols)
                      + f"<th>{e(STATUS_HEADER)}</th></tr>")
@@ -255,9 +258,8 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str,
     paths["files"] = files
     md = markdown_tables(agg, strips)
     for protocol in plots:
-        md = md.replace(f"### {PROTOCOL_TITLES.get(protocol, protocol)}\n",
-                        f"### {PROTOCOL_TITLES.get(protocol, protocol)}\n\n![{protocol} per category]"
-                        f"({FILES_DIR}/plot-{protocol}.png)\n", 1)
+        heading = f"### {_title(agg, protocol)}\n"
+        md = md.replace(heading, f"{heading}\n![{protocol} per category]({FILES_DIR}/plot-{protocol}.png)\n", 1)
     paths["md"].write_text("# mimicbench leaderboard\n\n" + (f"_{note}_\n\n" if note else "") + md)
     paths["json"].write_text(json.dumps(agg, indent=2, default=str) + "\n")
     metrics = agg["metrics"]

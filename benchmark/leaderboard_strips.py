@@ -120,7 +120,7 @@ def build_strips(results, agg: dict, per_protocol: int = STRIPS_PER_PROTOCOL) ->
                 items.append(Panel(_posed(tgt, case.target_transforms), tgt.faces,
                                    f"ground truth\n{tgt.character_id}", "ground_truth", frame=f"{cid}/target"))
             returned = [Panel(tgt.vertices, tgt.faces, f"target at rest\n{tgt.character_id}", "rest",
-                              frame=f"{cid}/target")] if cycle else []
+                              frame=f"{cid}/target", reference=True)] if cycle else []
             for method, version in order:
                 sample = read_sample(Path(results) / method / version, protocol, cid)
                 row = scores[(method, version)].get(cid)

@@ -39,21 +39,20 @@ def sample_case_ids(cases: Sequence, k: int = SAMPLES_PER_PROTOCOL) -> list[str]
     """``k`` case IDs of one protocol's cases, a function of the IDs and categories only.
 
     Cases are ranked by the sha256 of their ID; the first of each distinct (source category,
-    target category) pair is taken in rank order, then the rest by rank, so a sample spans
-    category pairs where it can.
+    target category) pair is taken in rank order, then the first of each distinct character pair,
+    then the rest by rank, so a sample spans category pairs, then characters, where it can.
     """
     ranked = sorted(cases, key=lambda c: sample_rank(c.case_id))
-    picked, seen = [], set()
-    for c in ranked:
-        key = (c.source_category, c.target_category)
-        if key not in seen and len(picked) < k:
-            picked.append(c.case_id)
-            seen.add(key)
-    for c in ranked:
-        if len(picked) >= k:
-            break
-        if c.case_id not in picked:
-            picked.append(c.case_id)
+    picked: list[str] = []
+    for key in (lambda c: (c.source_category, c.target_category), lambda c: (c.source_id, c.target_id),
+                lambda c: c.case_id):
+        seen = {key(c) for c in ranked if c.case_id in picked}
+        for c in ranked:
+            if len(picked) >= k:
+                return picked
+            if c.case_id not in picked and key(c) not in seen:
+                picked.append(c.case_id)
+                seen.add(key(c))
     return picked
 
 

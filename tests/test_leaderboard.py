@@ -105,8 +105,8 @@ def test_log_axis_when_one_category_is_far_off():
     assert uses_log_axis([2.0, 3.0, 300.0]) and not uses_log_axis([2.0, 3.0, 9.0]) and not uses_log_axis([0.0, 50.0])
 
 
-def _case(cid, src_cat, tgt_cat, protocol="cct"):
-    return CaseRecord(cid, protocol, "a", "b", "m", 1, np.zeros((1, 7), np.float32), None, src_cat, tgt_cat)
+def _case(cid, src_cat, tgt_cat, protocol="cct", src="a", tgt="b"):
+    return CaseRecord(cid, protocol, src, tgt, "m", 1, np.zeros((1, 7), np.float32), None, src_cat, tgt_cat)
 
 
 def test_sample_ids_are_deterministic_and_span_category_pairs():
@@ -115,6 +115,10 @@ def test_sample_ids_are_deterministic_and_span_category_pairs():
     assert ids == sample_case_ids(list(reversed(cases)), 3)  # order of the list does not matter
     assert len({c.target_category for c in cases if c.case_id in ids}) == 3
     assert sample_case_ids(cases[:2], 3) == sample_case_ids(cases[:2], 5) and len(sample_case_ids(cases[:2], 3)) == 2
+    # one category pair: distinct character pairs come before a second pose of the same pair
+    same = [_case(f"h2h/{s}->{t}/m#{f}", "humanoid", "humanoid", "h2h", s, t) for s in "ab" for t in "abc" if s != t
+            for f in range(10)]
+    assert len({tuple(i.split("/")[1:2]) for i in sample_case_ids(same, 3)}) == 3
 
 
 def test_sample_sink_keeps_both_legs(tmp_path):

@@ -31,6 +31,8 @@ class Panel:
         role: a key of :data:`ROLE_COLOURS`, or any name when ``colour`` is given.
         frame: panels with the same key share one camera (default: the panel's own).
         colour: (3,) RGB in 0..1; default the role's colour.
+        reference: this panel sets its frame's centre and base size (default: the frame's first
+            panel does).
     """
 
     vertices: np.ndarray
@@ -39,6 +41,7 @@ class Panel:
     role: str = "rest"
     frame: str | None = None
     colour: tuple[float, float, float] | None = None
+    reference: bool = False
 
     def __post_init__(self):
         self.vertices = np.asarray(self.vertices, np.float32)

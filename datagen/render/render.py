@@ -39,8 +39,8 @@ def _bbox_centre(v: np.ndarray) -> np.ndarray:
 def frame_panels(panels: Sequence[Panel], width: int, height: int) -> list[tuple[OrthoCamera, str]]:
     """A camera per panel, and a note ("" or why it deviates from its group's frame).
 
-    Panels sharing a ``frame`` key share one scale and one centre, the first member's (the
-    reference, e.g. the ground truth), so a prediction's offset and size read against it. The
+    Panels sharing a ``frame`` key share one scale and one centre, those of the reference (the
+    member marked ``reference``, else the first; e.g. the ground truth or the target at rest), so a prediction's offset and size read against it. The
     shared scale fits the largest member with room to spare, capped at :data:`GROUP_CAP` times
     the reference's, so one exploded prediction does not shrink the others to dots. A member
     that would leave the frame is re-centred on itself (its note gives the offset in metres), and
@@ -51,7 +51,7 @@ def frame_panels(panels: Sequence[Panel], width: int, height: int) -> list[tuple
     out: list = [None] * len(panels)
     for key in dict.fromkeys(keys):
         members = [i for i, k in enumerate(keys) if k == key]
-        ref = members[0]
+        ref = next((i for i in members if panels[i].reference), members[0])
         if len(members) == 1:
             out[ref] = (own[ref], "")
             continue
