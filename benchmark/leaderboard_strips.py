@@ -48,10 +48,12 @@ class Strip:
 
 def find_dataset(results, run_info: dict, methods_info: dict) -> Path | None:
     """The dataset folder the run used: ``run.json``'s or a ``meta.json``'s ``dataset``, as given,
-    or relative to the results folder or its parent; None when none of them holds a manifest."""
+    or relative to the results folder or one of its parents (a run started elsewhere); None when
+    none of them holds a manifest."""
     names = [run_info.get("dataset")] + [m.get("dataset") for m in methods_info.values()]
+    here = Path(results).resolve()
     for name in [n for n in names if isinstance(n, str) and n]:
-        for candidate in (Path(name), Path(results) / name, Path(results).parent / name):
+        for candidate in [Path(name)] + [base / name for base in (here, *here.parents)]:
             if (candidate / "manifest.json").exists():
                 return candidate
     return None

@@ -194,3 +194,15 @@ def test_page_in_a_headless_browser(pictured_board, tmp_path):
     assert ((r - b > 60) & (r > g)).sum() > 1000  # orange predictions drawn by the browser
     assert ((b - r > 40) & (b > g)).sum() > 500  # blue posed sources
     assert ((np.abs(r - g) < 8) & (np.abs(g - b) < 8) & (r > 180) & (r < 240)).sum() > 200  # table header grey
+
+
+def test_run_dataset_found_from_another_folder(tmp_path, monkeypatch):
+    from benchmark.leaderboard_strips import find_dataset
+
+    (tmp_path / "out" / "data").mkdir(parents=True)
+    (tmp_path / "out" / "data" / "manifest.json").write_text("{}")
+    results = tmp_path / "out" / "results"
+    results.mkdir()
+    monkeypatch.chdir(results)  # the run recorded "out/data", relative to tmp_path
+    assert find_dataset(results, {"dataset": "out/data"}, {}) == tmp_path / "out" / "data"
+    assert find_dataset(results, {"dataset": "elsewhere"}, {"m/1": {"dataset": {"not": "a path"}}}) is None
