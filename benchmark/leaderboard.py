@@ -50,12 +50,19 @@ def _md_cell(text) -> str:
     return str(text).replace("|", "\\|")
 
 
-def _short_fingerprints(fps) -> str:
+def _short_fingerprints(fps, prefix: str = "") -> str:
+    """``name digest[:12]`` pairs, nested dicts flattened (``cases.h2h``), nulls left out."""
     if not fps:
         return "—"
-    if isinstance(fps, dict):
-        return ", ".join(f"{k} {str(v)[:12]}" for k, v in sorted(fps.items()))
-    return str(fps)[:12]
+    if not isinstance(fps, dict):
+        return str(fps)[:12]
+    parts = []
+    for k, v in sorted(fps.items()):
+        if isinstance(v, dict):
+            parts.append(_short_fingerprints(v, f"{prefix}{k}."))
+        elif v is not None:
+            parts.append(f"{prefix}{k} {str(v)[:12]}")
+    return ", ".join(p for p in parts if p and p != "—") or "—"
 
 
 def _title(agg: dict, protocol: str) -> str:

@@ -88,14 +88,16 @@ def test_method_info_from_meta_json_then_registry(hand_results):
     assert reg["source"] == "registry" and reg["licence"]
     meta = {"method": {"name": "good", "version": "1", "licence": "Apache-2.0", "citation": "Doe et al. 2025",
                        "description": "a good method"}, "toolkit_version": "0.1.0", "dataset": "nowhere",
-            "fingerprints": {"cases": "ab" * 32}, "created": "2026-11-30T08:00:00Z"}
+            "fingerprints": {"characters": "cd" * 32, "pairs": None, "cases": {"cct": "ab" * 32}},
+            "created": "2026-11-30T08:00:00Z"}
     (hand_results / "good" / "1" / "meta.json").write_text(json.dumps(meta))
     info = method_info(hand_results, "good", "1")
     assert (info["licence"], info["citation"], info["toolkit_version"], info["source"]) == \
         ("Apache-2.0", "Doe et al. 2025", "0.1.0", "meta.json")
     paths = write_leaderboard(hand_results, pictures=False)
     page = paths["html"].read_text()
-    assert "Apache-2.0" in page and "Doe et al. 2025" in page and "cases abababababab" in page
+    assert "Apache-2.0" in page and "Doe et al. 2025" in page
+    assert "cases.cct abababababab, characters cdcdcdcdcdcd" in page and "pairs" not in page.split("Methods")[-1]
     assert re.search(r"<table class='matrix'>", page) and page.count("data:image/png;base64,") == 1  # the plot
     lines = paths["matrix_csv"].read_text().splitlines()
     assert lines[0].startswith("protocol,headline,method") and len(lines) == 1 + 2 * 4
