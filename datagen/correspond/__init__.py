@@ -1,10 +1,12 @@
-"""Text-guided ground-truth correspondences between characters' keypoints (MimiCAT Sec. 3).
+"""Ground-truth correspondences between characters' keypoints (MimiCAT Sec. 3, and beyond).
 
 Bone names are canonicalised (:mod:`.canonical`), embedded with a text encoder
-(:mod:`.encoders`: MiniLM offline by default, CLIP through open_clip), compared by cosine
-similarity S_cos, matched one-to-one by the Hungarian algorithm (M_hung) and softly by Sinkhorn
-(M_sink) in batches (:mod:`.batched`), for sampled or all pairs of each split (:mod:`.sampling`),
-and scored against the zoo's hidden bone roles (:mod:`.report`).
+(:mod:`.encoders`: MiniLM offline by default, CLIP through open_clip) and compared by cosine
+similarity S_cos. The method (:mod:`.methods`) is chosen by name: ``text`` is the paper's
+(S_cos, Hungarian M_hung, Sinkhorn M_sink); ``structure`` (the default) adds what the skeleton
+says (:mod:`.structure`) and a no-match threshold. Matrices are computed in batches
+(:mod:`.batched`) for sampled or all pairs of each split (:mod:`.sampling`), and scored against
+the zoo's hidden bone roles (:mod:`.report`) through the cross-category role map (:mod:`.roles`).
 """
 from __future__ import annotations
 
@@ -15,6 +17,8 @@ _LAZY = {
     "canonicalize_names": "datagen.correspond.canonical",
     "correspond_dataset": "datagen.correspond.stage",
     "correspondence_for_names": "datagen.correspond.stage",
+    "correspondence_for_skeletons": "datagen.correspond.stage",
+    "get_method": "datagen.correspond.methods",
 }
 __all__ = sorted(_LAZY)
 

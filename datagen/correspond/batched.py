@@ -27,7 +27,8 @@ CHUNK = 256
 
 
 def sinkhorn_padded(scores: torch.Tensor, k1: torch.Tensor, k2: torch.Tensor, temperature: float,
-                    tol: float = 2e-5, max_iters: int = 20000, omega: float = 1.5, chunk: int = 256) -> torch.Tensor:
+                    tol: float = 2e-5, max_iters: int = 20000, omega: float = 1.5, chunk: int = 256,
+                    dustbin: float | None = None) -> torch.Tensor:
     """Batched Sinkhorn on padded scores, in the scaling domain with over-relaxation.
 
     Each sweep updates ``u <- u^(1-w) (a / K v)^w`` and ``v <- v^(1-w) (b / K^T u)^w``
@@ -38,21 +39,30 @@ def sinkhorn_padded(scores: torch.Tensor, k1: torch.Tensor, k2: torch.Tensor, te
     kernel and its transpose stay in the CPU cache (the sweeps are memory bound: 256 pairs of
     80 x 80 ran about 2.5x faster per pair than 2048 at once).
 
+    With ``dustbin`` (a score), each pair gets a "no match" row and column of that score
+    (SuperGlue's dustbin): every source bone keeps row mass 1, every target bone takes at most
+    ``max(1, k1/k2)`` (so several source bones may share one target, a 3-bone neck onto a 1-bone
+    neck), and what a bone cannot place above the dustbin's score goes to the dustbin. The
+    dustbin row holds ``max(k1, k2)``, the column ``k1``, so the problem stays balanced; the
+    returned block then has rows summing to at most 1.
+
     Args:
-        scores: (B, P1, P2) similarities in [-1, 1]; entries beyond each pair's (k1, k2) are ignored.
+        scores: (B, P1, P2) scores (cosines, or combined scores of a few units); entries beyond
+            each pair's (k1, k2) are ignored.
         k1, k2: (B,) long valid sizes.
         temperature: T >= 0.01.
+        dustbin: score of the no-match row and column, or None for the plain balanced problem.
 
     Returns:
         (B, P1, P2) of the dtype of ``scores``: the valid block balanced to rows 1 and columns
-        k1/k2; zeros elsewhere.
+        k1/k2 (with a dustbin: rows at most 1, columns at most max(1, k1/k2)); zeros elsewhere.
     """
     if temperature < 0.01:
         raise ValueError(f"temperature: expected >= 0.01 for the scaling-domain solver, got {temperature}")
     if not 1.0 <= omega < 2.0:
         raise ValueError(f"omega: expected 1 <= omega < 2, got {omega}")
     return torch.cat([_sinkhorn_chunk(scores[i:i + chunk], k1[i:i + chunk], k2[i:i + chunk], temperature, tol,
-                                      max_iters, omega) for i in range(0, scores.shape[0], chunk)])
+                                      max_iters, omega, dustbin) for i in range(0, scores.shape[0], chunk)])
 
 
 def _matvec(kernel_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
@@ -64,10 +74,28 @@ def _matvec(kernel_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return torch.bmm(x[:, None, :], kernel_t)[:, 0]
 
 
-def _sinkhorn_chunk(scores, k1, k2, temperature, tol, max_iters, omega):
+def _sinkhorn_chunk(scores, k1, k2, temperature, tol, max_iters, omega, dustbin=None):
     bsz, p1, p2 = scores.shape
     rows = torch.arange(p1)[None, :] < k1[:, None]
     cols = torch.arange(p2)[None, :] < k2[:, None]
+    if dustbin is not None:  # the last row and column of the padded block are the dustbins
+        full = torch.full((bsz, p1 + 1, p2 + 1), float(dustbin), dtype=scores.dtype)
+        full[:, :p1, :p2] = scores
+        yes = torch.ones((bsz, 1), dtype=torch.bool)
+        rows, cols = torch.cat([rows, yes], 1), torch.cat([cols, yes], 1)
+        f1, f2 = k1.to(scores.dtype), k2.to(scores.dtype)
+        a = torch.cat([rows[:, :p1].to(scores.dtype), torch.maximum(f1, f2)[:, None]], 1)
+        b = torch.cat([cols[:, :p2].to(scores.dtype) * torch.clamp(f1 / f2, min=1.0)[:, None], f1[:, None]], 1)
+        out = _balance(full, rows, cols, a, b, temperature, tol, max_iters, omega)
+        return out[:, :p1, :p2]
+    a = rows.to(scores.dtype)
+    b = cols.to(scores.dtype) * (k1.to(scores.dtype) / k2.to(scores.dtype))[:, None]
+    return _balance(scores, rows, cols, a, b, temperature, tol, max_iters, omega)
+
+
+def _balance(scores, rows, cols, a, b, temperature, tol, max_iters, omega):
+    """Scaling-domain Sinkhorn of exp(scores / T) on the valid block to row sums a, column sums b."""
+    bsz = scores.shape[0]
     zero = torch.zeros((), dtype=scores.dtype)
     valid = rows[:, :, None] & cols[:, None, :]
     low = torch.tensor(-torch.inf, dtype=scores.dtype)
@@ -75,8 +103,6 @@ def _sinkhorn_chunk(scores, k1, k2, temperature, tol, max_iters, omega):
     logits = logits - logits.amax(dim=2, keepdim=True).clamp_min(-1e30)  # rows (padded rows stay -inf)
     logits = logits - logits.amax(dim=1, keepdim=True).clamp_min(-1e30)  # then columns
     kernel = torch.where(valid, torch.exp(logits), zero)
-    a = rows.to(scores.dtype)
-    b = cols.to(scores.dtype) * (k1.to(scores.dtype) / k2.to(scores.dtype))[:, None]
     u, v = a.clone(), b.clone()
     active = torch.arange(bsz)
     k_act, kt_act = kernel, kernel.transpose(1, 2).contiguous()
@@ -108,21 +134,40 @@ def _sinkhorn_chunk(scores, k1, k2, temperature, tol, max_iters, omega):
 
 
 def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray],
-                         temperature: float = DEFAULT_TEMPERATURE,
-                         chunk: int = CHUNK) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """(S_cos (K1, K2) float32, hungarian pairs (min(K1, K2), 2) int32, M_sink (K1, K2) float32) per pair.
+                         temperature: float = DEFAULT_TEMPERATURE, chunk: int = CHUNK,
+                         feat_a: Sequence[np.ndarray] | None = None, feat_b: Sequence[np.ndarray] | None = None,
+                         feature_weights: Sequence[float] | None = None, text_weight: float = 1.0,
+                         no_match: float | None = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(S_cos (K1, K2) float32, hungarian pairs (P, 2) int32, M_sink (K1, K2) float32) per pair.
+
+    The matching score is ``S = text_weight * S_cos - sum_f w_f (f_a - f_b)^2`` over per-bone
+    features f (structure features, :mod:`.structure`; none for the text-only method, S = S_cos).
+    Without ``no_match`` the Hungarian matching fills min(K1, K2) slots and Sinkhorn balances
+    exp(S / T) to rows 1 and columns K1/K2 (the paper's method). With ``no_match`` = tau, only
+    pairs with S > tau are matched (the Hungarian maximises the sum of S - tau over matched
+    pairs, so P <= min(K1, K2)), and Sinkhorn gets a dustbin of score tau (see
+    :func:`sinkhorn_padded`): bones without a counterpart keep their mass there.
 
     Args:
         emb_a, emb_b: per pair the unit-row embeddings of the source (K1, d) and target (K2, d).
         temperature: Sinkhorn temperature T.
         chunk: pairs computed together; small enough that a chunk's padded arrays stay in cache
             and are reused by the allocator (large fresh tensors cost page faults).
+        feat_a, feat_b: per pair (K1, F) and (K2, F) float32 features, or None.
+        feature_weights: (F,) weights w_f >= 0.
+        text_weight: weight of S_cos in S.
+        no_match: threshold tau on S below which a bone stays unmatched, or None.
     """
     if len(emb_a) != len(emb_b):
         raise ValueError(f"emb_a, emb_b: expected equal lengths, got {len(emb_a)} and {len(emb_b)}")
+    if (feat_a is None) != (feat_b is None) or (feat_a is not None and feature_weights is None):
+        raise ValueError("feat_a, feat_b, feature_weights: expected all three or none")
     out = []
     for i in range(0, len(emb_a), chunk):
-        out.extend(_correspondence_chunk(emb_a[i:i + chunk], emb_b[i:i + chunk], temperature))
+        fa = None if feat_a is None else feat_a[i:i + chunk]
+        fb = None if feat_b is None else feat_b[i:i + chunk]
+        out.extend(_correspondence_chunk(emb_a[i:i + chunk], emb_b[i:i + chunk], temperature, fa, fb,
+                                         feature_weights, text_weight, no_match))
     return out
 
 
@@ -137,26 +182,66 @@ def _padded(embeddings: Sequence[np.ndarray]) -> np.ndarray:
     return out
 
 
-def _correspondence_chunk(emb_a, emb_b, temperature):
+def feature_penalty(fa: torch.Tensor, fb: torch.Tensor, weights: Sequence[float]) -> torch.Tensor:
+    """(B, P1, P2) ``sum_f w_f (fa_f - fb_f)^2`` for fa (B, P1, F) and fb (B, P2, F), as one bmm.
+
+    Expanded as ``w a^2 + w b^2 - 2 w a b``: one product of (F + 2)-wide rows, so the structure
+    terms cost a small fraction of the cosine product.
+    """
+    w = torch.as_tensor(np.asarray(weights, np.float32))
+    if w.shape != (fa.shape[-1],):
+        raise ValueError(f"feature_weights: expected {fa.shape[-1]} weights, got {tuple(w.shape)}")
+    one_a, one_b = torch.ones_like(fa[..., :1]), torch.ones_like(fb[..., :1])
+    left = torch.cat([-2 * w * fa, (w * fa * fa).sum(-1, keepdim=True), one_a], -1)
+    right = torch.cat([fb, one_b, (w * fb * fb).sum(-1, keepdim=True)], -1)
+    return torch.bmm(left, right.transpose(1, 2)).clamp_(min=0.0)
+
+
+def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, weights=None, text_weight=1.0,
+                          no_match=None):
     n = len(emb_a)
     if n == 0:
         return []
     k1 = torch.tensor([len(e) for e in emb_a])
     k2 = torch.tensor([len(e) for e in emb_b])
     pa, pb = torch.from_numpy(_padded(emb_a)), torch.from_numpy(_padded(emb_b))
-    scores = torch.bmm(pa, pb.transpose(1, 2)).clamp_(-1.0, 1.0)
-    if not torch.isfinite(scores).all():
+    cosines = torch.bmm(pa, pb.transpose(1, 2)).clamp_(-1.0, 1.0)
+    if not torch.isfinite(cosines).all():
         raise ValueError("emb_a, emb_b: expected finite embeddings, got NaN or inf")
-    sink = sinkhorn_padded(scores, k1, k2, temperature, chunk=n)
-    row_error = (sink.sum(dim=2) - (torch.arange(sink.shape[1])[None, :] < k1[:, None]).to(sink.dtype)).abs().max().item()
+    scores = cosines
+    if feat_a is not None:
+        fa, fb = torch.from_numpy(_padded(feat_a)), torch.from_numpy(_padded(feat_b))
+        if not (torch.isfinite(fa).all() and torch.isfinite(fb).all()):
+            raise ValueError("feat_a, feat_b: expected finite features, got NaN or inf")
+        scores = text_weight * cosines - feature_penalty(fa, fb, weights)
+    sink = sinkhorn_padded(scores, k1, k2, temperature, chunk=n, dustbin=no_match)
+    want_rows = (torch.arange(sink.shape[1])[None, :] < k1[:, None]).to(sink.dtype)
+    row_sums = sink.sum(dim=2)
+    row_error = ((row_sums - want_rows) if no_match is None else (row_sums - want_rows).clamp(min=0)).abs().max().item()
     if not row_error <= 1e-4:  # also catches NaN
         raise RuntimeError(f"Sinkhorn did not converge (row marginal error {row_error:.1e}); "
                            f"use a higher temperature than {temperature}")
-    sink = sink.numpy()
-    scores = scores.numpy()
+    sink, cosines, scores = sink.numpy(), cosines.numpy(), scores.numpy()
     out = []
     for i in range(n):
-        s = scores[i, : k1[i], : k2[i]]
-        r, c = linear_sum_assignment(s, maximize=True)
-        out.append((s.copy(), np.stack([r, c], 1).astype(np.int32), sink[i, : k1[i], : k2[i]].copy()))
+        c = cosines[i, : k1[i], : k2[i]]
+        out.append((c.copy(), hungarian_pairs(scores[i, : k1[i], : k2[i]], no_match), sink[i, : k1[i], : k2[i]].copy()))
     return out
+
+
+def hungarian_pairs(scores: np.ndarray, no_match: float | None = None) -> np.ndarray:
+    """(P, 2) int32 (row, column) pairs of the best one-to-one matching of a (K1, K2) score matrix.
+
+    Without ``no_match`` every row or column is matched (P = min(K1, K2)). With it, the matching
+    maximises the sum of ``S - no_match`` over matched pairs and keeps only pairs above it: the
+    Hungarian on ``max(S - tau, 0)`` then dropping the zero-gain pairs gives exactly that (a
+    partial matching extends to a full one with zero-gain pairs, and back).
+    """
+    if no_match is None:
+        r, c = linear_sum_assignment(scores, maximize=True)
+    else:
+        gain = np.maximum(scores - no_match, 0.0)
+        r, c = linear_sum_assignment(gain, maximize=True)
+        keep = gain[r, c] > 0
+        r, c = r[keep], c[keep]
+    return np.stack([r, c], 1).astype(np.int32)

@@ -1,4 +1,4 @@
-"""``mimicbench datagen correspond DATASET``: text-guided correspondences into ``pairs/``."""
+"""``mimicbench datagen correspond DATASET``: ground-truth correspondences into ``pairs/``."""
 from __future__ import annotations
 
 import argparse
@@ -8,12 +8,23 @@ from mimicbench.argtypes import nonnegative_int, positive_float, positive_int
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "correspond", help="bone-name correspondences (S_cos, Hungarian, Sinkhorn) into pairs/",
+        "correspond", help="bone correspondences (S_cos, Hungarian, Sinkhorn) into pairs/",
         description="Canonicalise bone names, embed them with a text encoder (MiniLM offline by default, or "
-        "CLIP via open_clip), and write per character pair the cosine matrix S_cos, the Hungarian one-to-one "
-        "matching and the Sinkhorn soft matching of exp(S_cos/T) into DATASET/pairs/. On the zoo, prints how "
-        "often matched bones share their hidden role. Examples:\n"
+        "CLIP via open_clip), and write per character pair the cosine matrix S_cos, the Hungarian matching "
+        "M_hung and the Sinkhorn soft matching M_sink into DATASET/pairs/.\n\n"
+        "Methods (--method):\n"
+        "  structure  (default) S_cos combined with the skeleton: sides kept, position along each chain, depth "
+        "from the root,\n"
+        "             limb vs trunk vs neck vs head vs tail, where a limb attaches (arm ~ front leg ~ wing), rest "
+        "positions in\n"
+        "             a body frame. Bones scoring at most --no-match (0.45) stay unmatched; M_sink has a "
+        "no-match dustbin.\n"
+        "  text       the paper's method (MimiCAT / PokeAnimDB): S_cos only, every slot matched, M_sink balanced "
+        "to rows 1.\n"
+        "Each pair records its method and weights. On the zoo, prints how often matched bones share their "
+        "hidden role\n(per category pair; report in DATASET/correspond_report.json). Examples:\n"
         "  mimicbench datagen correspond data/zoo --all-pairs\n"
+        "  mimicbench datagen correspond data/zoo --pairs 20000 --method text\n"
         "  mimicbench datagen correspond data/zoo --pairs 20000 --encoder clip --clip-pretrained ~/ckpt/clip.pt",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("dataset")
@@ -21,6 +32,10 @@ def register(subparsers) -> None:
     g.add_argument("--pairs", type=positive_int, default=None,
                    help="ordered pairs to sample per split, >= 1 (default: all)")
     g.add_argument("--all-pairs", action="store_true", help="every ordered pair within each split")
+    p.add_argument("--method", choices=("structure", "text"), default="structure",
+                   help="structure (default: text and skeleton) or text (the paper's S_cos-only method)")
+    p.add_argument("--no-match", type=float, default=None,
+                   help="structure method: score at or below which a bone stays unmatched (default 0.45)")
     p.add_argument("--encoder", choices=("minilm", "clip"), default="minilm")
     p.add_argument("--clip-model", default="ViT-B-32", help="open_clip model name (default ViT-B-32)")
     p.add_argument("--clip-pretrained", default=None,
@@ -33,12 +48,11 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from datagen.correspond.batched import DEFAULT_TEMPERATURE
     from datagen.correspond.stage import correspond_dataset
 
-    summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder,
-                                 DEFAULT_TEMPERATURE if args.temperature is None else args.temperature, args.seed, args.clip_model,
-                                 args.clip_pretrained, progress=not args.quiet)
-    print(f"pairs written: {summary['pairs']} with {summary['encoder']} in {summary['seconds']:.1f} s "
-          f"(report: {args.dataset}/correspond_report.json)")
+    summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder, args.temperature, args.seed,
+                                 args.clip_model, args.clip_pretrained, progress=not args.quiet, method=args.method,
+                                 no_match=args.no_match)
+    print(f"pairs written: {summary['pairs']} with {summary['encoder']}, method {summary['method']}, in "
+          f"{summary['seconds']:.1f} s (report: {args.dataset}/correspond_report.json)")
     return 0
