@@ -1,10 +1,13 @@
 """Humanoid bone roles from bone names, through the correspondence stage's canonical names.
 
-A bone's canonical name (``datagen.correspond.canonical``: ``mixamorig:LeftArm`` -> ``left upper
-arm``, MMD's ``左腕`` -> ``left arm``, CMU's ``LeftLeg`` beside ``LeftUpLeg`` -> ``left shin``) is
-looked up in a table of the names each role goes by across conventions; roles use the zoo's
-vocabulary (``hips``, ``spine/1``, ``left/upper_arm``, ...). The first bone (parents first) that
-takes a role keeps it.
+A bone's canonical name (``datagen.correspond.canonical``: ``mixamorig:LeftForeArm`` -> ``left lower
+arm``, MMD's ``左腕`` -> ``left arm``, CMU's ``LeftUpLeg`` -> ``left upper leg``) is looked up in a
+table of the names each role goes by across conventions; roles use the zoo's vocabulary (``hips``,
+``spine/1``, ``left/upper_arm``, ...). The first bone (parents first) that takes a role keeps it.
+Canonical names say no chain position (``Spine``, ``Spine1`` stay ``spine``, ``spine 1``, as
+written), so spine bones take spine/1, spine/2, ... in parents-first order (the first is the hips
+when no bone is called hips or pelvis, Rigify's convention), and a bare ``arm`` or
+``leg`` whose upper segment is taken is the lower one (Mixamo's ``LeftLeg`` below ``LeftUpLeg``).
 """
 from __future__ import annotations
 
@@ -20,10 +23,10 @@ ROLE_NAMES = {
     "head": ("head",),
     "shoulder": ("shoulder",),
     "upper_arm": ("upper arm", "arm"),
-    "forearm": ("forearm", "elbow"),
+    "forearm": ("lower arm", "forearm", "elbow"),
     "hand": ("hand", "wrist"),
-    "thigh": ("thigh", "leg"),
-    "shin": ("shin", "knee"),
+    "thigh": ("upper leg", "thigh", "leg"),
+    "shin": ("lower leg", "shin", "knee"),
     "foot": ("foot", "ankle"),
     "toe": ("toe",),
 }
@@ -55,8 +58,15 @@ def humanoid_roles(bone_names: Sequence[str]) -> dict[str, int]:
     from datagen.correspond.canonical import canonicalize_names
 
     out: dict[str, int] = {}
-    for i, c in enumerate(canonicalize_names(list(bone_names))):
+    canon = canonicalize_names(list(bone_names))
+    spines = 0 if any(role_of(c) == "hips" for c in canon) else -1  # Rigify: a chain called spine starts at the hips
+    for i, c in enumerate(canon):
         role = role_of(c)
+        if role in ("spine/1", "spine/2", "spine/3") and c.split(" ")[0] in ("spine", "upper"):
+            spines += 1
+            role = ("hips" if spines == 0 else f"spine/{spines}") if spines <= 3 else None
+        elif role is not None and role in out and role.endswith(("/upper_arm", "/thigh")):
+            role = role.replace("upper_arm", "forearm").replace("thigh", "shin")
         if role is not None and role not in out:
             out[role] = i
     return out
