@@ -125,6 +125,17 @@ def import_path(method) -> str | None:
     return f"{module}:{qualname}" if obj is cls else None
 
 
+def _poll(conn, timeout: float) -> bool:
+    """``conn.poll(timeout)`` for any timeout (one poll may wait at most about 24 days)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        remaining = deadline - time.monotonic()
+        if conn.poll(max(0.0, min(remaining, 3600.0))):
+            return True
+        if remaining <= 3600.0:
+            return False
+
+
 def _signal_name(number: int) -> str:
     try:
         return signal.Signals(number).name
@@ -197,7 +208,7 @@ class WorkerRunner:
     def _receive(self, timeout: float):
         """(message, None), or (None, reason) when the worker timed out or died (it is then gone)."""
         try:
-            ready = self.conn.poll(timeout)
+            ready = _poll(self.conn, timeout)
         except (EOFError, OSError):
             return None, self._died()
         if not ready:

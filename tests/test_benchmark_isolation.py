@@ -177,3 +177,17 @@ def test_run_options_are_range_checked(bench_data, tmp_path, kwargs, message):
     with pytest.raises(ValueError, match=message):
         run_benchmark(bench_data, protocols=["h2h"], out=tmp_path / "r", progress=False, **args)
     assert not (tmp_path / "r").exists()
+
+
+def test_a_case_timeout_beyond_what_one_poll_can_wait_works(bench_data):
+    """select/poll take at most about 24 days; --case-timeout has no upper bound."""
+    chars = load_characters(bench_data)
+    c = read_records(bench_data, "cases", "h2h")[0]
+    req = TransferRequest(chars[c.source_id].rig, chars[c.source_id].rig.vertices, chars[c.target_id].rig, c.case_id)
+    runner = WorkerRunner(HostileMethod(), import_path(HostileMethod()), case_timeout=1e12)
+    try:
+        outcome = runner.run_batch([req])
+    finally:
+        runner.close()
+    assert outcome.error is None
+    np.testing.assert_array_equal(outcome.outputs[0], chars[c.target_id].rig.vertices)
