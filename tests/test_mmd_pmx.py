@@ -41,7 +41,7 @@ def test_gene_counts_match_licenses_md(gene):
 
 
 def test_gene_agrees_with_pymeshio_field_by_field(gene, gene_path):
-    reader = pytest.importorskip("pymeshio.pmx.reader")  # the `mmd` extra installs it
+    import pymeshio.pmx.reader as reader  # the second parser (the `mmd` extra)
     ref = reader.read(io.BytesIO(gene_path.read_bytes()))
     v3 = lambda v: [v.x, v.y, v.z]  # noqa: E731
     for b, rb in zip(gene.bones, ref.bones):
@@ -145,7 +145,7 @@ def test_spec_fixture_pmd_agrees_with_pymeshio():
     # PMD body positions are offsets from the bone; bone -1 means bone 0 (at y=10), not the origin
     np.testing.assert_allclose(m.rigid_bodies[0].position, [0, 11, 0])
     np.testing.assert_allclose(m.rigid_bodies[1].position, [1, 4, 0])
-    reader = pytest.importorskip("pymeshio.pmd.reader")
+    import pymeshio.pmd.reader as reader
     ref = reader.read(io.BytesIO(pmd_bytes()))
     assert len(ref.vertices) == len(m.positions) and len(ref.rigidbodies) == 2 and len(ref.joints) == 1
     assert [r.shape_position.y for r in ref.rigidbodies] == [1.0, -1.0]  # stored offsets, as our reader assumed
@@ -216,3 +216,14 @@ def test_fuzz_gene_only_named_errors(gene_path):
     out = _fuzz(data, parse_pmx, rng, 6, region=(len(data) - 40000, len(data)))
     out += _fuzz(data[:60000], parse_pmx, rng, 4, region=(0, 2000))
     assert out["error"] >= 4
+
+
+def test_english_names_without_the_dictionary(monkeypatch):
+    import sys
+
+    from datagen.mmd.names import english_name
+
+    assert english_name("左ひざ") == ("knee_L", "standard")
+    monkeypatch.setitem(sys.modules, "mmd_bone_tools.translate", None)  # not installed
+    assert english_name("左ひざ", "knee_L") == ("knee_L", "no-dictionary")
+    assert english_name("髪") == ("髪", "no-dictionary")
