@@ -77,3 +77,19 @@ def test_cli_motions_folder_plays_on_every_model(tmp_path):
     assert motions == ["assets/a/hop", "assets/b/hop"]
     assert main(["datagen", "ingest", str(tmp_path / "models" / "a.pmx"), "--out", str(out), "--motions",
                  str(tmp_path / "nowhere"), "--quiet"]) == 2
+
+
+def test_second_run_keeps_earlier_physics_and_status(tmp_path):
+    (tmp_path / "a.pmx").write_bytes(pmx_bytes())
+    (tmp_path / "a_hop.vmd").write_bytes(vmd_bytes([("センター", 0, (0, 0, 0), (0, 0, 0, 1), {})]))
+    (tmp_path / "b.pmx").write_bytes(pmx_bytes(encoding=1))
+    out = tmp_path / "ds"
+    ingest_assets([tmp_path / "a.pmx"], out, progress=False)
+    ingest_assets([tmp_path / "b.pmx"], out, progress=False)
+    ingest_assets([tmp_path / "a.pmx"], out, progress=False)  # again: replaces a's rows, keeps b's
+    assert sorted(c.character_id for c in read_records(out, "characters")) == ["assets/a", "assets/b"]
+    bodies = sorted(b.character_id for b in read_records(out, "rigid_bodies"))
+    assert bodies == ["assets/a", "assets/a", "assets/b", "assets/b"]
+    assert len(read_records(out, "joints")) == 2
+    assets = sorted(s.asset.rsplit("/", 1)[-1] for s in read_records(out, "status"))
+    assert assets == ["a.pmx", "a_hop.vmd", "b.pmx"]

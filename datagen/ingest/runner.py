@@ -318,7 +318,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     new_ids = {c.character_id for c in chars}
     chars = [c for c in old_chars if c.character_id not in new_ids] + chars
     motions = [m for m in old_motions if m.character_id not in new_ids] + motions
-    this_run = {str(a) for a in assets} | {str(a) for a in mmd_assets}
+    this_run = {str(a) for a in assets} | {str(a) for a in mmd_assets} | {s.asset for s in mmd.statuses}
     statuses = [s for s in old_status if s.asset.split("#")[0] not in this_run] + statuses
     config = {"stage": "ingest", "timeout": timeout, "category_map": opts.category_map, "bvh_scale": bvh_scale,
               "allow_external_uris": allow_external_uris, "split": split, "split_file": split_file,

@@ -127,14 +127,23 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
 
 
 def _write_physics(out_dir, out: MMDIngest) -> None:
-    from schemas.shards import write_records
+    """Write this run's rigid bodies and joints, keeping the rows of characters that earlier runs
+    ingested into the same dataset (ingest merges characters across runs)."""
+    from schemas.manifest import MANIFEST
+    from schemas.shards import has_table, read_records, splits_of, write_records
 
     split = {c.character_id: c.split for c in out.characters}
-    for split_name in sorted(set(split.values())):
-        write_records(out_dir, "rigid_bodies", [r for r in out.rigid_bodies if split[r.character_id] == split_name],
-                      split_name, rows_per_shard=100000, config={"stage": "ingest", "source": "mmd"})
-        write_records(out_dir, "joints", [j for j in out.joints if split[j.character_id] == split_name],
-                      split_name, rows_per_shard=100000, config={"stage": "ingest", "source": "mmd"})
+    config = {"stage": "ingest", "source": "mmd"}
+    for table, rows in (("rigid_bodies", out.rigid_bodies), ("joints", out.joints)):
+        by_split: dict[str, list] = {}
+        if (Path(out_dir) / MANIFEST).exists() and has_table(out_dir, table, allow_incomplete=True):
+            for sp in splits_of(out_dir, table, allow_incomplete=True):
+                by_split[sp] = [r for r in read_records(out_dir, table, sp, allow_incomplete=True)
+                                if r.character_id not in split]
+        for r in rows:
+            by_split.setdefault(split[r.character_id], []).append(r)
+        for sp in sorted(set(by_split) | set(split.values())):
+            write_records(out_dir, table, by_split.get(sp, []), sp, rows_per_shard=100000, config=config)
 
 
 def _reason(e: Exception, path: Path) -> str:
