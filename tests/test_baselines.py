@@ -21,7 +21,7 @@ def scored(small_zoo, tmp_path_factory):
 
 
 def rows_of(results, name):
-    version = {"identity": "1", "name_copy": "3", "nearest_joint": "3"}.get(name, "2")
+    version = {"identity": "1"}.get(name, "3")
     return read_result_records(method_dir(results, name, version))
 
 
