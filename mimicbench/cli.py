@@ -32,13 +32,15 @@ COMMAND_MODULES = (
     ("datagen", "datagen.correspond.command"),
     ("datagen", "datagen.ingest.command"),
     ("datagen", "datagen.retarget.command"),
+    ("datagen", "datagen.apparel.command"),
     (None, "benchmark.command"),
     (None, "benchmark.demo"),
     (None, "datagen.render.command"),
 )
 
 GROUP_HELP = {
-    "datagen": "dataset stages: ingest real assets, resample meshes, compute correspondences, retarget clips",
+    "datagen": "dataset stages: ingest real assets, resample meshes, compute correspondences, retarget clips, "
+               "simulate apparel",
 }
 
 DESCRIPTION = """\
@@ -51,6 +53,7 @@ Typical flow:
   mimicbench datagen retarget data/mine data/mmd data/out   humanoid clips onto other humanoids
   mimicbench datagen resample data/zoo data/zoo5k   5,000-face meshes, weights re-skinned
   mimicbench datagen correspond data/zoo5k          bone-name correspondences (pairs/)
+  mimicbench datagen apparel data/zoo data/zoo_sim   apparel chains simulated with Bullet (<clip>@sim)
   mimicbench bench cases data/zoo5k                 benchmark cases (cases/)
   mimicbench bench run data/zoo5k --methods identity,name_copy --out results
   mimicbench bench leaderboard results              Markdown, CSV, JSON and HTML

@@ -1,0 +1,20 @@
+"""Apparel physics: apparel bone chains simulated with Bullet (pybullet) while the body follows a clip.
+
+``mimicbench datagen apparel IN OUT`` writes, beside every kinematic clip of a character with
+apparel bones, a simulated clip ``<clip>@sim`` whose apparel bones come from the simulation and
+whose body bones are untouched, so linear blend skinning of the stored transforms gives the
+simulated mesh. Modules, one concept each:
+
+- ``chain_spec``: the physics description of a character (links, joints, collision groups);
+  built from zoo defaults here, from PMX rigid bodies and joints later.
+- ``params``: per-kind parameters with defaults and the JSON override file.
+- ``selection``: apparel bones from ``--apparel-bones`` globs; the vertex mask from the weights.
+- ``body_shapes``: kinematic convex collision pieces per body bone, from the vertices it owns.
+- ``chains``: apparel chains (links sized from bone lengths and driven vertices) from a character.
+- ``urdf``: a chain as a small URDF (spherical joints with swing/twist limits, capsules).
+- ``world``: the pybullet world of one character (body pieces, chains, motors, moved anchors).
+- ``relax``: the blend-in frames from rest into the clip's first pose.
+- ``simulate``: one clip through the world, frame by frame, with the explosion check.
+- ``quality``: per-clip quality (penetration, stretch, jitter, secondary motion).
+- ``stage`` and ``command``: the dataset stage with status rows and resume, and its CLI.
+"""

@@ -1,0 +1,80 @@
+"""The physics description of a character's apparel: chains of links joined by spherical joints.
+
+This is the stage's internal contract, independent of where the numbers come from: the zoo
+defaults (:mod:`datagen.apparel.chains` with :mod:`datagen.apparel.params`) fill it today, and a
+PMX file's rigid bodies and joints can fill it per character later (an MMD rigid body is a link,
+an MMD joint a :class:`JointSpec`, its collision group and mask the chain's or link's bits).
+
+Geometry is given at rest in the dataset frame: each link's head (the posed keypoint t_k in the
+simulation) and its axis; the simulation's link frames have Z along the axis (see
+:mod:`datagen.apparel.urdf`). Units: metres, kilograms, radians.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class LinkSpec:
+    """One dynamic link: a capsule along ``axis`` from the bone head, driving bone ``bone``.
+
+    ``head`` (3,) rest position of the bone head (the joint to the parent link), metres;
+    ``axis`` (3,) unit direction of the capsule at rest; ``length`` the capsule's cylinder length
+    (head to tail), ``radius`` its radius, metres; ``mass`` kg; ``linear_damping`` and
+    ``angular_damping`` Bullet's per-link velocity damping (0..1 per second).
+    """
+
+    bone: int
+    head: np.ndarray
+    axis: np.ndarray
+    length: float
+    radius: float
+    mass: float
+    linear_damping: float = 0.04
+    angular_damping: float = 0.1
+    friction: float = 0.3
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """The spherical joint between a link and its parent (the anchor for the chain's first link).
+
+    ``swing_limit`` and ``twist_limit`` (radians) bound the rotation from rest; the position
+    motor pulls toward rest with ``stiffness`` (Bullet's position gain, 0..1 of the error a step),
+    ``damping`` (velocity gain) and at most ``max_torque`` N m per axis.
+    """
+
+    swing_limit: float
+    twist_limit: float
+    stiffness: float
+    damping: float
+    max_torque: float
+
+
+@dataclass(frozen=True)
+class ChainSpec:
+    """One apparel chain (a tree of apparel bones hanging from one body bone).
+
+    ``links`` in topological order, ``link_parents[i]`` the index of link i's parent link or -1
+    for a link on the anchor; ``joints[i]`` joins link i to its parent. ``anchor_bone`` is the
+    body bone the chain hangs from (-1: the world). ``collision_group`` and ``collision_mask``
+    are bit sets as in MMD (a set mask bit means "collides with that group"); the body is group
+    bit 0.
+    """
+
+    name: str
+    kind: str
+    anchor_bone: int
+    links: tuple[LinkSpec, ...]
+    link_parents: tuple[int, ...]
+    joints: tuple[JointSpec, ...]
+    collision_group: int = 0b10
+    collision_mask: int = 0b01
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def bones(self) -> list[int]:
+        """The bone index of each link, in link order."""
+        return [link.bone for link in self.links]

@@ -1,0 +1,112 @@
+"""Apparel chains of a character, with links sized from bone lengths and the vertices they drive.
+
+A chain is a tree of apparel bones whose root's parent is a body bone (its anchor). Each apparel
+bone is one capsule link: from its head toward its first apparel child's head (a leaf bone
+continues its parent's direction, as far as its own vertices reach), with a radius from the
+distance of its driven vertices to that segment. Joint and link physics come from the chain's
+kind (:mod:`datagen.apparel.params`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+from datagen.apparel.params import ApparelParams
+from datagen.apparel.selection import bone_kind
+
+
+def chain_roots(parents: np.ndarray, apparel: np.ndarray) -> list[int]:
+    """Apparel bones whose parent is a body bone or none, in bone order."""
+    return [k for k in range(len(parents)) if apparel[k] and (parents[k] < 0 or not apparel[parents[k]])]
+
+
+def _subtree(root: int, parents: np.ndarray, apparel: np.ndarray) -> list[int]:
+    members = {root}
+    for k in range(root + 1, len(parents)):  # parents[k] < k: one pass in bone order
+        if apparel[k] and parents[k] in members:
+            members.add(k)
+    return sorted(members)
+
+
+def _segment_distance(points: np.ndarray, head: np.ndarray, axis: np.ndarray, length: float) -> np.ndarray:
+    s = np.clip((points - head) @ axis, 0.0, length)
+    return np.linalg.norm(points - head - s[:, None] * axis, axis=1)
+
+
+def _link_geometry(k: int, bones: list[int], parents, keypoints, vertices, owner, height: float):
+    """(axis, length, spread) of bone k's capsule; spread = 75th percentile vertex distance."""
+    head = keypoints[k]
+    children = [c for c in bones if parents[c] == k]
+    own = vertices[owner == k]
+    if children:
+        tail = keypoints[children[0]]
+        axis = tail - head
+        length = float(np.linalg.norm(axis))
+    else:
+        p = parents[k]
+        axis = head - keypoints[p] if p >= 0 else (own.mean(0) - head if len(own) else np.array([0.0, -1.0, 0.0]))
+        axis_n = axis / max(np.linalg.norm(axis), 1e-9)
+        reach = float(((own - head) @ axis_n).max()) if len(own) else 0.0
+        length = reach if reach > 0 else float(np.linalg.norm(axis))
+    if np.linalg.norm(axis) < 1e-9 or length < 1e-4:
+        axis, length = np.array([0.0, -1.0, 0.0]), 0.02 * height
+    axis = axis / np.linalg.norm(axis)
+    spread = float(np.percentile(_segment_distance(own, head, axis, length), 75)) if len(own) else 0.01 * height
+    return axis, length, max(spread, 0.002 * height)
+
+
+def _gravity_torque(i: int, link_parents: list[int], heads, centres, masses, gravity: float) -> float:
+    """Torque (N m) the links at and below link i exert about its joint when held horizontally."""
+    below = {i}
+    for j in range(i + 1, len(link_parents)):
+        if link_parents[j] in below:
+            below.add(j)
+    return gravity * sum(masses[j] * np.linalg.norm(centres[j] - heads[i]) for j in below)
+
+
+def build_chains(keypoints: np.ndarray, parents: np.ndarray, bone_names: list[str], roles: list[str] | None,
+                 vertices: np.ndarray, owner: np.ndarray, apparel: np.ndarray, params: ApparelParams,
+                 height: float) -> list[ChainSpec]:
+    """The :class:`ChainSpec` of every apparel chain.
+
+    Args:
+        keypoints: (K, 3) rest joint heads, metres. parents: (K,) int.
+        bone_names: K names; roles: K roles or None (the kind comes from either).
+        vertices: (N, 3) rest vertices; owner: (N,) dominant bone of each vertex.
+        apparel: (K,) bool apparel bones.
+        params: chain parameters per kind.
+        height: the character's height (metres), for fallback sizes.
+    """
+    keypoints = np.asarray(keypoints, np.float64)
+    vertices = np.asarray(vertices, np.float64)
+    parents = np.asarray(parents)
+    apparel = np.asarray(apparel, bool)
+    chains = []
+    for root in chain_roots(parents, apparel):
+        bones = _subtree(root, parents, apparel)
+        kind = bone_kind(bone_names[root], roles[root] if roles else None)
+        cp = params.for_kind(kind)
+        index = {b: i for i, b in enumerate(bones)}
+        link_parents = [index.get(int(parents[b]), -1) for b in bones]
+        links = []
+        for b in bones:
+            axis, length, spread = _link_geometry(b, bones, parents, keypoints, vertices, owner, height)
+            links.append(LinkSpec(bone=b, head=keypoints[b].copy(), axis=axis, length=length,
+                                  radius=spread * cp.radius_scale, mass=cp.link_mass,
+                                  linear_damping=cp.linear_damping, angular_damping=cp.angular_damping,
+                                  friction=cp.friction))
+        heads = [link.head for link in links]
+        centres = [link.head + 0.5 * link.length * link.axis for link in links]
+        masses = [link.mass for link in links]
+        joints = tuple(JointSpec(swing_limit=cp.swing_limit, twist_limit=cp.twist_limit, stiffness=cp.stiffness,
+                                 damping=cp.damping,
+                                 max_torque=cp.strength * _gravity_torque(i, link_parents, heads, centres, masses,
+                                                                          params.simulation.gravity))
+                       for i in range(len(links)))
+        mask = 0b01 if cp.collide_body else 0
+        if cp.collide_chains:
+            mask |= 0b10
+        chains.append(ChainSpec(name=bone_names[root], kind=kind, anchor_bone=int(parents[root]), links=tuple(links),
+                                link_parents=tuple(link_parents), joints=joints, collision_group=0b10,
+                                collision_mask=mask))
+    return chains

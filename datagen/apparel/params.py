@@ -1,0 +1,159 @@
+"""Simulation parameters: per-kind chain parameters with defaults, and a JSON override file.
+
+The override file (``--params FILE``) holds any subset of::
+
+    {"simulation": {"gravity": 9.81, "max_speed": 25.0, "solver_iterations": 10, "anchor_force": 2000.0},
+     "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.8}, "default": {"link_mass": 0.1}}}
+
+A kind is the apparel kind of a chain (``skirt``, ``hair``, ``cape``, ``coat_tail``,
+``ponytail``, ...; the zoo writes it in the bone roles, ``--apparel-bones`` derives it from bone
+names); kinds without an entry use ``default``. Unknown sections, kinds' fields or values out
+of range are errors that name what was expected.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mimicbench.errors import UserError
+
+
+@dataclass(frozen=True)
+class ChainParams:
+    """Physics of the chains of one apparel kind.
+
+    link_mass: kg per link. stiffness: the joint motor's position gain toward the rest pose
+    (0..1, the share of the angle error corrected a step). damping: the motor's velocity gain.
+    strength: the motor's torque limit as a multiple of the gravity torque of the links below
+    the joint held horizontally (>1 holds the chain up against gravity). linear_damping,
+    angular_damping: Bullet's per-link damping. swing_limit, twist_limit: radians from rest.
+    radius_scale: capsule radius as a multiple of the driven vertices' 75th-percentile distance
+    from the bone. friction: contact friction. collide_body: links collide with the body pieces;
+    collide_chains: links collide with other chains that also ask for it.
+    """
+
+    link_mass: float = 0.05
+    stiffness: float = 0.02
+    damping: float = 0.3
+    strength: float = 1.5
+    linear_damping: float = 0.1
+    angular_damping: float = 0.3
+    swing_limit: float = 0.9
+    twist_limit: float = 0.2
+    radius_scale: float = 1.0
+    friction: float = 0.3
+    collide_body: bool = True
+    collide_chains: bool = False
+
+
+@dataclass(frozen=True)
+class SimParams:
+    """Scene-wide settings: gravity (m/s^2, along -Y), the explosion bound ``max_speed`` (m/s of
+    any link), Bullet's ``solver_iterations``, and ``anchor_force`` (N), the largest force of the
+    fixed constraint that carries each chain's anchor with its body bone."""
+
+    gravity: float = 9.81
+    max_speed: float = 25.0
+    solver_iterations: int = 30
+    anchor_force: float = 2000.0
+
+
+DEFAULT_KINDS: dict[str, ChainParams] = {
+    "default": ChainParams(),
+    "hair": ChainParams(link_mass=0.02, stiffness=0.015, damping=0.3, strength=1.2, swing_limit=0.8),
+    "ponytail": ChainParams(link_mass=0.03, stiffness=0.015, damping=0.3, strength=1.2, swing_limit=0.8),
+    "skirt": ChainParams(link_mass=0.05, stiffness=0.03, damping=0.4, strength=2.0, swing_limit=0.7,
+                         twist_limit=0.1, radius_scale=1.5),
+    "cape": ChainParams(link_mass=0.08, stiffness=0.02, damping=0.3, strength=1.5, swing_limit=0.9),
+    "coat_tail": ChainParams(link_mass=0.06, stiffness=0.025, damping=0.35, strength=1.8, swing_limit=0.8),
+}
+
+_RANGES = {  # field: (low, high, low_open)
+    "link_mass": (0.0, None, True), "stiffness": (0.0, 1.0, False), "damping": (0.0, None, False),
+    "strength": (0.0, None, False), "linear_damping": (0.0, 1.0, False), "angular_damping": (0.0, 1.0, False),
+    "swing_limit": (0.0, math.pi, True), "twist_limit": (0.0, math.pi, True), "radius_scale": (0.0, None, True),
+    "friction": (0.0, None, False), "gravity": (0.0, None, False), "max_speed": (0.0, None, True),
+    "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True),
+}
+
+
+@dataclass(frozen=True)
+class ApparelParams:
+    """All parameters of a run: the scene and the chain parameters per kind."""
+
+    simulation: SimParams = field(default_factory=SimParams)
+    kinds: dict = field(default_factory=lambda: dict(DEFAULT_KINDS))
+
+    def for_kind(self, kind: str) -> ChainParams:
+        """The parameters of ``kind`` (``default`` when it has none of its own)."""
+        return self.kinds.get(kind, self.kinds["default"])
+
+    def to_json(self) -> dict:
+        """Plain JSON (for the manifest and the resume fingerprint)."""
+        return {"simulation": dataclasses.asdict(self.simulation),
+                "kinds": {k: dataclasses.asdict(v) for k, v in sorted(self.kinds.items())}}
+
+
+def _checked(cls, base, values: dict, where: str):
+    if not isinstance(values, dict):
+        raise UserError(f"{where}: expected a JSON object of fields, got {type(values).__name__}")
+    names = {f.name: f for f in dataclasses.fields(cls)}
+    out = {}
+    for key, value in values.items():
+        if key not in names:
+            raise UserError(f"{where}: unknown field {key!r}; expected some of {', '.join(names)}")
+        kind = names[key].type
+        if kind == "bool":
+            if not isinstance(value, bool):
+                raise UserError(f"{where}.{key}: expected true or false, got {value!r}")
+        else:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise UserError(f"{where}.{key}: expected a finite number, got {value!r}")
+            lo, hi, low_open = _RANGES[key]
+            if (lo is not None and (value <= lo if low_open else value < lo)) or (hi is not None and value > hi):
+                rng = f"{'>' if low_open else '>='} {lo:g}" + (f" and <= {hi:g}" if hi is not None else "")
+                raise UserError(f"{where}.{key}: expected a number {rng}, got {value!r}")
+            value = int(value) if kind == "int" else float(value)
+        out[key] = value
+    return dataclasses.replace(base, **out)
+
+
+def params_from_json(data: dict, where: str = "params") -> ApparelParams:
+    """Defaults overridden by ``data`` (the override file's object); see the module docstring."""
+    if not isinstance(data, dict):
+        raise UserError(f"{where}: expected a JSON object with 'simulation' and/or 'kinds', got {type(data).__name__}")
+    unknown = set(data) - {"simulation", "kinds"}
+    if unknown:
+        raise UserError(f"{where}: unknown section(s) {sorted(unknown)}; expected 'simulation' and/or 'kinds'")
+    sim = _checked(SimParams, SimParams(), data.get("simulation", {}), f"{where}.simulation")
+    kinds = dict(DEFAULT_KINDS)
+    overrides = data.get("kinds", {})
+    if not isinstance(overrides, dict):
+        raise UserError(f"{where}.kinds: expected an object {{kind: {{field: value}}}}, got {type(overrides).__name__}")
+    default = _checked(ChainParams, kinds["default"], overrides.get("default", {}), f"{where}.kinds.default")
+    for kind in list(kinds):  # a changed default reaches kinds only through their own entries
+        kinds[kind] = default if kind == "default" else kinds[kind]
+    for kind, values in overrides.items():
+        if kind != "default":
+            kinds[kind] = _checked(ChainParams, kinds.get(kind, default), values, f"{where}.kinds.{kind}")
+    return ApparelParams(sim, kinds)
+
+
+def load_params(path: str | Path | None) -> ApparelParams:
+    """The defaults, or the defaults overridden by the JSON file at ``path``.
+
+    Raises:
+        FileNotFoundError: ``path`` does not exist.
+        UserError: the file is not JSON or holds an unknown field or a value out of range.
+    """
+    if path is None:
+        return ApparelParams()
+    text = Path(path).read_text()
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise UserError(f"{path}: not valid JSON ({exc})") from None
+    return params_from_json(data, str(path))

@@ -1,0 +1,68 @@
+"""Quality of a simulated clip, recorded per clip in the character's ``meta['apparel']``.
+
+All measures are over the apparel vertices (the character's apparel vertex mask) of the mesh
+posed by linear blend skinning with the stored transforms:
+
+- ``inside_pct``: share of apparel vertices inside the body (inside any body piece of
+  :mod:`datagen.apparel.body_shapes`), mean over frames, percent; ``inside_rest_pct`` the same in
+  the rest pose; ``new_inside_pct`` (mean) and ``new_inside_max_pct`` (worst frame) count only
+  vertices that are outside the body at rest (authored overlaps such as hair roots in the scalp
+  are not penetration).
+- ``max_edge_stretch``: largest ``|l / l_rest - 1|`` over apparel edges and frames.
+- ``max_accel``: largest vertex acceleration (second difference times fps^2), m/s^2 (jitter);
+  ``max_accel_kinematic`` the same for the kinematic clip.
+- ``secondary_motion_pct`` (mean over frames) and ``secondary_motion_max_pct`` (worst frame):
+  mean distance of apparel vertices from their kinematic positions, percent of height.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from datagen.apparel.body_shapes import BodyPiece, points_inside
+from mimicbench.kinematics import rest_transforms
+from mimicbench.mesh import edge_lengths, unique_edges
+from mimicbench.skinning import linear_blend_skinning
+
+
+def _max_accel(posed: np.ndarray, fps: float) -> float:
+    if len(posed) < 3:
+        return 0.0
+    acc = (posed[2:] - 2 * posed[1:-1] + posed[:-2]) * fps ** 2
+    return float(np.linalg.norm(acc, axis=-1).max())
+
+
+def clip_quality(vertices, faces, keypoints, weights, apparel_mask, pieces: list[BodyPiece], simulated: np.ndarray,
+                 kinematic: np.ndarray, fps: float, height: float) -> dict:
+    """The measures above for one clip.
+
+    Args:
+        vertices: (N, 3) rest vertices; faces: (M, 3); keypoints: (K, 3); weights: skin weights.
+        apparel_mask: (N,) bool apparel vertices.
+        pieces: body pieces of the character.
+        simulated, kinematic: (F, K, 7) the simulated clip and the clip it came from.
+        fps: frames per second; height: the character's height, metres.
+    """
+    mask = np.asarray(apparel_mask, bool)
+    sim = linear_blend_skinning(vertices, keypoints, weights, simulated).astype(np.float64)[:, mask]
+    kin = linear_blend_skinning(vertices, keypoints, weights, kinematic).astype(np.float64)[:, mask]
+    rest_pose = rest_transforms(keypoints).astype(np.float64)
+    inside_rest = points_inside(pieces, rest_pose, np.asarray(vertices, np.float64)[mask])
+    inside = points_inside(pieces, np.asarray(simulated, np.float64), sim)  # (F, A)
+    new_inside = (inside & ~inside_rest).mean(axis=1) * 100.0
+    faces = np.asarray(faces)
+    apparel_faces = faces[mask[faces].all(axis=1)]
+    remap = np.cumsum(mask) - 1
+    edges = remap[unique_edges(apparel_faces)] if len(apparel_faces) else np.zeros((0, 2), int)
+    stretch = 0.0
+    if len(edges):
+        rest_len = edge_lengths(np.asarray(vertices, np.float64)[mask], edges)
+        ok = rest_len > 1e-9
+        posed_len = np.linalg.norm(sim[:, edges[:, 0]] - sim[:, edges[:, 1]], axis=-1)
+        stretch = float(np.abs(posed_len[:, ok] / rest_len[ok] - 1.0).max())
+    moved = np.linalg.norm(sim - kin, axis=-1).mean(axis=1) / height * 100.0
+    return {
+        "inside_pct": float(inside.mean() * 100.0), "inside_rest_pct": float(inside_rest.mean() * 100.0),
+        "new_inside_pct": float(new_inside.mean()), "new_inside_max_pct": float(new_inside.max()),
+        "max_edge_stretch": stretch, "max_accel": _max_accel(sim, fps), "max_accel_kinematic": _max_accel(kin, fps),
+        "secondary_motion_pct": float(moved.mean()), "secondary_motion_max_pct": float(moved.max()),
+    }

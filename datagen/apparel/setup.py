@@ -1,0 +1,70 @@
+"""The physics set-up of one character (body pieces and chains) and one clip simulated with it."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from datagen.apparel.body_shapes import BodyPiece, body_pieces
+from datagen.apparel.chain_spec import ChainSpec
+from datagen.apparel.chains import build_chains
+from datagen.apparel.params import ApparelParams
+from datagen.apparel.quality import clip_quality
+from datagen.apparel.selection import dominant_bone
+from datagen.apparel.simulate import simulate_clip
+from datagen.apparel.world import ApparelWorld
+from schemas.character import CharacterRecord
+from schemas.motion import MotionRecord
+
+SIM_SUFFIX = "@sim"
+SIM_VERSION = "1"
+
+
+@dataclass
+class CharacterPhysics:
+    """What the simulation of a character needs: body pieces, chains, masks (bone and vertex)."""
+
+    pieces: list[BodyPiece]
+    chains: list[ChainSpec]
+    apparel_bones: np.ndarray
+    apparel_vertices: np.ndarray
+
+
+def character_physics(record: CharacterRecord, apparel_bones: np.ndarray, apparel_vertices: np.ndarray,
+                      params: ApparelParams) -> CharacterPhysics:
+    """Body pieces of the non-apparel bones and the chains of ``apparel_bones`` (K,) bool."""
+    owner = dominant_bone(record.weights, record.num_joints)
+    height = float(record.height or np.ptp(np.asarray(record.vertices)[:, 1]))
+    pieces = body_pieces(record.vertices, record.keypoints, owner, ~np.asarray(apparel_bones, bool))
+    chains = build_chains(record.keypoints, record.parents, record.bone_names, record.bone_roles, record.vertices,
+                          owner, apparel_bones, params, height)
+    return CharacterPhysics(pieces, chains, np.asarray(apparel_bones, bool), np.asarray(apparel_vertices, bool))
+
+
+def substeps_for(physics_fps: float, clip_fps: float) -> int:
+    """Physics steps per clip frame: ``physics_fps / clip_fps`` rounded up, at least 1."""
+    return max(1, math.ceil(physics_fps / clip_fps - 1e-9))
+
+
+def simulate_motion(record: CharacterRecord, physics: CharacterPhysics, motion: MotionRecord, params: ApparelParams,
+                    physics_fps: float, relax: int) -> tuple[MotionRecord, dict]:
+    """The simulated clip of ``motion`` as a new motion ``<clip>@sim``, and its quality.
+
+    Raises:
+        datagen.apparel.simulate.SimulationExploded: the simulation blew up.
+    """
+    steps = substeps_for(physics_fps, motion.fps)
+    with ApparelWorld(record.keypoints, physics.pieces, physics.chains, params.simulation,
+                      1.0 / (motion.fps * steps)) as world:
+        simulated = simulate_clip(world, motion.transforms, steps, relax)
+    height = float(record.height or np.ptp(np.asarray(record.vertices)[:, 1]))
+    quality = clip_quality(record.vertices, record.faces, record.keypoints, record.weights, physics.apparel_vertices,
+                           physics.pieces, simulated, motion.transforms, motion.fps, height)
+    quality.update({"substeps": steps, "relax_frames": int(relax), "links": sum(len(c.links) for c in physics.chains),
+                    "chains": len(physics.chains)})
+    sim = MotionRecord(motion_id=motion.motion_id + SIM_SUFFIX, character_id=motion.character_id,
+                       name=motion.name + SIM_SUFFIX, split=motion.split, fps=motion.fps, num_frames=motion.num_frames,
+                       num_joints=motion.num_joints, transforms=simulated,
+                       source=f"apparel:pybullet@{SIM_VERSION} from {motion.motion_id}")
+    return sim, quality

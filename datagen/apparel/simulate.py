@@ -1,0 +1,62 @@
+"""Simulate one clip: the body follows the clip, apparel bones come from the physics.
+
+Each clip frame is split into ``substeps`` physics steps; within a frame the body pose is
+interpolated (slerp, lerp) from the previous frame. The relaxation frames
+(:mod:`datagen.apparel.relax`) run first and are dropped. After each frame the apparel bones'
+transforms are read from the chains' link frames (their rest-relative world rotation and head
+position); body bones keep the clip's transforms exactly.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from datagen.apparel.relax import blend_poses, relax_frames
+from datagen.apparel.world import ApparelWorld
+from mimicbench.kinematics import rest_transforms
+
+
+class SimulationExploded(RuntimeError):
+    """The simulation produced NaN or a link faster than the speed bound."""
+
+
+def simulate_clip(world: ApparelWorld, transforms: np.ndarray, substeps: int, relax: int) -> np.ndarray:
+    """The clip with apparel bones simulated.
+
+    Args:
+        world: a fresh world of the clip's character (chains at rest).
+        transforms: (F, K, 7) kinematic clip.
+        substeps: physics steps per clip frame (>= 1).
+        relax: relaxation frames before frame 0 (simulated, dropped).
+
+    Returns:
+        (F, K, 7) float32: body rows equal to ``transforms``, apparel rows from the simulation.
+
+    Raises:
+        SimulationExploded: NaN in a link state or a link faster than ``world.sim.max_speed``.
+    """
+    clip = np.asarray(transforms, np.float64)
+    bones = np.array([b for c in world.chains for b in c.spec.bones], int)
+    lead = relax_frames(world.keypoints, clip[0], relax)
+    poses = np.concatenate([lead, clip]) if len(lead) else clip
+    out = np.array(transforms, np.float32, copy=True)
+    previous = rest_transforms(world.keypoints).astype(np.float64) if len(lead) else clip[0]
+    if not len(lead):
+        world.place_chains_at(clip[0])
+    def where(f: int) -> str:
+        return f"relaxation frame {f + 1} of {len(lead)}" if f < len(lead) else f"frame {f - len(lead)}"
+
+    for f, pose in enumerate(poses):
+        for s in range(substeps):
+            world.set_body_pose(blend_poses(previous, pose, (s + 1) / substeps))
+            world.step()
+        previous = pose
+        quats, positions, speed = world.read_links()
+        if not (np.isfinite(quats).all() and np.isfinite(positions).all() and np.isfinite(speed)):
+            raise SimulationExploded(f"NaN in the simulation at {where(f)}")
+        if speed > world.sim.max_speed:
+            raise SimulationExploded(f"a link reached {speed:.1f} m/s at {where(f)} "
+                                     f"(bound {world.sim.max_speed:g} m/s)")
+        if f >= len(lead) and len(bones):
+            out[f - len(lead), bones, :4] = quats
+            out[f - len(lead), bones, 4:] = positions
+    return out

@@ -1,0 +1,187 @@
+"""The apparel stage over a dataset: ``mimicbench datagen apparel IN OUT``.
+
+For every character with apparel bones and every kinematic clip, a simulated clip ``<clip>@sim``
+(motion ID ``<motion_id>@sim``) is written beside the kinematic one; the per-clip quality goes in
+the character's ``meta['apparel']['clips'][<clip>]``. A clip whose simulation explodes gets a
+``failed`` status row (split ``apparel``) and keeps only its kinematic clip. Work is written after
+every batch of clips (atomic shards), and a re-run into the same OUT resumes: simulated clips are
+reused when the input tables' fingerprints and the parameters are unchanged, and recomputed
+otherwise. Output bytes depend only on the input and the parameters (status seconds are 0).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import time
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from datagen.apparel.params import ApparelParams
+from datagen.apparel.selection import apparel_vertex_mask, bones_matching
+from datagen.apparel.setup import SIM_SUFFIX, SIM_VERSION, character_physics, simulate_motion
+from datagen.stage_runner import run_stage, summarize_statuses
+from mimicbench.errors import UserError
+from schemas.fingerprint import digest_of, tables_fingerprint
+from schemas.manifest import load_manifest, save_manifest
+from schemas.shards import has_table, read_records, splits_of, write_records
+from schemas.status import StatusRecord
+from schemas.validate import validate_dataset
+
+STAGE = "apparel"
+
+
+def is_simulated(motion) -> bool:
+    """True for a motion this stage wrote (name ``<clip>@sim``)."""
+    return motion.name.endswith(SIM_SUFFIX)
+
+
+def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
+    record, bones, vertices, motion = item
+    physics = character_physics(record, bones, vertices, params)
+    return simulate_motion(record, physics, motion, params, physics_fps, relax)
+
+
+def _copy_table(src: Path, dst: Path, table: str) -> None:
+    """Copy a table's shards and manifest entries unchanged."""
+    m_src, m_dst = load_manifest(src), load_manifest(dst)
+    info = m_src["tables"].get(table)
+    if not info:
+        return
+    for shard in info["shards"]:
+        (dst / shard["path"]).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(src / shard["path"], dst / shard["path"])
+    m_dst["tables"][table] = json.loads(json.dumps(info))
+    if table in m_src.get("configs", {}):
+        m_dst.setdefault("configs", {})[table] = m_src["configs"][table]
+    save_manifest(dst, m_dst)
+
+
+def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
+    if not patterns:
+        return np.asarray(record.apparel_bone_mask, bool), np.asarray(record.apparel_vertex_mask, bool)
+    bones = bones_matching(record.bone_names, patterns)
+    return bones, apparel_vertex_mask(record.weights, bones)
+
+
+def _previous_work(out_dir: Path, fingerprint: str) -> tuple[dict, dict]:
+    """Simulated motions and their quality already in OUT under the same fingerprint."""
+    if not has_table(out_dir, "motions"):
+        return {}, {}
+    config = load_manifest(out_dir).get("configs", {}).get("motions", {})
+    if config.get("fingerprint") != fingerprint:
+        return {}, {}
+    sims = {m.motion_id: m for m in read_records(out_dir, "motions") if is_simulated(m)}
+    quality = {}
+    if has_table(out_dir, "characters"):
+        for r in read_records(out_dir, "characters"):
+            for clip, q in ((r.meta or {}).get(STAGE, {}).get("clips") or {}).items():
+                quality[f"{r.character_id}/{clip}{SIM_SUFFIX}"] = q
+    return {k: v for k, v in sims.items() if k in quality}, quality
+
+
+def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 30, params: ApparelParams | None = None,
+                     apparel_bones: list[str] | None = None, jobs: int = 1, batch: int = 16,
+                     progress: bool = True) -> dict:
+    """Simulate the apparel of every clip of ``in_dir`` into ``out_dir`` (a re-run resumes).
+
+    Args:
+        physics_fps: physics steps per second (each frame gets ``ceil(physics_fps / clip fps)``).
+        relax: relaxation frames before each clip (simulated, dropped).
+        params: chain and scene parameters (defaults when None).
+        apparel_bones: glob patterns on bone names choosing the apparel bones (default: each
+            character's ``apparel_bone_mask``); the apparel vertex mask then follows the weights.
+        jobs: worker processes. batch: clips between two writes.
+
+    Returns:
+        Summary: characters, clips simulated, reused, failed, mean quality, seconds, statuses.
+    """
+    start = time.perf_counter()
+    in_dir, out_dir = Path(in_dir), Path(out_dir)
+    if in_dir.resolve() == out_dir.resolve():
+        raise UserError("apparel: IN_DATASET and OUT_DATASET must differ")
+    if not has_table(in_dir, "characters") or not has_table(in_dir, "motions"):
+        raise UserError(f"{in_dir}: expected a dataset with characters and motions tables (manifest.json)")
+    params = params or ApparelParams()
+    config = {"stage": STAGE, "version": SIM_VERSION, "physics_fps": float(physics_fps), "relax_frames": int(relax),
+              "params": params.to_json(), "apparel_bones": list(apparel_bones) if apparel_bones else None,
+              "inputs": tables_fingerprint(in_dir, ["characters", "motions"]), "source": str(in_dir)}
+    config["fingerprint"] = digest_of({k: v for k, v in config.items() if k != "source"})
+    out_dir.mkdir(parents=True, exist_ok=True)
+    records = read_records(in_dir, "characters")
+    kinematic = [m for m in read_records(in_dir, "motions") if not is_simulated(m)]
+    masks = {r.character_id: _apparel_masks(r, apparel_bones) for r in records}
+    by_id = {r.character_id: r for r in records}
+    sims, quality = _previous_work(out_dir, config["fingerprint"])
+    reused = len(sims)
+    todo = [m for m in kinematic if masks.get(m.character_id, (np.zeros(0, bool),))[0].any()
+            and m.motion_id + SIM_SUFFIX not in sims]
+    unknown = sorted({m.character_id for m in kinematic} - set(by_id))
+    if unknown:
+        raise UserError(f"{in_dir}: motions of unknown characters {unknown[:3]}; expected every motion's "
+                        f"character_id in the characters table")
+    statuses: list[StatusRecord] = []
+    fn = partial(_simulate_one, params=params, physics_fps=physics_fps, relax=relax)
+    for i in range(0, max(len(todo), 1), batch):
+        chunk = todo[i:i + batch]
+        items = [(by_id[m.character_id], *masks[m.character_id], m) for m in chunk]
+        results, chunk_statuses = run_stage(items, fn, STAGE, name_of=lambda it: it[3].motion_id, jobs=jobs,
+                                            progress=progress)
+        for sim, q in results:
+            sims[sim.motion_id] = sim
+            quality[sim.motion_id] = q
+        statuses += chunk_statuses
+        _write(in_dir, out_dir, records, kinematic, masks, sims, quality, statuses, config, apparel_bones)
+    problems = validate_dataset(out_dir)
+    if problems:
+        raise RuntimeError("apparel wrote an invalid dataset:\n" + "\n".join(problems))
+    qs = [q for q in quality.values()]
+    mean = (lambda key: float(np.mean([q[key] for q in qs])) if qs else None)
+    summary = {"characters": sum(1 for b, _ in masks.values() if b.any()), "clips": len(kinematic),
+               "simulated": sum(s.status == "ok" for s in statuses), "reused": reused,
+               "failed": sum(s.status == "failed" for s in statuses),
+               "new_inside_pct_mean": mean("new_inside_pct"), "inside_pct_mean": mean("inside_pct"),
+               "secondary_motion_pct_mean": mean("secondary_motion_pct"),
+               "max_edge_stretch": max((q["max_edge_stretch"] for q in qs), default=None),
+               "seconds": time.perf_counter() - start, "statuses": statuses}
+    if progress:
+        print(summarize_statuses(statuses))
+    return summary
+
+
+def _write(in_dir: Path, out_dir: Path, records, kinematic, masks, sims, quality, statuses, config, patterns) -> None:
+    """Write characters (masks, meta), motions (kinematic, then each one's simulated clip), status."""
+    chars = []
+    for r in records:
+        bones, vertices = masks[r.character_id]
+        meta = dict(r.meta or {})
+        if bones.any():
+            clips = {m.name: quality[m.motion_id + SIM_SUFFIX] for m in kinematic
+                     if m.character_id == r.character_id and m.motion_id + SIM_SUFFIX in quality}
+            meta[STAGE] = {"version": SIM_VERSION, "apparel_bones": patterns, "fingerprint": config["fingerprint"],
+                           "clips": clips}
+        chars.append(dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices, meta=meta))
+    for split in splits_of(in_dir, "characters"):
+        write_records(out_dir, "characters", [c for c in chars if c.split == split], split=split, rows_per_shard=500,
+                      config=config)
+    for split in splits_of(in_dir, "motions"):
+        rows = []
+        for m in kinematic:
+            if m.split == split:
+                rows.append(m)
+                if m.motion_id + SIM_SUFFIX in sims:
+                    rows.append(sims[m.motion_id + SIM_SUFFIX])
+        write_records(out_dir, "motions", rows, split=split, rows_per_shard=500, config=config)
+    latest = {s.asset: s for s in statuses}
+    rows = []
+    for m in kinematic:
+        sim_id = m.motion_id + SIM_SUFFIX
+        if sim_id in sims and m.motion_id not in latest:  # simulated by an earlier run
+            rows.append(StatusRecord(m.motion_id, STAGE, "ok", "", 0.0))
+        elif m.motion_id in latest:
+            rows.append(dataclasses.replace(latest[m.motion_id], seconds=0.0))
+    rows += [StatusRecord(cid, STAGE, "skipped", "no apparel bones", 0.0) for cid, (b, _) in masks.items() if not b.any()]
+    write_records(out_dir, "status", rows, split=STAGE, config=config)
+    _copy_table(in_dir, out_dir, "pairs")

@@ -1,0 +1,193 @@
+"""The pybullet world of one character: kinematic body pieces and dynamic apparel chains.
+
+Each body piece is a mass-0 convex hull placed at its bone's pose every substep. Each chain is a
+multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass and
+is carried by a fixed constraint that is moved every substep (``changeConstraint`` with the new
+pivot and orientation): teleporting the base instead would move the whole chain rigidly and it
+would never swing. Joint motors (position control toward the rest pose) give the stiffness.
+
+Collision: chain links meet the body pieces and, where both chains ask for it, other chains
+(group and mask bits of :class:`~datagen.apparel.chain_spec.ChainSpec`); a pair that already
+overlap that is the attachment (a chain's root link in the body, any link in its anchor bone's
+piece: hair roots in the scalp, a skirt's top in the hips) is excluded, as an MMD model's
+collision masks would; see :meth:`ApparelWorld._exclude_rest_overlaps`.
+"""
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from datagen.apparel.body_shapes import BodyPiece
+from datagen.apparel.chain_spec import ChainSpec
+from datagen.apparel.params import SimParams
+from datagen.apparel.urdf import bone_frame, chain_urdf
+from mimicbench.quaternion import quat_apply, quat_conjugate, quat_multiply
+
+BODY_GROUP, BODY_MASK = 0b01, 0b10
+REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
+
+
+def xyzw(q_wxyz) -> list[float]:
+    """A (w, x, y, z) quaternion as pybullet's (x, y, z, w) list."""
+    return [float(q_wxyz[1]), float(q_wxyz[2]), float(q_wxyz[3]), float(q_wxyz[0])]
+
+
+@dataclass
+class ChainBody:
+    """A loaded chain: its spec, multibody id, anchor constraint id, and the anchor's rest offset."""
+
+    spec: ChainSpec
+    body: int
+    constraint: int
+    anchor_offset: np.ndarray  # (3,) root head minus anchor bone head, at rest
+
+
+class ApparelWorld:
+    """One DIRECT pybullet client holding a character's body pieces and chains.
+
+    Args:
+        keypoints: (K, 3) rest joint heads, metres.
+        pieces: body pieces. chains: apparel chains. sim: scene settings.
+        dt: physics step, seconds.
+    Use as a context manager (the client is disconnected on exit).
+    """
+
+    def __init__(self, keypoints: np.ndarray, pieces: list[BodyPiece], chains: list[ChainSpec], sim: SimParams,
+                 dt: float):
+        import pybullet
+
+        self.pb = pybullet
+        self.keypoints = np.asarray(keypoints, np.float64)
+        self.pieces = pieces
+        self.sim = sim
+        self.client = pybullet.connect(pybullet.DIRECT)
+        pb, cid = pybullet, self.client
+        pb.resetSimulation(physicsClientId=cid)
+        pb.setGravity(0.0, -sim.gravity, 0.0, physicsClientId=cid)
+        pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(sim.solver_iterations),
+                                     deterministicOverlappingPairs=1, physicsClientId=cid)
+        self.piece_ids = []
+        for piece in pieces:
+            shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=piece.points.tolist(), physicsClientId=cid)
+            body = pb.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape,
+                                      basePosition=self.keypoints[piece.bone].tolist(), physicsClientId=cid)
+            pb.setCollisionFilterGroupMask(body, -1, BODY_GROUP, BODY_MASK, physicsClientId=cid)
+            self.piece_ids.append(body)
+        self.chains: list[ChainBody] = []
+        with tempfile.TemporaryDirectory(prefix="mimicbench-apparel-") as tmp:
+            for i, chain in enumerate(chains):
+                root_head = np.asarray(chain.links[0].head, np.float64)
+                path = Path(tmp) / f"chain{i}.urdf"
+                path.write_text(chain_urdf(chain, root_head))
+                body = pb.loadURDF(str(path), basePosition=root_head.tolist(),
+                                   flags=pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER,
+                                   physicsClientId=cid)
+                self._set_dynamics(body, chain)
+                constraint = pb.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
+                                                 root_head.tolist(), physicsClientId=cid)
+                pb.changeConstraint(constraint, maxForce=float(sim.anchor_force), physicsClientId=cid)
+                anchor = self.keypoints[chain.anchor_bone] if chain.anchor_bone >= 0 else np.zeros(3)
+                self.chains.append(ChainBody(chain, body, constraint, root_head - anchor))
+        self._anchored = [i for i, c in enumerate(self.chains) if c.spec.anchor_bone >= 0]
+        self._anchor_bones = np.array([self.chains[i].spec.anchor_bone for i in self._anchored], int)
+        self._anchor_offsets = np.array([self.chains[i].anchor_offset for i in self._anchored]).reshape(-1, 3)
+        rest = [bone_frame(link.axis).as_quat() for c in self.chains for link in c.spec.links]  # (x, y, z, w)
+        self._rest_frames_inv = quat_conjugate(np.array([(q[3], q[0], q[1], q[2]) for q in rest]).reshape(-1, 4))
+        self._exclude_rest_overlaps()
+
+    def _set_dynamics(self, body: int, chain: ChainSpec) -> None:
+        pb, cid = self.pb, self.client
+        pb.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=cid)
+        pb.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=cid)  # the anchor has no shape anyway
+        for j, (link, joint) in enumerate(zip(chain.links, chain.joints)):
+            pb.changeDynamics(body, j, linearDamping=link.linear_damping, angularDamping=link.angular_damping,
+                              lateralFriction=link.friction, physicsClientId=cid)
+            pb.setCollisionFilterGroupMask(body, j, chain.collision_group, chain.collision_mask, physicsClientId=cid)
+            pb.setJointMotorControlMultiDof(body, j, pb.POSITION_CONTROL, targetPosition=[0.0, 0.0, 0.0, 1.0],
+                                            targetVelocity=[0.0, 0.0, 0.0], positionGain=joint.stiffness,
+                                            velocityGain=joint.damping, force=[joint.max_torque] * 3,
+                                            physicsClientId=cid)
+
+    def _exclude_rest_overlaps(self) -> None:
+        """Disable collision for pairs that touch in the rest pose where the overlap is the attachment.
+
+        A chain's root link keeps out of every piece it touches at rest (it sits on the body, and
+        pushing it out explodes), every link keeps out of its anchor bone's piece, and links of two
+        chains that touch at rest keep out of each other. Other overlaps at rest (a long hair
+        hanging through the back) stay in and are pushed out while the clip relaxes.
+        """
+        pb, cid = self.pb, self.client
+        piece_of = {piece.bone: body for piece, body in zip(self.pieces, self.piece_ids)}
+        chain_links = [(c.body, j) for c in self.chains for j in range(len(c.spec.links))]
+        for c in self.chains:
+            anchor_piece = piece_of.get(c.spec.anchor_bone)
+            for j in range(len(c.spec.links)):
+                root = c.spec.link_parents[j] < 0
+                others = [(body, -1) for body in self.piece_ids if root or body == anchor_piece]
+                others += [(body, link) for body, link in chain_links if body != c.body]
+                for body, link in others:
+                    hits = pb.getClosestPoints(c.body, body, REST_CONTACT_MARGIN, linkIndexA=j, linkIndexB=link,
+                                               physicsClientId=cid)
+                    if hits:
+                        pb.setCollisionFilterPair(c.body, body, j, link, 0, physicsClientId=cid)
+
+    def set_body_pose(self, pose: np.ndarray) -> None:
+        """Place body pieces and chain anchors at ``pose`` (K, 7) (q_w, q_x, q_y, q_z, t)."""
+        pb, cid = self.pb, self.client
+        for piece, body in zip(self.pieces, self.piece_ids):
+            q, t = pose[piece.bone, :4], pose[piece.bone, 4:]
+            pb.resetBasePositionAndOrientation(body, t.tolist(), xyzw(q), physicsClientId=cid)
+        if not len(self._anchored):
+            return
+        q = pose[self._anchor_bones, :4]
+        pivots = pose[self._anchor_bones, 4:] + quat_apply(q, self._anchor_offsets)
+        for i, pivot, qi in zip(self._anchored, pivots.tolist(), q):
+            pb.changeConstraint(self.chains[i].constraint, jointChildPivot=pivot, jointChildFrameOrientation=xyzw(qi),
+                                maxForce=float(self.sim.anchor_force), physicsClientId=cid)
+
+    def place_chains_at(self, pose: np.ndarray) -> None:
+        """Teleport every chain rigidly with its anchor bone (used once, before the first step)."""
+        pb, cid = self.pb, self.client
+        for c in self.chains:
+            if c.spec.anchor_bone < 0:
+                continue
+            q, t = pose[c.spec.anchor_bone, :4], pose[c.spec.anchor_bone, 4:]
+            pb.resetBasePositionAndOrientation(c.body, (t + quat_apply(q, c.anchor_offset)).tolist(), xyzw(q),
+                                               physicsClientId=cid)
+
+    def step(self) -> None:
+        self.pb.stepSimulation(physicsClientId=self.client)
+
+    def read_links(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """Bones' rest-relative rotations and heads, and the fastest link speed.
+
+        Returns (L, 4) (w, x, y, z), (L, 3) metres, and m/s, where L counts the links of every
+        chain in chain order: a link frame's world orientation times the inverse of its rest
+        orientation (Z along the bone), and the frame's origin (the bone head).
+        """
+        pb, cid = self.pb, self.client
+        quats, positions, speed = [], [], 0.0
+        for c in self.chains:
+            states = pb.getLinkStates(c.body, list(range(len(c.spec.links))), computeLinkVelocity=1,
+                                      computeForwardKinematics=1, physicsClientId=cid)
+            for s in states:
+                x, y, z, w = s[5]
+                quats.append((w, x, y, z))
+                positions.append(s[4])
+                speed = max(speed, float(np.linalg.norm(s[6])))
+        world = np.array(quats, np.float64).reshape(-1, 4)
+        return (quat_multiply(world, self._rest_frames_inv), np.array(positions, np.float64).reshape(-1, 3), speed)
+
+    def close(self) -> None:
+        if self.client is not None:
+            self.pb.disconnect(physicsClientId=self.client)
+            self.client = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,156 @@
+"""Apparel physics on a hand-built pendulum character (tests/apparel_toys.py): rest, lag, limits, URDF."""
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from datagen.apparel.params import ApparelParams, load_params, params_from_json
+from datagen.apparel.selection import apparel_vertex_mask, bone_kind, bones_matching
+from datagen.apparel.setup import character_physics, simulate_motion
+from datagen.apparel.simulate import SimulationExploded
+from datagen.apparel.urdf import chain_urdf
+from mimicbench.errors import UserError
+from tests.apparel_toys import LINK, LINKS, make_character, make_motion, quick_turn
+
+
+def _hand_rotation(q):
+    """3x3 matrix of a (w, x, y, z) quaternion, written out (not the project's helper)."""
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _simulate(angles, params=None, relax=30):
+    rec = make_character()
+    params = params or ApparelParams()
+    physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+    motion = make_motion(rec, angles)
+    sim, quality = simulate_motion(rec, physics, motion, params, 240.0, relax)
+    return rec, motion, sim, quality
+
+
+def test_chain_at_rest_under_gravity_stays_put():
+    rec, motion, sim, quality = _simulate(np.zeros(60))
+    # a vertical chain hanging from a still body: every bone stays at its rest head, unrotated
+    np.testing.assert_allclose(sim.transforms[:, :, 4:], np.broadcast_to(rec.keypoints, sim.transforms[:, :, 4:].shape),
+                               atol=1e-3)
+    angles = 2 * np.degrees(np.arccos(np.clip(np.abs(sim.transforms[:, :, 0]), 0, 1)))
+    assert angles.max() < 0.5
+    assert quality["secondary_motion_max_pct"] < 0.1
+
+
+def test_chain_on_a_quickly_turning_bone_lags_swings_back_and_settles():
+    angles = quick_turn(120, 4)  # a quarter turn about Y in 4 frames (0.13 s), then held for 3.9 s
+    rec, motion, sim, quality = _simulate(angles)
+    tip_kin = motion.transforms[:, LINKS, 4:].astype(np.float64)
+    tip_sim = sim.transforms[:, LINKS, 4:].astype(np.float64)
+    # the kinematic tip, by hand: rest tip turned about the Y axis through the torso head (0, 1, 0)
+    a = angles[-1]
+    rest_tip = rec.keypoints[LINKS] - np.array([0, 1.0, 0])
+    by_hand = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]) @ rest_tip + [0, 1.0, 0]
+    np.testing.assert_allclose(tip_kin[-1], by_hand, atol=1e-6)
+    lag = np.linalg.norm(tip_sim - tip_kin, axis=1)
+    chain = LINKS * LINK
+    assert lag.max() > 0.25 * chain  # stated bound: the tip trails by more than a quarter of the chain
+    assert np.argmax(lag) < 20  # during or right after the turn
+    # swings back toward the kinematic pose within a second of the peak, and settles there
+    peak = int(np.argmax(lag))
+    assert lag[peak + 30] < 0.5 * lag[peak]
+    assert lag[-30:].max() < 0.1 * lag.max()
+    assert np.abs(np.diff(tip_sim[-30:], axis=0)).max() < 0.002  # still: under 2 mm a frame
+    assert quality["secondary_motion_max_pct"] > 5.0
+    # body bone untouched, bit for bit
+    np.testing.assert_array_equal(sim.transforms[:, 0], motion.transforms[:, 0])
+
+
+def test_swing_limit_holds_a_horizontal_chain_under_gravity():
+    # no motor: gravity bends every joint of a chain sticking out along +X until its 0.3 rad limit holds
+    rec = make_character(horizontal=True)
+    params = params_from_json({"kinds": {"skirt": {"swing_limit": 0.3, "twist_limit": 0.1, "strength": 0.0,
+                                                   "stiffness": 0.0}}})
+    physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+    sim, _ = simulate_motion(rec, physics, make_motion(rec, np.zeros(60)), params, 240.0, 0)
+    q = sim.transforms[-1, :, :4].astype(np.float64)
+    # joint frame of every chain bone: +Z along the bone (+X), i.e. a quarter turn about +Y
+    frame = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])
+    for k in range(1, LINKS + 1):  # each joint's rotation in its own frame, by hand (Rodrigues' inverse)
+        rel = frame.T @ _hand_rotation(q[k - 1]).T @ _hand_rotation(q[k]) @ frame
+        angle = np.arccos(np.clip((np.trace(rel) - 1) / 2, -1, 1))
+        axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / (2 * np.sin(angle))
+        swing_x, swing_y, twist = np.abs(axis * angle)
+        assert swing_x < 0.3 + 0.07 and swing_y < 0.3 + 0.07 and twist < 0.1 + 0.07, (k, axis * angle)
+        if k == 1:  # gravity bends the first joint down about the bone's X until the limit holds
+            assert swing_x == pytest.approx(0.3, abs=0.07)
+    tip = sim.transforms[-1, LINKS, 4:]
+    assert tip[1] < 1.0 - 0.05  # the chain sags below its rest height
+
+
+def test_exploding_parameters_raise():
+    params = params_from_json({"simulation": {"gravity": 10000.0}})
+    with pytest.raises(SimulationExploded, match="m/s"):
+        _simulate(quick_turn(20), params)
+
+
+def test_urdf_matches_the_chain():
+    rec = make_character()
+    params = params_from_json({"kinds": {"skirt": {"swing_limit": 0.4, "twist_limit": 0.15}}})
+    chain = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params).chains[0]
+    assert chain.kind == "skirt" and chain.anchor_bone == 0 and chain.bones == [1, 2, 3, 4]
+    root = ET.fromstring(chain_urdf(chain, chain.links[0].head))
+    joints = root.findall("joint")
+    assert [j.get("type") for j in joints] == ["spherical"] * LINKS
+    for j in joints:
+        lim = j.find("limit")
+        assert float(lim.get("lower")) == pytest.approx(0.4) and float(lim.get("twist")) == pytest.approx(0.15)
+    def rpy_matrix(text):  # URDF rpy = Rz(yaw) Ry(pitch) Rx(roll)
+        r, p, y = np.array(text.split(), float)
+        rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
+        ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
+        rz = np.array([[np.cos(y), -np.sin(y), 0], [np.sin(y), np.cos(y), 0], [0, 0, 1]])
+        return rz @ ry @ rx
+
+    # the first joint turns the anchor's world-aligned frame so that +Z runs down the bone (-Y)
+    np.testing.assert_allclose(rpy_matrix(joints[0].find("origin").get("rpy")) @ [0, 0, 1], [0, -1, 0], atol=1e-6)
+    np.testing.assert_allclose(np.array(joints[0].find("origin").get("xyz").split(), float), 0, atol=1e-6)
+    for j in joints[1:]:  # the next ones sit one link further along +Z, unturned
+        np.testing.assert_allclose(rpy_matrix(j.find("origin").get("rpy")), np.eye(3), atol=1e-6)
+        np.testing.assert_allclose(np.array(j.find("origin").get("xyz").split(), float), [0, 0, LINK], atol=1e-6)
+    for link in root.findall("link")[1:]:
+        col = link.find("collision")
+        cap = col.find("geometry/capsule")
+        assert float(cap.get("length")) == pytest.approx(LINK, rel=1e-5)
+        assert 0.015 < float(cap.get("radius")) < 0.05  # the toy's cylinders have radius 0.02 (skirt scale 1.5)
+        np.testing.assert_allclose(np.array(col.find("origin").get("xyz").split(), float), [0, 0, LINK / 2], atol=1e-6)
+
+
+def test_params_file_overrides_and_errors(tmp_path):
+    f = tmp_path / "p.json"
+    f.write_text(json.dumps({"kinds": {"hair": {"stiffness": 0.5}, "default": {"link_mass": 0.2}},
+                             "simulation": {"max_speed": 9}}))
+    p = load_params(f)
+    assert p.for_kind("hair").stiffness == 0.5 and p.simulation.max_speed == 9.0
+    assert p.for_kind("sleeve").link_mass == 0.2  # unknown kinds use the overridden default
+    assert p.for_kind("hair").link_mass == ApparelParams().for_kind("hair").link_mass
+    for bad, msg in (({"kinds": {"hair": {"stiffnes": 1}}}, "unknown field 'stiffnes'"),
+                     ({"kinds": {"hair": {"stiffness": 2}}}, "expected a number >= 0 and <= 1"),
+                     ({"physics": {}}, "unknown section"),
+                     ({"kinds": {"hair": {"collide_body": 1}}}, "expected true or false")):
+        f.write_text(json.dumps(bad))
+        with pytest.raises(UserError, match=msg):
+            load_params(f)
+    f.write_text("{not json")
+    with pytest.raises(UserError, match="not valid JSON"):
+        load_params(f)
+
+
+def test_selection_by_globs_and_weights():
+    names = ["Hips", "Hair_L_01", "hair_l_02", "Skirt.F.1", "LeftArm"]
+    np.testing.assert_array_equal(bones_matching(names, ["*hair*", "skirt*"]), [0, 1, 1, 1, 0])
+    dense = np.array([[1.0, 0, 0, 0, 0], [0.4, 0.6, 0, 0, 0], [0.5, 0.5, 0, 0, 0], [0, 0, 0.2, 0.2, 0.6]])
+    np.testing.assert_array_equal(apparel_vertex_mask(dense, np.array([0, 1, 1, 1, 0], bool)), [0, 1, 0, 0])
+    assert bone_kind("J_Sec_Coat_Tail_01", None) == "coat_tail"
+    assert bone_kind("x", "apparel/cape/2/1") == "cape" and bone_kind("Spine", None) == "default"

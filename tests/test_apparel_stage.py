@@ -1,0 +1,111 @@
+"""The apparel stage over a dataset: outputs, determinism, resume, failures, CLI (toy characters)."""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from datagen.apparel.params import params_from_json
+from datagen.apparel.stage import simulate_dataset
+from mimicbench.cli import main
+from schemas.shards import read_records, write_records
+from schemas.validate import validate_dataset
+from tests.apparel_toys import make_character, make_motion, quick_turn
+
+
+@pytest.fixture
+def toy_dataset(tmp_path) -> Path:
+    """Two pendulum characters (one without apparel bones) with a turn and a still clip each."""
+    root = tmp_path / "toy"
+    a = make_character("toy/a")
+    b = dataclasses.replace(make_character("toy/b"), apparel_bone_mask=np.zeros(5, bool),
+                            apparel_vertex_mask=np.zeros(len(a.vertices), bool))
+    write_records(root, "characters", [a, b], split="train")
+    motions = [make_motion(c, angles, name) for c in (a, b)
+               for name, angles in (("turn", quick_turn(24, 4)), ("still", np.zeros(12)))]
+    write_records(root, "motions", motions, split="train")
+    return root
+
+
+def _files(root: Path) -> dict:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_stage_writes_simulated_clips_beside_kinematic_ones(toy_dataset, tmp_path):
+    out = tmp_path / "sim"
+    s = simulate_dataset(toy_dataset, out, relax=6, progress=False)
+    assert s["simulated"] == 2 and s["failed"] == 0 and s["characters"] == 1
+    assert validate_dataset(out) == []
+    motions = {m.motion_id: m for m in read_records(out, "motions")}
+    assert sorted(motions) == ["toy/a/still", "toy/a/still@sim", "toy/a/turn", "toy/a/turn@sim",
+                               "toy/b/still", "toy/b/turn"]
+    kin, sim = motions["toy/a/turn"], motions["toy/a/turn@sim"]
+    assert sim.name == "turn@sim" and sim.fps == kin.fps and sim.transforms.shape == kin.transforms.shape
+    np.testing.assert_array_equal(sim.transforms[:, 0], kin.transforms[:, 0])  # body bone untouched
+    assert np.abs(sim.transforms[:, 1:, 4:] - kin.transforms[:, 1:, 4:]).max() > 0.05  # apparel lags
+    src = {m.motion_id: m for m in read_records(toy_dataset, "motions")}
+    np.testing.assert_array_equal(kin.transforms, src["toy/a/turn"].transforms)  # kinematic clip kept
+    chars = {c.character_id: c for c in read_records(out, "characters")}
+    clips = chars["toy/a"].meta["apparel"]["clips"]
+    assert set(clips) == {"turn", "still"}
+    assert clips["turn"]["secondary_motion_max_pct"] > clips["still"]["secondary_motion_max_pct"]
+    assert clips["still"]["new_inside_pct"] == 0.0 and clips["turn"]["max_edge_stretch"] < 1e-3  # one bone a piece
+    status = {(r.asset, r.status) for r in read_records(out, "status", "apparel")}
+    assert status == {("toy/a/turn", "ok"), ("toy/a/still", "ok"), ("toy/b", "skipped")}
+
+
+def test_stage_is_deterministic_and_resumes(toy_dataset, tmp_path):
+    one, two = tmp_path / "one", tmp_path / "two"
+    simulate_dataset(toy_dataset, one, relax=6, progress=False)
+    simulate_dataset(toy_dataset, two, relax=6, progress=False)
+    assert _files(one) == _files(two)  # byte-identical, every shard and the manifest
+    again = simulate_dataset(toy_dataset, one, relax=6, progress=False)
+    assert again["reused"] == 2 and again["simulated"] == 0
+    assert _files(one) == _files(two)
+    changed = simulate_dataset(toy_dataset, one, relax=7, progress=False)  # other parameters: recomputed
+    assert changed["reused"] == 0 and changed["simulated"] == 2
+
+
+def test_exploding_parameters_become_status_rows(toy_dataset, tmp_path):
+    out = tmp_path / "boom"
+    s = simulate_dataset(toy_dataset, out, relax=6, params=params_from_json({"simulation": {"gravity": 10000.0}}),
+                         progress=False)
+    assert s["failed"] == 2 and s["simulated"] == 0
+    rows = [r for r in read_records(out, "status", "apparel") if r.status == "failed"]
+    assert {r.asset for r in rows} == {"toy/a/turn", "toy/a/still"}
+    assert all("SimulationExploded" in r.reason and "m/s" in r.reason for r in rows)
+    names = sorted(m.motion_id for m in read_records(out, "motions"))
+    assert names == ["toy/a/still", "toy/a/turn", "toy/b/still", "toy/b/turn"]  # kinematic clips kept
+    assert validate_dataset(out) == []
+
+
+def test_apparel_bones_by_glob_choose_bones_and_vertices(toy_dataset, tmp_path):
+    out = tmp_path / "glob"
+    s = simulate_dataset(toy_dataset, out, relax=0, apparel_bones=["skirt_3", "SKIRT_4"], progress=False)
+    assert s["characters"] == 2 and s["simulated"] == 4  # toy/b has the bones too, by name
+    c = {c.character_id: c for c in read_records(out, "characters")}["toy/b"]
+    np.testing.assert_array_equal(c.apparel_bone_mask, [0, 0, 0, 1, 1])
+    owner = c.weight_indices[:, 0]  # one-hot toy weights
+    np.testing.assert_array_equal(c.apparel_vertex_mask, np.isin(owner, [3, 4]))
+    sim = {m.motion_id: m for m in read_records(out, "motions")}["toy/b/turn@sim"]
+    kin = {m.motion_id: m for m in read_records(out, "motions")}["toy/b/turn"]
+    np.testing.assert_array_equal(sim.transforms[:, :3], kin.transforms[:, :3])  # skirt_1, skirt_2 now body
+
+
+def test_cli_runs_and_rejects_bad_options(toy_dataset, tmp_path, capsys):
+    params = tmp_path / "p.json"
+    params.write_text(json.dumps({"kinds": {"skirt": {"stiffness": 0.05}}}))
+    assert main(["datagen", "apparel", str(toy_dataset), str(tmp_path / "cli"), "--relax-frames", "4",
+                 "--params", str(params), "--quiet"]) == 0
+    assert "2 clips simulated" in capsys.readouterr().out
+    for bad in (["--fps", "0"], ["--relax-frames", "-1"], ["--jobs", "0"]):
+        with pytest.raises(SystemExit) as exc:
+            main(["datagen", "apparel", str(toy_dataset), str(tmp_path / "x")] + bad)
+        assert exc.value.code == 2
+    params.write_text(json.dumps({"kinds": {"skirt": {"stiffness": 5}}}))
+    assert main(["datagen", "apparel", str(toy_dataset), str(tmp_path / "y"), "--params", str(params)]) == 2
+    assert "expected a number >= 0 and <= 1" in capsys.readouterr().err
+    assert main(["datagen", "apparel", str(toy_dataset), str(toy_dataset)]) == 2
