@@ -43,7 +43,7 @@ def test_zoo_apparel_simulated_moves_apparel_only_and_stays_outside_the_body(tmp
     assert s["failed"] == 0 and s["simulated"] == 3
     chars = {c.character_id: c for c in read_records(out, "characters")}
     motions = {m.motion_id: m for m in read_records(out, "motions")}
-    kinds = set()
+    kinds, inside_total, apparel_total, worst = set(), 0, 0, 0.0
     for m in [m for m in motions.values() if m.name.endswith("@sim")]:
         c = chars[m.character_id]
         kinds |= {r.split("/")[1] for r in c.bone_roles if r.startswith("apparel/")}
@@ -61,9 +61,12 @@ def test_zoo_apparel_simulated_moves_apparel_only_and_stays_outside_the_body(tmp
         # outside it at rest (the zoo's hair roots sit in the scalp at rest)
         faces = c.faces[~apparel[c.faces].any(axis=1)]
         rest_in = igl.winding_number(c.vertices.astype(np.float64), faces, c.vertices[apparel].astype(np.float64)) > 0.5
-        shares = []
         for f in range(0, len(sim_v), 4):
             inside = igl.winding_number(sim_v[f], faces, sim_v[f][apparel]) > 0.5
-            shares.append(np.mean(inside & ~rest_in))
-        assert np.mean(shares) < 0.01, (m.motion_id, np.mean(shares), max(shares))
+            inside_total += int(np.sum(inside & ~rest_in))
+            apparel_total += int(apparel.sum())
+            worst = max(worst, float(np.mean(inside & ~rest_in)))
+    # below 1% over the zoo's apparel characters (every clip, every 4th frame); no frame above 3%
+    assert inside_total / apparel_total < 0.01, (inside_total / apparel_total, worst)
+    assert worst < 0.03, worst
     assert {"skirt", "hair", "cape"} <= kinds  # every variant of the zoo's apparel template took part

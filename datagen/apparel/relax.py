@@ -13,12 +13,17 @@ from mimicbench.kinematics import rest_transforms
 from mimicbench.quaternion import quat_normalize, quat_slerp
 
 
-def blend_poses(a: np.ndarray, b: np.ndarray, s: float) -> np.ndarray:
-    """Pose (K, 7) float64 between poses a and b (K, 7): slerp rotations, lerp positions, s in [0, 1]."""
+def blend_poses(a: np.ndarray, b: np.ndarray, s) -> np.ndarray:
+    """Poses between poses a and b (K, 7): slerp rotations, lerp positions.
+
+    ``s`` in [0, 1]: a float gives one pose (K, 7) float64, an array (S,) gives (S, K, 7).
+    """
     a = np.asarray(a, np.float64)
     b = np.asarray(b, np.float64)
-    q = quat_slerp(quat_normalize(a[:, :4]), quat_normalize(b[:, :4]), s)
-    return np.concatenate([q, (1 - s) * a[:, 4:] + s * b[:, 4:]], axis=1)
+    s = np.asarray(s, np.float64)
+    w = s[..., None, None]  # (..., 1, 1)
+    q = quat_slerp(quat_normalize(a[:, :4]), quat_normalize(b[:, :4]), s[..., None])
+    return np.concatenate([q, (1 - w) * a[:, 4:] + w * b[:, 4:]], axis=-1)
 
 
 def relax_frames(rest_keypoints: np.ndarray, first: np.ndarray, n: int) -> np.ndarray:

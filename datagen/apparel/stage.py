@@ -6,13 +6,13 @@ the character's ``meta['apparel']['clips'][<clip>]``. A clip whose simulation ex
 ``failed`` status row (split ``apparel``) and keeps only its kinematic clip. Work is written after
 every batch of clips (atomic shards), and a re-run into the same OUT resumes: simulated clips are
 reused when the input tables' fingerprints and the parameters are unchanged, and recomputed
-otherwise. Output bytes depend only on the input and the parameters (status seconds are 0).
+otherwise. While it runs the manifest says ``"complete": false``. Output bytes depend only on the
+input and the parameters (status seconds are 0). Correspondences (``pairs``) are not carried
+over: run ``datagen correspond`` on OUT.
 """
 from __future__ import annotations
 
 import dataclasses
-import json
-import shutil
 import time
 from functools import partial
 from pathlib import Path
@@ -24,8 +24,9 @@ from datagen.apparel.selection import apparel_vertex_mask, bones_matching
 from datagen.apparel.setup import SIM_SUFFIX, SIM_VERSION, character_physics, simulate_motion
 from datagen.stage_runner import run_stage, summarize_statuses
 from mimicbench.errors import UserError
-from schemas.fingerprint import digest_of, tables_fingerprint
-from schemas.manifest import load_manifest, save_manifest
+from schemas.errors import DatasetError
+from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
+from schemas.manifest import MANIFEST, load_manifest_for_write, mark_complete, mark_incomplete
 from schemas.shards import has_table, read_records, splits_of, write_records
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
@@ -44,21 +45,6 @@ def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
     return simulate_motion(record, physics, motion, params, physics_fps, relax)
 
 
-def _copy_table(src: Path, dst: Path, table: str) -> None:
-    """Copy a table's shards and manifest entries unchanged."""
-    m_src, m_dst = load_manifest(src), load_manifest(dst)
-    info = m_src["tables"].get(table)
-    if not info:
-        return
-    for shard in info["shards"]:
-        (dst / shard["path"]).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(src / shard["path"], dst / shard["path"])
-    m_dst["tables"][table] = json.loads(json.dumps(info))
-    if table in m_src.get("configs", {}):
-        m_dst.setdefault("configs", {})[table] = m_src["configs"][table]
-    save_manifest(dst, m_dst)
-
-
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
     if not patterns:
         return np.asarray(record.apparel_bone_mask, bool), np.asarray(record.apparel_vertex_mask, bool)
@@ -66,19 +52,32 @@ def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.n
     return bones, apparel_vertex_mask(record.weights, bones)
 
 
-def _previous_work(out_dir: Path, fingerprint: str) -> tuple[dict, dict]:
-    """Simulated motions and their quality already in OUT under the same fingerprint."""
-    if not has_table(out_dir, "motions"):
+def _previous_work(out_dir: Path, config: dict, progress: bool) -> tuple[dict, dict]:
+    """Simulated motions and their quality already in OUT, made with the same fingerprints.
+
+    Raises:
+        DatasetError: OUT holds a dataset that this stage did not make.
+    """
+    if not (out_dir / MANIFEST).exists():
         return {}, {}
-    config = load_manifest(out_dir).get("configs", {}).get("motions", {})
-    if config.get("fingerprint") != fingerprint:
+    manifest = load_manifest_for_write(out_dir)
+    made = (manifest["configs"].get("motions") or {})
+    pending = manifest.get("pending") or {}
+    if manifest["tables"] and made.get("stage") != STAGE and pending.get("stage") != STAGE:
+        by = made.get("stage") or made.get("generator") or "another stage"
+        raise DatasetError(f"{out_dir}: holds a dataset made by {by}, not by the apparel stage; choose an empty "
+                           f"or new OUT_DATASET (nothing was changed)")
+    previous = pending.get("config") if pending.get("stage") == STAGE else made
+    why = fingerprint_mismatch(previous, config)
+    if why is not None or not manifest["tables"].get("motions"):
+        if why is not None and manifest["tables"].get("motions") and progress:
+            print(f"apparel: {out_dir} holds a run that does not match ({why}); simulating every clip again")
         return {}, {}
-    sims = {m.motion_id: m for m in read_records(out_dir, "motions") if is_simulated(m)}
+    sims = {m.motion_id: m for m in read_records(out_dir, "motions", allow_incomplete=True) if is_simulated(m)}
     quality = {}
-    if has_table(out_dir, "characters"):
-        for r in read_records(out_dir, "characters"):
-            for clip, q in ((r.meta or {}).get(STAGE, {}).get("clips") or {}).items():
-                quality[f"{r.character_id}/{clip}{SIM_SUFFIX}"] = q
+    for r in read_records(out_dir, "characters", allow_incomplete=True):
+        for clip, q in ((r.meta or {}).get(STAGE, {}).get("clips") or {}).items():
+            quality[f"{r.character_id}/{clip}{SIM_SUFFIX}"] = q
     return {k: v for k, v in sims.items() if k in quality}, quality
 
 
@@ -104,17 +103,21 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         raise UserError("apparel: IN_DATASET and OUT_DATASET must differ")
     if not has_table(in_dir, "characters") or not has_table(in_dir, "motions"):
         raise UserError(f"{in_dir}: expected a dataset with characters and motions tables (manifest.json)")
+    if out_dir.resolve().is_relative_to(in_dir.resolve()) or in_dir.resolve().is_relative_to(out_dir.resolve()):
+        raise UserError(f"apparel: OUT_DATASET {out_dir} and IN_DATASET {in_dir} must not contain one another")
     params = params or ApparelParams()
-    config = {"stage": STAGE, "version": SIM_VERSION, "physics_fps": float(physics_fps), "relax_frames": int(relax),
-              "params": params.to_json(), "apparel_bones": list(apparel_bones) if apparel_bones else None,
-              "inputs": tables_fingerprint(in_dir, ["characters", "motions"]), "source": str(in_dir)}
-    config["fingerprint"] = digest_of({k: v for k, v in config.items() if k != "source"})
+    stage_params = {"stage": STAGE, "version": SIM_VERSION, "physics_fps": float(physics_fps),
+                    "relax_frames": int(relax), "params": params.to_json(),
+                    "apparel_bones": list(apparel_bones) if apparel_bones else None}
+    config = stage_config(stage_params, tables_fingerprint(in_dir, ["characters", "motions"]),
+                          inputs_from=str(in_dir.resolve()), info={"source": str(in_dir)})
+    sims, quality = _previous_work(out_dir, config, progress)
     out_dir.mkdir(parents=True, exist_ok=True)
+    mark_incomplete(out_dir, STAGE, config)
     records = read_records(in_dir, "characters")
     kinematic = [m for m in read_records(in_dir, "motions") if not is_simulated(m)]
     masks = {r.character_id: _apparel_masks(r, apparel_bones) for r in records}
     by_id = {r.character_id: r for r in records}
-    sims, quality = _previous_work(out_dir, config["fingerprint"])
     reused = len(sims)
     todo = [m for m in kinematic if masks.get(m.character_id, (np.zeros(0, bool),))[0].any()
             and m.motion_id + SIM_SUFFIX not in sims]
@@ -134,6 +137,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
             quality[sim.motion_id] = q
         statuses += chunk_statuses
         _write(in_dir, out_dir, records, kinematic, masks, sims, quality, statuses, config, apparel_bones)
+    mark_complete(out_dir)
     problems = validate_dataset(out_dir)
     if problems:
         raise RuntimeError("apparel wrote an invalid dataset:\n" + "\n".join(problems))
@@ -160,8 +164,7 @@ def _write(in_dir: Path, out_dir: Path, records, kinematic, masks, sims, quality
         if bones.any():
             clips = {m.name: quality[m.motion_id + SIM_SUFFIX] for m in kinematic
                      if m.character_id == r.character_id and m.motion_id + SIM_SUFFIX in quality}
-            meta[STAGE] = {"version": SIM_VERSION, "apparel_bones": patterns, "fingerprint": config["fingerprint"],
-                           "clips": clips}
+            meta[STAGE] = {"version": SIM_VERSION, "apparel_bones": patterns, "clips": clips}
         chars.append(dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices, meta=meta))
     for split in splits_of(in_dir, "characters"):
         write_records(out_dir, "characters", [c for c in chars if c.split == split], split=split, rows_per_shard=500,
@@ -184,4 +187,3 @@ def _write(in_dir: Path, out_dir: Path, records, kinematic, masks, sims, quality
             rows.append(dataclasses.replace(latest[m.motion_id], seconds=0.0))
     rows += [StatusRecord(cid, STAGE, "skipped", "no apparel bones", 0.0) for cid, (b, _) in masks.items() if not b.any()]
     write_records(out_dir, "status", rows, split=STAGE, config=config)
-    _copy_table(in_dir, out_dir, "pairs")

@@ -35,6 +35,13 @@ def xyzw(q_wxyz) -> list[float]:
     return [float(q_wxyz[1]), float(q_wxyz[2]), float(q_wxyz[3]), float(q_wxyz[0])]
 
 
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Vectors v (n, 3) rotated by unit quaternions q (n, 4) (w, x, y, z): v + 2 w (u x v) + 2 u x (u x v)."""
+    w, u = q[:, :1], q[:, 1:]
+    uv = np.cross(u, v)
+    return v + 2.0 * (w * uv + np.cross(u, uv))
+
+
 @dataclass
 class ChainBody:
     """A loaded chain: its spec, multibody id, anchor constraint id, and the anchor's rest offset."""
@@ -92,6 +99,8 @@ class ApparelWorld:
                 anchor = self.keypoints[chain.anchor_bone] if chain.anchor_bone >= 0 else np.zeros(3)
                 self.chains.append(ChainBody(chain, body, constraint, root_head - anchor))
         self._anchored = [i for i, c in enumerate(self.chains) if c.spec.anchor_bone >= 0]
+        self.driven_bones = np.array(sorted({p.bone for p in pieces} | {c.spec.anchor_bone for c in self.chains
+                                                                         if c.spec.anchor_bone >= 0}), int)
         self._anchor_bones = np.array([self.chains[i].spec.anchor_bone for i in self._anchored], int)
         self._anchor_offsets = np.array([self.chains[i].anchor_offset for i in self._anchored]).reshape(-1, 3)
         rest = [bone_frame(link.axis).as_quat() for c in self.chains for link in c.spec.links]  # (x, y, z, w)
@@ -115,9 +124,11 @@ class ApparelWorld:
         """Disable collision for pairs that touch in the rest pose where the overlap is the attachment.
 
         A chain's root link keeps out of every piece it touches at rest (it sits on the body, and
-        pushing it out explodes), every link keeps out of its anchor bone's piece, and links of two
-        chains that touch at rest keep out of each other. Other overlaps at rest (a long hair
-        hanging through the back) stay in and are pushed out while the clip relaxes.
+        pushing it out explodes or shoves it into the anchor's piece), every link keeps out of its
+        anchor bone's piece, and links of two chains that touch at rest keep out of each other.
+        Other overlaps at rest (a long hair hanging through the back) stay in and are pushed out
+        while the clip relaxes. The price: a body piece that a root link touched at rest (a thigh
+        at a skirt's top) passes through that link.
         """
         pb, cid = self.pb, self.client
         piece_of = {piece.bone: body for piece, body in zip(self.pieces, self.piece_ids)}
@@ -127,12 +138,11 @@ class ApparelWorld:
             for j in range(len(c.spec.links)):
                 root = c.spec.link_parents[j] < 0
                 others = [(body, -1) for body in self.piece_ids if root or body == anchor_piece]
-                others += [(body, link) for body, link in chain_links if body != c.body]
-                for body, link in others:
-                    hits = pb.getClosestPoints(c.body, body, REST_CONTACT_MARGIN, linkIndexA=j, linkIndexB=link,
-                                               physicsClientId=cid)
-                    if hits:
-                        pb.setCollisionFilterPair(c.body, body, j, link, 0, physicsClientId=cid)
+                others += [(body, k) for body, k in chain_links if body != c.body]
+                for body, other in others:
+                    if pb.getClosestPoints(c.body, body, REST_CONTACT_MARGIN, linkIndexA=j, linkIndexB=other,
+                                           physicsClientId=cid):
+                        pb.setCollisionFilterPair(c.body, body, j, other, 0, physicsClientId=cid)
 
     def set_body_pose(self, pose: np.ndarray) -> None:
         """Place body pieces and chain anchors at ``pose`` (K, 7) (q_w, q_x, q_y, q_z, t)."""
@@ -143,7 +153,7 @@ class ApparelWorld:
         if not len(self._anchored):
             return
         q = pose[self._anchor_bones, :4]
-        pivots = pose[self._anchor_bones, 4:] + quat_apply(q, self._anchor_offsets)
+        pivots = pose[self._anchor_bones, 4:] + _rotate(q, self._anchor_offsets)
         for i, pivot, qi in zip(self._anchored, pivots.tolist(), q):
             pb.changeConstraint(self.chains[i].constraint, jointChildPivot=pivot, jointChildFrameOrientation=xyzw(qi),
                                 maxForce=float(self.sim.anchor_force), physicsClientId=cid)

@@ -1,0 +1,107 @@
+"""Blender's route for the apparel benchmark, run in a child process (bpy only, numpy).
+
+    python benchmarks/apparel_blender_child.py IN.npz OUT.npz
+
+IN holds the scene of benchmarks/apparel.py in the dataset frame (Y up): ``torso_box`` (2, 3)
+corners, ``torso_head`` (3,), ``torso_yaw`` (F,) and ``torso_shift`` (F, 3) per frame, ``heads``
+(L, 3) and ``parents`` (L,) of the links (-1: on the torso), ``length``, ``radius``, ``mass``,
+``swing``, ``twist``, ``stiffness``, ``damping``, ``fps``, ``substeps``, ``iterations``. The route
+is MMDMC's: one active rigid body (capsule) per link, a Generic Spring constraint per joint (angle
+limits and angular springs, as mmd_tools builds from a PMX), the torso a kinematic passive body
+keyed every frame, and the rigid-body cache baked over the clip. OUT holds ``bake_seconds`` and
+``build_seconds``.
+"""
+import math
+import sys
+import time
+
+import bpy  # noqa: I001
+import numpy as np
+
+
+def to_blender(p):
+    """Dataset frame (Y up) -> Blender (Z up): (x, y, z) -> (x, -z, y)."""
+    return (float(p[0]), float(-p[2]), float(p[1]))
+
+
+def select_only(obj):
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+
+
+def main(inp, out):
+    d = np.load(inp)
+    start = time.perf_counter()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    frames = len(d["torso_yaw"])
+    scene.frame_start, scene.frame_end = 1, frames
+    scene.render.fps = int(d["fps"])
+    bpy.ops.rigidbody.world_add()
+    world = scene.rigidbody_world
+    world.substeps_per_frame = int(d["substeps"])
+    world.solver_iterations = int(d["iterations"])
+    world.point_cache.frame_start, world.point_cache.frame_end = 1, frames
+    lo, hi = d["torso_box"]
+    bpy.ops.mesh.primitive_cube_add(size=1.0)
+    torso = bpy.context.active_object
+    torso.scale = to_blender(hi - lo)
+    torso.scale = (abs(torso.scale[0]), abs(torso.scale[1]), abs(torso.scale[2]))
+    head = d["torso_head"]
+    bpy.ops.rigidbody.object_add(type="PASSIVE")
+    torso.rigid_body.kinematic = True
+    centre = 0.5 * (lo + hi)
+    for f in range(frames):
+        yaw = float(d["torso_yaw"][f])
+        rel = centre - head
+        c, s = math.cos(yaw), math.sin(yaw)
+        rot = np.array([c * rel[0] + s * rel[2], rel[1], -s * rel[0] + c * rel[2]])
+        torso.location = to_blender(head + rot + d["torso_shift"][f])
+        torso.rotation_euler = (0.0, 0.0, yaw)  # about Blender's Z, the dataset's Y
+        torso.keyframe_insert("location", frame=f + 1)
+        torso.keyframe_insert("rotation_euler", frame=f + 1)
+    links = []
+    length, radius = float(d["length"]), float(d["radius"])
+    for i, h in enumerate(d["heads"]):
+        bpy.ops.mesh.primitive_cylinder_add(vertices=8, radius=radius, depth=length)
+        link = bpy.context.active_object
+        link.location = to_blender(h + np.array([0.0, -length / 2, 0.0]))  # links hang down (-Y)
+        bpy.ops.rigidbody.object_add(type="ACTIVE")
+        link.rigid_body.collision_shape = "CAPSULE"
+        link.rigid_body.mass = float(d["mass"])
+        link.rigid_body.linear_damping, link.rigid_body.angular_damping = 0.1, 0.3
+        links.append(link)
+    swing, twist = float(d["swing"]), float(d["twist"])
+    for i, (h, p) in enumerate(zip(d["heads"], d["parents"])):
+        bpy.ops.object.empty_add(location=to_blender(h))
+        joint = bpy.context.active_object
+        bpy.ops.rigidbody.constraint_add(type="GENERIC_SPRING")
+        con = joint.rigid_body_constraint
+        con.object1 = torso if p < 0 else links[p]
+        con.object2 = links[i]
+        con.disable_collisions = True
+        for axis, lim in (("x", swing), ("y", swing), ("z", twist)):
+            setattr(con, f"use_limit_ang_{axis}", True)
+            setattr(con, f"limit_ang_{axis}_lower", -lim)
+            setattr(con, f"limit_ang_{axis}_upper", lim)
+            setattr(con, f"use_spring_ang_{axis}", True)
+            setattr(con, f"spring_stiffness_ang_{axis}", float(d["stiffness"]))
+            setattr(con, f"spring_damping_ang_{axis}", float(d["damping"]))
+        for axis in "xyz":
+            setattr(con, f"use_limit_lin_{axis}", True)
+            setattr(con, f"limit_lin_{axis}_lower", 0.0)
+            setattr(con, f"limit_lin_{axis}_upper", 0.0)
+    built = time.perf_counter() - start
+    start = time.perf_counter()
+    with bpy.context.temp_override(scene=scene, point_cache=world.point_cache):
+        bpy.ops.ptcache.bake(bake=True)
+    baked = time.perf_counter() - start
+    if not world.point_cache.is_baked:
+        raise RuntimeError("Blender did not bake the rigid-body cache")
+    np.savez(out, bake_seconds=baked, build_seconds=built)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2])
