@@ -54,6 +54,9 @@ def register(subparsers) -> None:
     c.add_argument("--cct-pairs", type=nonnegative_int, default=300, help="cross-category pairs (default 300)")
     c.add_argument("--cct-poses", type=positive_int, default=10, help="poses per cct pair (default 10)")
     c.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the pair and pose draws (default 0)")
+    c.add_argument("--protocols", default=("h2h", "cct"), type=_protocol_names,
+                   help="comma-separated protocols to make cases of (default h2h,cct); apparel: windows of "
+                        "16 frames of every clip that `datagen apparel` simulated, 10 per clip")
     c.set_defaults(func=run_cases)
 
     r = sub.add_parser("run", help="run methods on the cases and store per-case results",
@@ -69,7 +72,8 @@ def register(subparsers) -> None:
     r.add_argument("--methods", required=True, type=_method_names,
                    help="comma-separated method names (see `mimicbench bench methods`)")
     r.add_argument("--protocols", default=("h2h", "cct"), type=_protocol_names,
-                   help="comma-separated protocols: h2h (same-skeleton), cct (cross-category cycle); default both")
+                   help="comma-separated protocols: h2h (same-skeleton), cct (cross-category cycle), apparel "
+                        "(motion transfer with simulated apparel; needs `datagen apparel` data); default h2h,cct")
     r.add_argument("--out", default="results", help="results folder (default results)")
     r.add_argument("--device", default="cpu", help="cpu or cuda[:i] (default cpu)")
     r.add_argument("--batch-size", type=positive_int, default=16, help="requests per transfer call (default 16)")
@@ -105,8 +109,9 @@ def run_cases(args) -> int:
         print(f"error: --all-pairs takes every pair across all splits; it cannot be limited to --split {args.split}")
         return 2
     split = "all" if args.all_pairs else (args.split or "test")
+    protocols = list(args.protocols)
     cases = build_cases(args.dataset, split, args.h2h_pairs, args.h2h_poses, args.cct_pairs, args.cct_poses,
-                        args.seed, all_pairs=args.all_pairs)
+                        args.seed, all_pairs=args.all_pairs, protocols=protocols)
     config = {"stage": "bench cases", **{k: v for k, v in vars(args).items() if k != "func"}, "split": split}
     counts = write_cases(args.dataset, cases, config)
     print(f"cases in {args.dataset}: " + ", ".join(f"{p} {n}" for p, n in counts.items()))

@@ -25,12 +25,12 @@ from benchmark.protocols.base import EvalData
 from benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
                                   dataset_fingerprints, method_meta, write_method_meta)
 from benchmark.registry import get_method
-from benchmark.request import TransferRequest
+from benchmark.request import MotionRequest, TransferRequest
 from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.samples import SampleSink
 from benchmark.scoring import check_prediction
 from benchmark.worker import InProcessRunner, open_runner
-from schemas.result import NOT_SUPPORTED, ResultRecord
+from schemas.result import APPAREL_METRICS, NOT_SUPPORTED, ResultRecord
 from schemas.shards import has_table, read_records
 
 
@@ -79,9 +79,10 @@ def load_cases(dataset, protocols: Sequence[str]):
     return out
 
 
-def _call(method, requests: list[TransferRequest], sizes: list[int]):
+def _call(method, requests: list[TransferRequest], sizes: list):
     """Run a batch through a runner (:mod:`benchmark.worker`; a bare method runs in process); on a
-    failure retry one by one. Returns [(array | None, error | None, seconds)]."""
+    failure retry one by one. Returns [(array | None, error | None, seconds)]. ``sizes`` holds each
+    answer's vertex count, or its whole shape ((F, N, 3) for a :class:`MotionRequest`)."""
     runner = method if hasattr(method, "run_batch") else InProcessRunner(method, setup=False)
     outcome = runner.run_batch(requests)
     error = outcome.error
@@ -109,7 +110,8 @@ def _row(case, method, status, error, seconds, metrics=None) -> ResultRecord:
     return ResultRecord(case.case_id, case.protocol, method.metadata.name, method.metadata.version, status, error,
                         float(seconds), m.get("pmd"), m.get("pmd_squared"), m.get("els"), m.get("els_forward"),
                         case.source_category, case.target_category, pmd_height=m.get("pmd_height"),
-                        pmd_extent=m.get("pmd_extent"), pmd_aligned=m.get("pmd_aligned"))
+                        pmd_extent=m.get("pmd_extent"), pmd_aligned=m.get("pmd_aligned"),
+                        **{k: m.get(k) for k in APPAREL_METRICS})
 
 
 def supports(method, protocol: str) -> bool:
@@ -132,7 +134,8 @@ def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> lis
         return [_row(c, method, NOT_SUPPORTED, reason, 0.0) for c in cases]
 
     def call(requests):
-        return _call(method, list(requests), [len(r.target.vertices) for r in requests])
+        return _call(method, list(requests), [r.expected_shape if isinstance(r, MotionRequest) else
+                                              len(r.target.vertices) for r in requests])
 
     outcomes = protocol.evaluate(cases, data, call)
     if samples is not None:  # predictions of a few sampled cases, for the leaderboard's pictures

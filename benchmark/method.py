@@ -12,7 +12,7 @@ from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from benchmark.request import TransferRequest
+from benchmark.request import MotionRequest, TransferRequest
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,14 @@ class PoseTransferMethod(abc.ABC):
     @abc.abstractmethod
     def transfer(self, requests: Sequence[TransferRequest]) -> list[np.ndarray]:
         """Return, for each request, the posed target vertices (Nt, 3) float32, in order."""
+
+    def transfer_motion(self, requests: Sequence[MotionRequest]) -> list[np.ndarray]:
+        """Return, for each motion request, the posed vertices of every frame (F, N, 3) float32.
+
+        Only methods that list ``apparel`` in ``metadata.protocols`` are asked; the default says
+        the method does not answer motion requests.
+        """
+        raise NotImplementedError(f"{type(self).__name__} does not implement transfer_motion (motion requests)")
 
     # Distributed hooks: called by the evaluator under torchrun; no-ops by default.
     def on_distributed_init(self, rank: int, world_size: int) -> None:

@@ -19,6 +19,8 @@ BUILTIN = {
     "name_copy": "baselines.name_copy:NameCopy",
     "nearest_joint": "baselines.nearest_joint:NearestJoint",
     "text_soft": "baselines.text_soft:TextSoft",
+    "lbs_kinematic": "baselines.lbs_kinematic:LbsKinematic",
+    "body_only": "baselines.body_only:BodyOnly",
 }
 
 _registered: dict[str, object] = {}

@@ -1,4 +1,5 @@
-"""What a method receives: rigs at rest, and the posed source vertices.
+"""What a method receives: rigs at rest and the posed source vertices (:class:`TransferRequest`),
+or a rig at rest and its body motion over a window of frames (:class:`MotionRequest`).
 
 Every array a method receives is read-only, and every request carries its own :class:`Rig`
 objects (read-only views of one shared copy): a method that writes into its input raises
@@ -109,3 +110,41 @@ class TransferRequest:
         object.__setattr__(self, "source_posed", read_only(self.source_posed))
         object.__setattr__(self, "extras", {k: read_only(v) if isinstance(v, np.ndarray) else v
                                             for k, v in self.extras.items()})
+
+@dataclass(frozen=True)
+class MotionRequest:
+    """Pose a character over a window of frames from its body motion (the ``apparel`` protocol).
+
+    The method returns the posed mesh for every frame, (F, N, 3) float32, with whatever its
+    apparel (skirts, hair, capes) does: follows the bones, lags, swings.
+
+    Attributes:
+        target: the character at rest with its rig (which vertices are apparel is not given).
+        transforms: (F, K, 7) float32 the clip over the window as authored, (q_w, q_x, q_y, q_z,
+            t) per frame and bone: body bones exact, apparel bones as the clip keys them (without
+            physics).
+        body_bones: (K,) bool, the bones whose motion is the body's; the others are apparel
+            bones whose motion a simulation would give.
+        fps: frames per second of the window.
+        case_id: the case this request serves (for logging; methods must not parse it).
+        extras: optional precomputed data keyed by name.
+    """
+
+    target: Rig
+    transforms: np.ndarray
+    body_bones: np.ndarray
+    fps: float
+    case_id: str = ""
+    extras: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        object.__setattr__(self, "target", self.target.fresh())
+        object.__setattr__(self, "transforms", read_only(np.asarray(self.transforms, np.float32)))
+        object.__setattr__(self, "body_bones", read_only(np.asarray(self.body_bones, bool)))
+        object.__setattr__(self, "extras", {k: read_only(v) if isinstance(v, np.ndarray) else v
+                                            for k, v in self.extras.items()})
+
+    @property
+    def expected_shape(self) -> tuple[int, int, int]:
+        """(F, N, 3): the shape of the answer."""
+        return (int(self.transforms.shape[0]), int(len(self.target.vertices)), 3)

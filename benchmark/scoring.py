@@ -11,20 +11,24 @@ class InvalidPrediction(ValueError):
     """A method returned something that is not (Nt, 3) finite floats."""
 
 
-def check_prediction(pred, num_vertices: int) -> np.ndarray:
-    """Return ``pred`` as (Nt, 3) float32, or raise :class:`InvalidPrediction` saying what is wrong."""
+def check_prediction(pred, num_vertices) -> np.ndarray:
+    """Return ``pred`` as (Nt, 3) float32, or raise :class:`InvalidPrediction` saying what is wrong.
+
+    ``num_vertices`` is Nt, or the whole expected shape as a tuple (a motion request's (F, N, 3)).
+    """
+    shape = tuple(num_vertices) if isinstance(num_vertices, tuple) else (num_vertices, 3)
     if pred is None:
         raise InvalidPrediction("method returned None")
     try:
         arr = np.asarray(pred.detach().cpu().numpy() if hasattr(pred, "detach") else pred)
     except Exception as exc:
         raise InvalidPrediction(f"output is not an array ({type(pred).__name__}): {exc}") from exc
-    if arr.shape != (num_vertices, 3):
-        raise InvalidPrediction(f"wrong shape: expected ({num_vertices}, 3), got {arr.shape}")
+    if arr.shape != shape:
+        raise InvalidPrediction(f"wrong shape: expected {shape}, got {arr.shape}")
     if not np.issubdtype(arr.dtype, np.number):
         raise InvalidPrediction(f"wrong dtype: expected float32, got {arr.dtype}")
     if not np.isfinite(arr).all():
-        bad = int((~np.isfinite(arr)).any(axis=1).sum())
+        bad = int((~np.isfinite(arr)).any(axis=-1).sum())
         raise InvalidPrediction(f"non-finite output: {bad} vertices are NaN or inf")
     return arr.astype(np.float32)
 

@@ -44,7 +44,7 @@ from typing import Sequence
 
 import numpy as np
 
-from benchmark.request import Rig, TransferRequest
+from benchmark.request import MotionRequest, Rig, TransferRequest
 
 log = logging.getLogger("mimicbench")
 
@@ -52,6 +52,8 @@ log = logging.getLogger("mimicbench")
 SETUP_TIMEOUT = 600.0
 #: seconds to wait for a worker to end after ``close`` before killing it
 CLOSE_TIMEOUT = 30.0
+#: first field of a motion request's item in a ``transfer`` message (the apparel protocol)
+MOTION = "__motion_request__"
 
 
 @dataclass
@@ -80,9 +82,11 @@ def describe_exception(exc: BaseException) -> str:
 
 
 def _transfer(method, requests) -> BatchOutcome:
+    """One batch through ``method.transfer`` (``method.transfer_motion`` for motion requests)."""
     start = time.perf_counter()
     try:
-        outputs = list(method.transfer(requests))
+        motion = bool(requests) and isinstance(requests[0], MotionRequest)
+        outputs = list(method.transfer_motion(requests) if motion else method.transfer(requests))
     except Exception as exc:  # a method's failure fails its cases, never the run
         return BatchOutcome(None, describe_exception(exc), time.perf_counter() - start)
     except SystemExit as exc:
@@ -227,10 +231,12 @@ class WorkerRunner:
             return BatchOutcome(None, self.setup_error, 0.0)
         rigs = {}
         for r in requests:
-            for rig in (r.source, r.target):
+            for rig in ((r.target,) if isinstance(r, MotionRequest) else (r.source, r.target)):
                 if rig.character_id not in self.sent and rig.character_id not in rigs:
                     rigs[rig.character_id] = rig
-        items = [(r.source.character_id, np.asarray(r.source_posed), r.target.character_id, r.case_id,
+        items = [(MOTION, r.target.character_id, np.asarray(r.transforms), np.asarray(r.body_bones), r.fps,
+                  r.case_id, dict(r.extras)) if isinstance(r, MotionRequest) else
+                 (r.source.character_id, np.asarray(r.source_posed), r.target.character_id, r.case_id,
                   dict(r.extras)) for r in requests]
         start = time.perf_counter()
         try:
@@ -317,8 +323,8 @@ def worker_main(conn, spec: str, device: str, rank: int, world_size: int) -> Non
         _, new_rigs, items = message
         for cid, rig in new_rigs.items():
             rigs[cid] = replace(rig)  # unpickled arrays are writable: rebuild them read-only
-        requests = [TransferRequest(rigs[s], posed, rigs[t], case_id, extras)
-                    for s, posed, t, case_id, extras in items]
+        requests = [MotionRequest(rigs[item[1]], *item[2:]) if len(item) == 7 and item[0] == MOTION else
+                    TransferRequest(rigs[item[0]], item[1], rigs[item[2]], item[3], item[4]) for item in items]
         outcome = _transfer(method, requests)
         if outcome.error is not None:
             conn.send(("raised", outcome.error, outcome.seconds))

@@ -13,6 +13,11 @@ Metric columns (all x100 PMDs are percentages of a rest mesh's length; see FORMA
   own centroids: articulation without global translation.
 - ``pmd_squared``: NPT-style squared PMD, headline normalisation.
 - ``els``, ``els_forward``: edge length scores (scale-free).
+- ``apparel`` protocol (means over the window's frames; ``*_frames`` per frame): ``pmd`` and
+  ``pmd_height`` over all vertices, ``pmd_apparel`` over the ground truth's apparel vertices,
+  ``pmd_body`` over the other vertices (x100 of the target's height), the same in centimetres
+  of the character scaled to 1.70 m (``pmd_cm``, ``pmd_apparel_cm``, ``pmd_body_cm``, MMDMC's
+  unit), and ``els``.
 
 ``status``: ``ok``, ``failed`` (the method raised, timed out or returned something invalid;
 ``error`` says what) or ``not_supported`` (the method's metadata does not list the protocol; it
@@ -25,6 +30,9 @@ from dataclasses import dataclass
 from schemas.columns import Column
 
 TABLE = "results"
+APPAREL_METRICS = ("pmd_apparel", "pmd_body", "pmd_cm", "pmd_apparel_cm", "pmd_body_cm", "pmd_frames",
+                   "pmd_apparel_frames", "pmd_body_frames", "els_frames")
+"""Result columns only the ``apparel`` protocol fills."""
 OK, FAILED, NOT_SUPPORTED = "ok", "failed", "not_supported"
 STATUSES = (OK, FAILED, NOT_SUPPORTED)
 
@@ -49,6 +57,15 @@ class ResultRecord:
     pmd_height: float | None = None
     pmd_extent: float | None = None
     pmd_aligned: float | None = None
+    pmd_apparel: float | None = None
+    pmd_body: float | None = None
+    pmd_cm: float | None = None
+    pmd_apparel_cm: float | None = None
+    pmd_body_cm: float | None = None
+    pmd_frames: list | None = None
+    pmd_apparel_frames: list | None = None
+    pmd_body_frames: list | None = None
+    els_frames: list | None = None
 
     COLUMNS = (
         Column("case_id", "scalar", "string", doc="the case scored"),
@@ -67,4 +84,13 @@ class ResultRecord:
         Column("pmd_height", "scalar", "float64", nullable=True, doc="PMD x100 by the rest mesh's height (Y extent): the papers' convention"),
         Column("pmd_extent", "scalar", "float64", nullable=True, doc="PMD x100 by the rest mesh's largest bounding-box side: one scale for every shape"),
         Column("pmd_aligned", "scalar", "float64", nullable=True, doc="headline PMD x100 after centring both meshes on their own centroids (articulation without global translation)"),
+        Column("pmd_apparel", "scalar", "float64", nullable=True, doc="apparel: PMD x100 (target's height) over the ground truth's apparel vertices, mean over the window"),
+        Column("pmd_body", "scalar", "float64", nullable=True, doc="apparel: PMD x100 (target's height) over the other (body) vertices, mean over the window"),
+        Column("pmd_cm", "scalar", "float64", nullable=True, doc="apparel: PMD over all vertices in cm of the character scaled to 1.70 m height"),
+        Column("pmd_apparel_cm", "scalar", "float64", nullable=True, doc="apparel: PMD_a in cm at 1.70 m height"),
+        Column("pmd_body_cm", "scalar", "float64", nullable=True, doc="apparel: PMD_b in cm at 1.70 m height"),
+        Column("pmd_frames", "list", "float64", nullable=True, doc="apparel: (F,) PMD x100 of each frame of the window"),
+        Column("pmd_apparel_frames", "list", "float64", nullable=True, doc="apparel: (F,) PMD_a x100 of each frame"),
+        Column("pmd_body_frames", "list", "float64", nullable=True, doc="apparel: (F,) PMD_b x100 of each frame"),
+        Column("els_frames", "list", "float64", nullable=True, doc="apparel: (F,) ELS of each frame"),
     )

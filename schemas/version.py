@@ -3,7 +3,7 @@
 Bump the major number for a change that old readers cannot read (a column removed, renamed or
 retyped); bump the minor number for an added nullable column.
 """
-SCHEMA_VERSION = "1.1"
+SCHEMA_VERSION = "1.2"
 METADATA_KEY = b"mimicbench.schema_version"
 TABLE_KEY = b"mimicbench.table"
 

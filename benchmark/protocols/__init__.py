@@ -3,7 +3,8 @@ subclass that builds its cases, its requests and its scores (see :mod:`.base`):
 
 - ``h2h`` (:mod:`.h2h`): same-skeleton transfer against ground truth;
 - ``cct`` (:mod:`.cct`): cross-category transfer scored by cycle consistency;
-- ``apparel``: apparel motion transfer, added by its own module here when it exists.
+- ``apparel`` (:mod:`.apparel`): motion transfer on characters with simulated apparel (PMD,
+  PMD_a, PMD_b, ELS over a window of frames).
 
 Protocols are listed as ``"module:Class"`` strings and imported only when asked for; a new one is
 a module plus a line in ``BUILTIN`` (or :func:`register_protocol` at run time).
@@ -18,6 +19,7 @@ from benchmark.protocols.base import BenchmarkProtocol
 BUILTIN = {
     "h2h": "benchmark.protocols.h2h:SameSkeleton",
     "cct": "benchmark.protocols.cct:CrossCategoryCycle",
+    "apparel": "benchmark.protocols.apparel:ApparelMotion",
 }
 DEFAULT_PROTOCOLS = ("h2h", "cct")
 """What ``bench cases`` builds and ``bench run`` runs unless told otherwise."""

@@ -20,7 +20,7 @@ from benchmark.request import TransferRequest
 from benchmark.rigs import CharacterData
 from mimicbench.skinning import linear_blend_skinning
 from schemas.case import CaseRecord
-from schemas.shards import has_table, read_records
+from schemas.shards import has_table, read_records, read_table
 
 HUMANOID_LIKE = ("humanoid", "apparel")
 """Categories that count as humanoid (an ``apparel`` character is a humanoid wearing apparel)."""
@@ -90,6 +90,7 @@ class EvalData:
     characters: dict[str, CharacterData]
     pairs: dict = field(default_factory=dict)
     rest_frames: dict = field(default_factory=dict, repr=False)
+    motion_fps: dict = field(default_factory=dict)
 
     @classmethod
     def load(cls, dataset) -> "EvalData":
@@ -98,7 +99,11 @@ class EvalData:
         pairs = {}
         if has_table(dataset, "pairs"):
             pairs = {(r.source_id, r.target_id): r.m_sink for r in read_records(dataset, "pairs")}
-        return cls(load_characters(dataset), pairs)
+        fps = {}
+        if has_table(dataset, "motions"):  # two scalar columns: the apparel protocol's requests state the fps
+            t = read_table(dataset, "motions", columns=["motion_id", "fps"])
+            fps = dict(zip(t.column("motion_id").to_pylist(), t.column("fps").to_pylist()))
+        return cls(load_characters(dataset), pairs, motion_fps=fps)
 
     def frame(self, char: CharacterData) -> RestFrame:
         """The character's rest frame (centre, height, largest extent, edges), cached."""

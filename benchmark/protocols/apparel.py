@@ -1,0 +1,124 @@
+"""``apparel``: motion transfer on characters with simulated apparel (MMDMC's task).
+
+Cases: a character with apparel bones and a window of ``WINDOW`` consecutive frames of one of its
+clips that ``datagen apparel`` simulated (the motion ``<clip>@sim`` beside the kinematic
+``<clip>``). The case row's ``source_id`` and ``target_id`` are the character, ``motion_id`` the
+kinematic clip, ``frame`` the window's first frame; ``source_transforms`` holds the kinematic
+window and ``target_transforms`` the simulated one, each (F*K, 7) (F frames of K bones, frame
+after frame).
+
+Request (:class:`benchmark.request.MotionRequest`): the character at rest with its rig, the
+kinematic window (F, K, 7) with the mask of body bones, and the fps; the apparel vertex mask is
+not given. The method returns the posed mesh of every frame, (F, N, 3).
+
+Ground truth: the simulated window posed by LBS. Scores per frame, then the mean over the
+window (MMDMC): PMD over all vertices, PMD_a over the ground truth's apparel vertices and PMD_b
+over the others, x100 of the target's height (``pmd``/``pmd_height``, ``pmd_apparel``,
+``pmd_body``) and in centimetres of the character scaled to 1.70 m (``*_cm``), and ELS against the
+ground truth's edge lengths; the per-frame values are kept in the ``*_frames`` columns.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from benchmark.metrics import els, pmd
+from benchmark.normalisation import RestFrame
+from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome
+from benchmark.request import MotionRequest
+from schemas.case import CaseRecord
+
+SIM_SUFFIX = "@sim"
+WINDOW = 16
+"""Frames a case covers."""
+DEFAULT_FPS = 30.0
+"""The fps a request states when the evaluation data does not know the clip's."""
+REFERENCE_HEIGHT_CM = 170.0
+"""MMDMC reports centimetres of a character 1.70 m tall."""
+
+
+def apparel_scores(pred: np.ndarray, truth: np.ndarray, apparel: np.ndarray, frame: RestFrame) -> dict:
+    """Per-frame and window-mean scores of predicted vs ground-truth meshes (F, N, 3).
+
+    Args:
+        apparel: (N,) bool ground-truth apparel vertices.
+        frame: the target's rest frame (its height divides; its edges serve ELS).
+    """
+    apparel = np.asarray(apparel, bool)
+
+    def per_frame(mask):
+        if not mask.any():
+            return None
+        return [pmd(p[mask], t[mask], frame, "height") for p, t in zip(pred, truth)]
+
+    frames = {"pmd_frames": per_frame(np.ones(len(apparel), bool)), "pmd_apparel_frames": per_frame(apparel),
+              "pmd_body_frames": per_frame(~apparel),
+              "els_frames": [els(p, t, frame.edges) for p, t in zip(pred, truth)]}
+    mean = {k: (None if v is None else float(np.mean(v))) for k, v in frames.items()}
+    out = {"pmd": mean["pmd_frames"], "pmd_height": mean["pmd_frames"], "pmd_apparel": mean["pmd_apparel_frames"],
+           "pmd_body": mean["pmd_body_frames"], "els": mean["els_frames"], **frames}
+    for key in ("pmd", "pmd_apparel", "pmd_body"):
+        out[f"{key}_cm"] = None if out[key] is None else out[key] / 100.0 * REFERENCE_HEIGHT_CM
+    return out
+
+
+class ApparelMotion(BenchmarkProtocol):
+    name = "apparel"
+    title = "apparel motion transfer: body motion in, the posed mesh with simulated apparel out"
+    headline = "height"
+    window = WINDOW
+
+    def candidate_pairs(self, pool: CasePool) -> list[tuple]:
+        return [(c, c) for c in pool.characters if np.asarray(c.apparel_bone_mask).any()
+                and any(m.name.endswith(SIM_SUFFIX) for m in pool.motions.get(c.character_id, []))]
+
+    def build_cases(self, pool: CasePool, pairs: int | None, poses: int, seed: int = 0) -> list[CaseRecord]:
+        """``poses`` windows per simulated clip of ``pairs`` characters (None: every one), drawn
+        with the protocol's seeded generator."""
+        rng = self.rng(seed)
+        chars = [a for a, _ in self.candidate_pairs(pool)]
+        if pairs is not None and len(chars) > pairs:
+            chars = [chars[i] for i in sorted(rng.choice(len(chars), size=pairs, replace=False))]
+        cases = []
+        for c in chars:
+            motions = {m.motion_id: m for m in pool.motions.get(c.character_id, [])}
+            for sim in sorted((m for m in motions.values() if m.name.endswith(SIM_SUFFIX)), key=lambda m: m.motion_id):
+                kin = motions.get(sim.motion_id[: -len(SIM_SUFFIX)])
+                if kin is None or kin.num_frames != sim.num_frames:
+                    continue
+                window = min(self.window, kin.num_frames)
+                starts = np.arange(kin.num_frames - window + 1)
+                for start in sorted(rng.choice(starts, size=min(poses, len(starts)), replace=False)):
+                    cases.append(self.make_case(c, c, (kin, sim), int(start)))
+        return cases
+
+    def make_case(self, source, target, motion, frame: int) -> CaseRecord:
+        """``motion`` is the pair (kinematic clip, simulated clip); ``frame`` the window's start."""
+        kin, sim = motion
+        window = min(self.window, kin.num_frames - frame)
+        span = slice(frame, frame + window)
+        return CaseRecord(self.case_id(source, target, kin, frame), self.name, source.character_id,
+                          target.character_id, kin.motion_id, frame,
+                          kin.transforms[span].reshape(-1, 7), sim.transforms[span].reshape(-1, 7),
+                          source.category, target.category)
+
+    def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
+        chars = [data.characters[c.target_id] for c in cases]
+        requests = []
+        for c, ch in zip(cases, chars):
+            k = len(ch.rig.parents)
+            requests.append(MotionRequest(ch.rig, np.asarray(c.source_transforms, np.float32).reshape(-1, k, 7),
+                                          ~np.asarray(ch.record.apparel_bone_mask, bool),
+                                          float(data.motion_fps.get(c.motion_id, DEFAULT_FPS)), c.case_id))
+        answers = call(requests)
+        out = []
+        for c, ch, (pred, err, sec) in zip(cases, chars, answers):
+            if err:
+                out.append(Outcome(c, "failed", err, sec))
+                continue
+            k = len(ch.rig.parents)
+            truth = data.posed(ch, np.asarray(c.target_transforms, np.float32).reshape(-1, k, 7))
+            metrics = apparel_scores(pred, truth, ch.record.apparel_vertex_mask, data.frame(ch))
+            out.append(Outcome(c, "ok", None, sec, metrics, {"forward": pred[len(pred) // 2]}))
+        return out

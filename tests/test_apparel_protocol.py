@@ -1,0 +1,130 @@
+"""The apparel protocol (benchmark/protocols/apparel.py) and its baselines, checked by hand."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from baselines.body_only import BodyOnly
+from baselines.lbs_kinematic import LbsKinematic
+from benchmark.evaluator import evaluate_batch
+from benchmark.normalisation import RestFrame
+from benchmark.protocols import get_protocol
+from benchmark.protocols.apparel import apparel_scores
+from benchmark.protocols.base import CasePool, EvalData
+from benchmark.registry import get_method
+from datagen.apparel.stage import simulate_dataset
+from mimicbench.mesh import unique_edges
+from schemas.shards import write_records
+from tests.apparel_toys import make_character, make_motion, quick_turn
+
+SHIFT = 0.01  # metres: the hand-made "simulation" moves every apparel bone by this along +X
+
+
+def _hand_case(tmp_path):
+    """A toy dataset whose simulated clip is the kinematic one with apparel bones shifted by SHIFT."""
+    c = make_character("toy/a")
+    kin = make_motion(c, quick_turn(20, 4), "turn")
+    sim_t = kin.transforms.copy()
+    sim_t[:, 1:, 4] += SHIFT
+    sim = dataclasses.replace(kin, motion_id=kin.motion_id + "@sim", name="turn@sim", transforms=sim_t)
+    root = tmp_path / "hand"
+    write_records(root, "characters", [c], split="train")
+    write_records(root, "motions", [kin, sim], split="train")
+    return root, c
+
+
+def test_scores_by_hand_and_lbs_kinematic_on_a_hand_case(tmp_path):
+    root, c = _hand_case(tmp_path)
+    proto = get_protocol("apparel")
+    cases = proto.build_cases(CasePool.load(root, "all"), None, 3, seed=0)
+    assert len(cases) == 3 and all(k.protocol == "apparel" and k.source_id == k.target_id == "toy/a" for k in cases)
+    k = len(c.parents)
+    for case in cases:
+        assert case.motion_id == "toy/a/turn" and case.case_id.startswith("apparel/toy/a->toy/a/turn#")
+        assert case.source_transforms.shape == (16 * k, 7) and case.target_transforms.shape == (16 * k, 7)
+    rows = {r.case_id: r for r in evaluate_batch(get_method("lbs_kinematic"), proto, cases, EvalData.load(root))}
+    height = float(np.ptp(c.vertices[:, 1]))
+    share = c.apparel_vertex_mask.mean()
+    for r in rows.values():
+        assert r.status == "ok", r.error
+        # by hand: body vertices exact; every apparel vertex off by SHIFT (one-hot weights, pure translation)
+        assert r.pmd_body == 0.0 and r.pmd_body_cm == 0.0
+        assert r.pmd_apparel == pytest.approx(SHIFT / height * 100, rel=1e-4)
+        assert r.pmd == pytest.approx(share * SHIFT / height * 100, rel=1e-4)
+        assert r.pmd_apparel_cm == pytest.approx(SHIFT / height * 170, rel=1e-4)
+        assert r.els == pytest.approx(1.0, abs=1e-6)  # the toy's parts are separate: no edge is stretched
+        assert len(r.pmd_frames) == 16 and np.allclose(r.pmd_apparel_frames, r.pmd_apparel)
+    # a method that does not list the protocol gets not_supported rows, not failures
+    assert {r.status for r in evaluate_batch(get_method("identity"), proto, cases, EvalData.load(root))} == \
+        {"not_supported"}
+
+
+def test_apparel_scores_per_frame_by_hand():
+    rest = np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [1, 2, 0]], np.float64)  # height 2
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    frame = RestFrame.of(rest, unique_edges(faces))
+    truth = np.stack([rest, rest])
+    pred = truth.copy()
+    pred[0, 3] += [0.2, 0, 0]  # frame 0: apparel vertex 3 off by 0.2
+    pred[1, 0] += [0, 0.4, 0]  # frame 1: body vertex 0 off by 0.4
+    s = apparel_scores(pred, truth, np.array([False, False, False, True]), frame)
+    assert s["pmd_apparel_frames"] == pytest.approx([10.0, 0.0])  # 0.2 / 2 x100
+    assert s["pmd_body_frames"] == pytest.approx([0.0, 0.4 / 3 / 2 * 100])
+    assert s["pmd_frames"] == pytest.approx([0.2 / 4 / 2 * 100, 0.4 / 4 / 2 * 100])
+    assert s["pmd_apparel"] == pytest.approx(5.0) and s["pmd_apparel_cm"] == pytest.approx(5.0 * 1.7)
+    # ELS of frame 0 from the five edges' lengths
+    e = unique_edges(faces)
+    lengths = lambda v: np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)  # noqa: E731
+    assert s["els_frames"][0] == pytest.approx(1 - np.mean(np.abs(lengths(pred[0]) / lengths(rest) - 1)))
+
+
+def test_baselines_on_simulated_toy_data(tmp_path):
+    root = tmp_path / "toy"
+    c = make_character("toy/a")
+    write_records(root, "characters", [c], split="train")
+    write_records(root, "motions", [make_motion(c, quick_turn(24, 4), "turn")], split="train")
+    out = tmp_path / "sim"
+    simulate_dataset(root, out, relax=4, progress=False)
+    proto = get_protocol("apparel")
+    cases = proto.build_cases(CasePool.load(out, "all"), None, 2, seed=0)
+    data = EvalData.load(out)
+    assert data.motion_fps["toy/a/turn"] == 30.0
+    lbs = {r.case_id: r for r in evaluate_batch(LbsKinematic(), proto, cases, data)}
+    body = {r.case_id: r for r in evaluate_batch(BodyOnly(), proto, cases, data)}
+    for cid in lbs:
+        assert lbs[cid].status == body[cid].status == "ok"
+        assert lbs[cid].pmd_body == 0.0 and body[cid].pmd_body == 0.0  # body bones untouched by every route
+        assert lbs[cid].pmd_apparel > 0.1 and body[cid].pmd_apparel > 0.1  # neither lags like the simulation
+    # body_only: the chain moves rigidly with the torso (its only body bone), by hand
+    req_t = cases[0].source_transforms.reshape(-1, len(c.parents), 7)
+    pred = BodyOnly().transfer_motion([_request(c, req_t)])[0]
+    apparel = c.apparel_vertex_mask
+    for f in range(len(req_t)):
+        w, x, y, z = req_t[f, 0, :4]
+        rot = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        expect = (c.vertices[apparel] - c.keypoints[0]) @ rot.T + req_t[f, 0, 4:]
+        np.testing.assert_allclose(pred[f][apparel], expect, atol=1e-5)
+
+
+def _request(c, transforms):
+    from benchmark.request import MotionRequest
+    from benchmark.rigs import CharacterData
+
+    return MotionRequest(CharacterData(c).rig, transforms, ~c.apparel_bone_mask, 30.0)
+
+
+def test_wrong_shapes_fail_the_case(tmp_path):
+    root, _ = _hand_case(tmp_path)
+    proto = get_protocol("apparel")
+    cases = proto.build_cases(CasePool.load(root, "all"), None, 1, seed=0)
+
+    class OneFrame(LbsKinematic):
+        def transfer_motion(self, requests):
+            return [p[0] for p in super().transfer_motion(requests)]
+
+    rows = evaluate_batch(OneFrame(), proto, cases, EvalData.load(root))
+    assert rows[0].status == "failed" and "wrong shape" in rows[0].error
