@@ -46,6 +46,8 @@ def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
 
 
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
+    if len(record.faces) == 0:  # a skeleton-only source (BVH) has no body to collide with
+        return np.zeros(record.num_joints, bool), np.zeros(0, bool)
     if not patterns:
         return np.asarray(record.apparel_bone_mask, bool), np.asarray(record.apparel_vertex_mask, bool)
     bones = bones_matching(record.bone_names, patterns)
@@ -165,7 +167,9 @@ def _write(in_dir: Path, out_dir: Path, records, kinematic, masks, sims, quality
             clips = {m.name: quality[m.motion_id + SIM_SUFFIX] for m in kinematic
                      if m.character_id == r.character_id and m.motion_id + SIM_SUFFIX in quality}
             meta[STAGE] = {"version": SIM_VERSION, "apparel_bones": patterns, "clips": clips}
-        chars.append(dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices, meta=meta))
+        if len(r.faces):
+            r = dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices)
+        chars.append(dataclasses.replace(r, meta=meta))
     for split in splits_of(in_dir, "characters"):
         write_records(out_dir, "characters", [c for c in chars if c.split == split], split=split, rows_per_shard=500,
                       config=config)
@@ -185,5 +189,6 @@ def _write(in_dir: Path, out_dir: Path, records, kinematic, masks, sims, quality
             rows.append(StatusRecord(m.motion_id, STAGE, "ok", "", 0.0))
         elif m.motion_id in latest:
             rows.append(dataclasses.replace(latest[m.motion_id], seconds=0.0))
-    rows += [StatusRecord(cid, STAGE, "skipped", "no apparel bones", 0.0) for cid, (b, _) in masks.items() if not b.any()]
+    rows += [StatusRecord(r.character_id, STAGE, "skipped", "no mesh" if len(r.faces) == 0 else "no apparel bones", 0.0)
+             for r in records if not masks[r.character_id][0].any()]
     write_records(out_dir, "status", rows, split=STAGE, config=config)
