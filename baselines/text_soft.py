@@ -17,8 +17,9 @@ leg's error 30 times larger (demo cycle PMD 62.2 against identity's 61.1, reptil
 column is nearly uniform (top weight 0.05 over 52 bones where uniform is 0.02), so the root
 followed the mean displacement of every source keypoint, rotation-induced ones included. Using
 every keypoint's Eq. 3 translation brought cct PMD (largest extent) on the real glTF assets from
-16.7 to 8.2 (identity 17.2) and on the demo from 7.0 to 6.1 (identity 17.0); on the demo's h2h it
-costs 6.2 -> 9.9 (identity 24.4), where the root's column is sharp.
+16.7 to 8.2 (identity 17.2) and on the demo from 7.0 to 6.1 (identity 17.0), while on a 40-character
+zoo (all splits) it went from 5.5 to 5.9 (identity 16.4); on h2h it costs 6.2 -> 9.9 (demo) and
+6.5 -> 10.3 (zoo), where the root's column is sharp (real assets: 17.2 -> 9.1).
 """
 from __future__ import annotations
 
