@@ -234,9 +234,13 @@ def test_bvh_becomes_a_skeleton_in_metres(ingested, assets_dir):
     char, motions, _, _ = load(out, "CMU_02_01")
     names, rest = bvh_rest_joints(assets_dir / "bvh" / "CMU_02_01.bvh")
     order = [names.index(n) for n in char.bone_names]
-    want = rest[order] * 0.01  # default --bvh-scale: centimetres -> metres (BVH is Y up like the dataset)
+    # default --bvh-scale auto: this file's skeleton is about 24 units tall, which is 0.24 m in centimetres
+    # and 24 m in metres, so CMU's own unit (inches / 0.45 = 0.056444 m) is taken (BVH is Y up like the dataset)
+    want = rest[order] * 0.056444
     np.testing.assert_allclose(char.keypoints - char.keypoints[0], want - want[0], atol=1e-4)
-    assert char.meta["ingest"]["bvh_scale"] == 0.01 and load_manifest(out)["configs"]["characters"]["bvh_scale"] == 0.01
+    assert char.meta["ingest"]["bvh_scale"] == 0.056444 and char.meta["ingest"]["bvh_unit"].startswith("CMU")
+    assert load_manifest(out)["configs"]["characters"]["bvh_scale"] == "auto"
+    assert 1.2 < np.ptp(char.keypoints[:, 1]) < 1.9  # a person, in metres
     assert char.height is None and len(char.faces) == 0
     assert max(np.ptp(m.transforms[..., 4:].reshape(-1, 3), axis=0).max() for m in motions.values()) < 10
 

@@ -195,3 +195,65 @@ def test_categories_are_inferred_on_the_zoo_and_on_renamed_copies(small_zoo):
         opaque, ev = infer_category([f"n{i}" for i in range(c.num_joints)], c.parents, c.keypoints)
         assert opaque in (c.category, "unknown", "humanoid" if c.category == "apparel" else c.category), (c.character_id, ev)
     assert infer_category(["a", "b"], [-1, 0], np.array([[0, 0, 0], [0, 0, 1.0]]))[0] == "unknown"
+
+
+BVH_HEAD = """HIERARCHY
+ROOT Hips
+{
+	OFFSET 0 100 0
+	CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation
+	JOINT Spine
+	{
+		OFFSET 0 40 5
+		CHANNELS 3 Zrotation Yrotation Xrotation
+		End Site
+		{
+			OFFSET 0 30 0
+		}
+	}
+	JOINT LeftLeg
+	{
+		OFFSET 10 -50 0
+		CHANNELS 3 Zrotation Yrotation Xrotation
+		End Site
+		{
+			OFFSET 0 -45 0
+		}
+	}
+}
+MOTION
+Frames: 1
+Frame Time: 0.033333
+0 100 0 0 0 0 0 0 0 0 0 0
+"""
+
+
+def test_bvh_rest_height_and_auto_unit_by_hand(tmp_path):
+    from datagen.ingest.bvh_units import auto_bvh_scale, bvh_rest_height
+
+    path = tmp_path / "person.bvh"
+    path.write_text(BVH_HEAD)
+    # heads: hips 100, spine 140, spine end 170, leg 50, leg end 5 -> 170 - 5 = 165 units
+    assert bvh_rest_height(path) == pytest.approx(165.0)
+    assert auto_bvh_scale(165.0)[:2] == (0.01, "centimetres")
+    assert auto_bvh_scale(1.65)[:2] == (1.0, "metres")
+    assert auto_bvh_scale(24.0)[0] == 0.056444  # CMU conversions: 0.24 m in cm, 24 m in metres
+    assert auto_bvh_scale(1650.0)[:2] == (0.001, "millimetres")
+    assert auto_bvh_scale(0.0) == (0.01, "centimetres", False)
+    broken = tmp_path / "broken.bvh"
+    broken.write_text(BVH_HEAD.replace("OFFSET 10 -50 0", "OFFSET 10 nan 0"))
+    with pytest.raises(ValueError, match="three finite numbers"):
+        bvh_rest_height(broken)
+    (tmp_path / "not.bvh").write_text("MOTION\n")
+    with pytest.raises(ValueError, match="HIERARCHY"):
+        bvh_rest_height(tmp_path / "not.bvh")
+
+
+def test_ingest_option_bvh_scale_accepts_auto_or_a_positive_number():
+    from datagen.ingest.runner import IngestOptions
+
+    IngestOptions(bvh_scale="auto").check()
+    IngestOptions(bvh_scale=0.01).check()
+    for bad in (0, -1.0, "cm"):
+        with pytest.raises(ValueError, match="--bvh-scale"):
+            IngestOptions(bvh_scale=bad).check()

@@ -39,7 +39,8 @@ def render_card(characters, motions, config: dict) -> str:
     if errs:
         lines += ["", f"Clips posed by linear blend skinning vs Blender's evaluation of the file: largest error "
                       f"{max(errs):.4f}% of height over {len(errs)} clips."]
-    lines += ["", f"BVH scale: {config.get('bvh_scale')} metres per file unit.",
+    lines += ["", f"BVH scale: {config.get('bvh_scale')} (metres per file unit, or auto: chosen per file from its rest "
+              "skeleton, recorded in each character's meta.ingest).",
               "Splits: " + ", ".join(f"{k} {v}" for k, v in sorted(Counter(c.split for c in characters).items())) + ".", ""]
     return "\n".join(lines)
 

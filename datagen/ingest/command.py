@@ -34,6 +34,11 @@ Examples:
 """
 
 
+def bvh_scale_arg(text: str) -> float | str:
+    """``--bvh-scale``: ``auto`` or metres per file unit greater than 0."""
+    return "auto" if text == "auto" else positive_float(text)
+
+
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ, .blend through Blender; MMD .pmx/.pmd "
@@ -47,8 +52,10 @@ def register(subparsers) -> None:
     p.add_argument("--category-map", default=None,
                    help="JSON file mapping a glob or file stem to a category; assets it does not name get an "
                         "inferred category")
-    p.add_argument("--bvh-scale", type=positive_float, default=0.01,
-                   help="metres per BVH file unit, > 0 (default 0.01: centimetres; CMU conversions use 0.056444)")
+    p.add_argument("--bvh-scale", type=bvh_scale_arg, default="auto",
+                   help="metres per BVH file unit, > 0, or 'auto' (default): the first of centimetres, metres, "
+                        "CMU units (0.056444), inches, millimetres that makes the rest skeleton 0.3-3 m tall; "
+                        "the choice is recorded in each character's meta")
     p.add_argument("--export", type=comma_choices(EXPORT_FORMATS), default=(), help="comma-separated of obj,bvh: also write OUT/export/ files")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--split", choices=("train", "val", "test"), default=None,

@@ -25,6 +25,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from datagen.ingest import blender_pool
+from datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_rest_height
 from datagen.ingest.category import infer_category
 from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
 from datagen.ingest.uris import external_uri_problems
@@ -43,7 +44,7 @@ from schemas.validate import validate_dataset
 CACHE = ".ingest"
 SUPPORTED = (".glb", ".gltf", ".fbx", ".bvh", ".obj", ".blend")
 EXPORT_FORMATS = ("obj", "bvh")
-DEFAULT_BVH_SCALE = 0.01  # BVH offsets in centimetres -> metres
+DEFAULT_BVH_SCALE = "auto"  # metres per BVH unit from the rest skeleton (datagen/ingest/bvh_units.py)
 
 
 @dataclass
@@ -52,7 +53,7 @@ class IngestOptions:
 
     jobs: int = 1
     timeout: float = 300.0
-    bvh_scale: float = DEFAULT_BVH_SCALE
+    bvh_scale: float | str = DEFAULT_BVH_SCALE
     allow_external_uris: bool = False
     export: tuple = ()
     split: str | None = None
@@ -66,8 +67,9 @@ class IngestOptions:
             raise ValueError(f"--jobs: expected a whole number of Blender processes from 1 to {MAX_JOBS}, got {self.jobs!r}")
         if not self.timeout > 0:
             raise ValueError(f"--timeout: expected seconds per asset greater than 0, got {self.timeout!r}")
-        if not self.bvh_scale > 0:
-            raise ValueError(f"--bvh-scale: expected metres per BVH unit greater than 0 (0.01 for centimetres), "
+        if self.bvh_scale != "auto" and not (isinstance(self.bvh_scale, (int, float)) and self.bvh_scale > 0):
+            raise ValueError(f"--bvh-scale: expected 'auto' or metres per BVH unit greater than 0 (0.01 for "
+                             f"centimetres), "
                              f"got {self.bvh_scale!r}")
         if not isinstance(self.assets_per_process, int) or self.assets_per_process < 1:
             raise ValueError(f"assets_per_process: expected at least 1, got {self.assets_per_process!r}")
@@ -83,9 +85,18 @@ class IngestOptions:
         if self.split is not None and self.split not in ("train", "val", "test"):
             raise ValueError(f"--split: expected train, val or test, got {self.split!r}")
 
-    def child_options(self) -> dict:
-        """The options that change what a child writes (part of the cache key)."""
-        return {"bvh_scale": float(self.bvh_scale)}
+    def child_options(self, asset: Path) -> dict:
+        """The options that change what a child writes for ``asset`` (part of its cache key)."""
+        return {"bvh_scale": self.bvh_scale_for(asset)[0]} if asset.suffix.lower() == ".bvh" else {}
+
+    def bvh_scale_for(self, asset: Path) -> tuple[float, dict]:
+        """Metres per unit of the BVH file ``asset`` and how it was chosen (``--bvh-scale``)."""
+        if self.bvh_scale != "auto":
+            return float(self.bvh_scale), {"bvh_scale_source": "--bvh-scale"}
+        height = bvh_rest_height(asset)
+        scale, unit, plausible = auto_bvh_scale(height)
+        return scale, {"bvh_scale_source": "auto", "bvh_unit": unit, "bvh_rest_height_units": round(height, 4),
+                       "bvh_unit_plausible": plausible}
 
 
 def category_from_map(asset: Path, category_map: dict | None) -> str | None:
@@ -149,7 +160,7 @@ def reproduction_error(char: CharacterRecord, transforms: np.ndarray, scale: np.
 
 
 def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, split: str,
-                       category_map: dict | None = None, bvh_scale: float | None = None
+                       category_map: dict | None = None, bvh_scale: tuple[float, dict] | None = None
                        ) -> tuple[CharacterRecord, list[MotionRecord]]:
     """Character and motion records of one cached child result."""
     meta = json.loads((cache / f"{key}.json").read_text())
@@ -171,7 +182,8 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
             "default_pose_bones": meta.get("default_pose_bones", 0), "cache_key": key}
     if asset.suffix.lower() == ".bvh":
         kp = d["keypoints"]
-        info["bvh_scale"] = bvh_scale
+        info["bvh_scale"], evidence = bvh_scale
+        info.update(evidence)
         info["skeleton_height_m"] = round(float(np.ptp(kp[:, 1])), 4)
     char = CharacterRecord(
         character_id=character_id, category=category, source=str(asset), split=split, vertices=verts,
@@ -261,7 +273,12 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         if problem:
             statuses.append(StatusRecord(str(a), "ingest", "failed", problem, 0.0))
             continue
-        key = cache_key(a, file_sha256(a), opts.child_options())
+        try:
+            child_options = opts.child_options(a)
+        except (OSError, ValueError) as exc:  # a BVH whose HIERARCHY cannot be read for --bvh-scale auto
+            statuses.append(StatusRecord(str(a), "ingest", "failed", str(exc), 0.0))
+            continue
+        key = cache_key(a, file_sha256(a), child_options)
         cid = character_id_for(a, taken)
         taken[cid] = str(a)
         plan[a] = (key, cid)
@@ -277,7 +294,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     def job(a: Path) -> StatusRecord:
         w = workers.get()
         try:
-            return run_job(w, a, cache / f"{plan[a][0]}.npz", opts.child_options(), timeout)
+            return run_job(w, a, cache / f"{plan[a][0]}.npz", opts.child_options(a), timeout)
         finally:
             workers.put(w)
 
@@ -296,12 +313,14 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         if _status_of(cache / f"{key}.json") != "ok":
             continue
         sp = split or split_map.get(cid) or split_of(cid)
-        c, m = records_from_cache(a, cache, key, cid, sp, category_map, bvh_scale if a.suffix.lower() == ".bvh" else None)
+        c, m = records_from_cache(a, cache, key, cid, sp, category_map,
+                                 opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None)
         chars.append(c)
         motions.extend(m)
         for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
             statuses.append(StatusRecord(f"{a}#{e['name']}", "ingest", "failed", f"clip {e['name']!r}: {e['reason']}", 0.0))
-    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), progress=progress, out_dir=out_dir)
+    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), progress=progress and bool(mmd_assets),
+                     out_dir=out_dir)
     for c in mmd.characters:
         c.split = split or split_map.get(c.character_id) or c.split
     mmd_split = {c.character_id: c.split for c in mmd.characters}
@@ -310,11 +329,12 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     chars, motions, statuses = chars + mmd.characters, motions + mmd.motions, statuses + mmd.statuses
     warnings = []
     for c in chars:
-        h = ((c.meta or {}).get("ingest") or {}).get("skeleton_height_m")
-        if h is not None and not 0.3 <= h <= 3.0:
-            warnings.append(f"{c.character_id}: skeleton {h:.3g} m tall at --bvh-scale {bvh_scale:g}; if the file's "
-                            f"unit is not {'centimetres' if bvh_scale == 0.01 else 'that'}, pass --bvh-scale "
-                            f"(metres per file unit; CMU conversions use 0.056444)")
+        info = (c.meta or {}).get("ingest") or {}
+        h = info.get("skeleton_height_m")
+        if h is not None and not PLAUSIBLE_HEIGHT_M[0] <= h <= PLAUSIBLE_HEIGHT_M[1]:
+            warnings.append(f"{c.character_id}: skeleton {h:.3g} m tall at {info['bvh_scale']:g} m per file unit "
+                            f"({info.get('bvh_unit') or '--bvh-scale'}); if that is not the file's unit, pass "
+                            f"--bvh-scale (metres per file unit; CMU conversions use 0.056444)")
     new_ids = {c.character_id for c in chars}
     chars = [c for c in old_chars if c.character_id not in new_ids] + chars
     motions = [m for m in old_motions if m.character_id not in new_ids] + motions
