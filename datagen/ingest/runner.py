@@ -182,8 +182,8 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
             "default_pose_bones": meta.get("default_pose_bones", 0), "cache_key": key}
     if asset.suffix.lower() == ".bvh":
         kp = d["keypoints"]
-        info["bvh_scale"], evidence = bvh_scale
-        info.update(evidence)
+        info["bvh_scale"], unit_evidence = bvh_scale
+        info.update(unit_evidence)
         info["skeleton_height_m"] = round(float(np.ptp(kp[:, 1])), 4)
     char = CharacterRecord(
         character_id=character_id, category=category, source=str(asset), split=split, vertices=verts,
