@@ -34,6 +34,11 @@ def read_only(array, dtype=None) -> np.ndarray:
     return view
 
 
+def read_only_extras(extras: dict) -> dict:
+    """A new dict of ``extras`` with every array value made read-only (see :func:`read_only`)."""
+    return {k: read_only(v) if isinstance(v, np.ndarray) else v for k, v in extras.items()}
+
+
 @dataclass(frozen=True)
 class Rig:
     """A character at rest with its skeleton (dataset frame: metres, Y up, +Z forward).
@@ -108,8 +113,7 @@ class TransferRequest:
         object.__setattr__(self, "source", self.source.fresh())
         object.__setattr__(self, "target", self.target.fresh())
         object.__setattr__(self, "source_posed", read_only(self.source_posed))
-        object.__setattr__(self, "extras", {k: read_only(v) if isinstance(v, np.ndarray) else v
-                                            for k, v in self.extras.items()})
+        object.__setattr__(self, "extras", read_only_extras(self.extras))
 
 @dataclass(frozen=True)
 class MotionRequest:
@@ -141,8 +145,7 @@ class MotionRequest:
         object.__setattr__(self, "target", self.target.fresh())
         object.__setattr__(self, "transforms", read_only(np.asarray(self.transforms, np.float32)))
         object.__setattr__(self, "body_bones", read_only(np.asarray(self.body_bones, bool)))
-        object.__setattr__(self, "extras", {k: read_only(v) if isinstance(v, np.ndarray) else v
-                                            for k, v in self.extras.items()})
+        object.__setattr__(self, "extras", read_only_extras(self.extras))
 
     @property
     def expected_shape(self) -> tuple[int, int, int]:
