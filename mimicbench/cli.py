@@ -36,6 +36,7 @@ COMMAND_MODULES = (
     (None, "benchmark.command"),
     (None, "benchmark.demo"),
     (None, "datagen.render.command"),
+    (None, "mimicbench.commands.train"),
 )
 
 GROUP_HELP = {
@@ -59,6 +60,7 @@ Typical flow:
   mimicbench bench leaderboard results              Markdown, CSV, JSON and HTML
   mimicbench validate data/zoo5k                    check shards against manifest.json
   mimicbench render data/zoo zoo/bird-0001 --out bird.png   a character through Blender
+  mimicbench train mimicat data/zoo --out runs/m1   train the MimiCAT-style reference (stages, resume)
 
 Run `mimicbench COMMAND --help` for each command's options.
 """
