@@ -55,6 +55,6 @@ class RigidBodyRecord:
         Column("restitution", "scalar", "float32", doc="as stored"),
         Column("friction", "scalar", "float32", doc="as stored"),
         Column("collision_group", "scalar", "int32", doc="0..15; the body's group bit is `1 << collision_group`"),
-        Column("collision_mask", "scalar", "int32", doc="16 bits as stored: bit g set = collides with group g (Bullet's mask, as MMD players use it)"),
+        Column("collision_mask", "scalar", "int32", doc="16 bits as stored: bit g set = collides with group g (the complement of the non-collision groups MMD's editors show; Bullet's mask)"),
         Column("mode", "scalar", "string", doc="`static` (follows its bone), `dynamic` (physics drives the bone), `dynamic_bone` (physics rotation, bone translation)"),
     )

@@ -32,6 +32,7 @@ from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
 
 STAGE = "apparel"
+FILE_PHYSICS_TABLES = ("rigid_bodies", "joints")
 
 
 def is_simulated(motion) -> bool:
@@ -40,7 +41,11 @@ def is_simulated(motion) -> bool:
 
 
 def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
-    record, bones, vertices, motion = item
+    record, bones, vertices, motion, file_rows = item
+    if file_rows is not None:  # the character's own rigid bodies and joints (an MMD file)
+        from datagen.apparel.file_physics import simulate_file_motion
+
+        return simulate_file_motion(record, *file_rows, motion, bones, vertices, physics_fps, relax, params.simulation)
     physics = character_physics(record, bones, vertices, params)
     return simulate_motion(record, physics, motion, params, physics_fps, relax)
 
@@ -52,6 +57,22 @@ def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.n
         return np.asarray(record.apparel_bone_mask, bool), np.asarray(record.apparel_vertex_mask, bool)
     bones = bones_matching(record.bone_names, patterns)
     return bones, apparel_vertex_mask(record.weights, bones)
+
+
+def _file_physics(in_dir: Path, tables: list[str], patterns: list[str] | None) -> dict:
+    """``{character_id: (rigid bodies, joints)}`` in file order for characters that have rigid
+    bodies (their physics comes from the file, :mod:`datagen.apparel.file_physics`); none when
+    ``--apparel-bones`` patterns choose the apparel (then the chain defaults apply)."""
+    if patterns or "rigid_bodies" not in tables:
+        return {}
+    rows: dict[str, tuple[list, list]] = {}
+    for b in read_records(in_dir, "rigid_bodies"):
+        rows.setdefault(b.character_id, ([], []))[0].append(b)
+    for j in read_records(in_dir, "joints") if "joints" in tables else []:
+        if j.character_id in rows:
+            rows[j.character_id][1].append(j)
+    return {c: (sorted(b, key=lambda r: r.body_index), sorted(j, key=lambda r: r.joint_index))
+            for c, (b, j) in rows.items()}
 
 
 def _previous_work(out_dir: Path, config: dict, progress: bool) -> tuple[dict, dict]:
@@ -111,7 +132,8 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     stage_params = {"stage": STAGE, "version": SIM_VERSION, "physics_fps": float(physics_fps),
                     "relax_frames": int(relax), "params": params.to_json(),
                     "apparel_bones": list(apparel_bones) if apparel_bones else None}
-    config = stage_config(stage_params, tables_fingerprint(in_dir, ["characters", "motions"]),
+    file_tables = [t for t in FILE_PHYSICS_TABLES if has_table(in_dir, t)]
+    config = stage_config(stage_params, tables_fingerprint(in_dir, ["characters", "motions", *file_tables]),
                           inputs_from=str(in_dir.resolve()), info={"source": str(in_dir)})
     sims, quality = _previous_work(out_dir, config, progress)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -127,11 +149,12 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     if unknown:
         raise UserError(f"{in_dir}: motions of unknown characters {unknown[:3]}; expected every motion's "
                         f"character_id in the characters table")
+    file_rows = _file_physics(in_dir, file_tables, apparel_bones)
     statuses: list[StatusRecord] = []
     fn = partial(_simulate_one, params=params, physics_fps=physics_fps, relax=relax)
     for i in range(0, max(len(todo), 1), batch):
         chunk = todo[i:i + batch]
-        items = [(by_id[m.character_id], *masks[m.character_id], m) for m in chunk]
+        items = [(by_id[m.character_id], *masks[m.character_id], m, file_rows.get(m.character_id)) for m in chunk]
         results, chunk_statuses = run_stage(items, fn, STAGE, name_of=lambda it: it[3].motion_id, jobs=jobs,
                                             progress=progress)
         for sim, q in results:
@@ -139,6 +162,10 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
             quality[sim.motion_id] = q
         statuses += chunk_statuses
         _write(in_dir, out_dir, records, kinematic, masks, sims, quality, statuses, config, apparel_bones)
+    for table in file_tables:  # the physics tables travel with their characters
+        for split in splits_of(in_dir, table):
+            write_records(out_dir, table, read_records(in_dir, table, split), split=split, rows_per_shard=4096,
+                          config=config)
     mark_complete(out_dir)
     problems = validate_dataset(out_dir)
     if problems:
