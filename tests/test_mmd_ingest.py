@@ -93,3 +93,34 @@ def test_second_run_keeps_earlier_physics_and_status(tmp_path):
     assert len(read_records(out, "joints")) == 2
     assets = sorted(s.asset.rsplit("/", 1)[-1] for s in read_records(out, "status"))
     assert assets == ["a.pmx", "a_hop.vmd", "b.pmx"]
+
+
+def test_cli_mmd_unit_scales_model_motion_and_physics(tmp_path):
+    from mimicbench.cli import main
+
+    (tmp_path / "a.pmx").write_bytes(pmx_bytes())
+    (tmp_path / "a_lift.vmd").write_bytes(vmd_bytes([("左足ＩＫ", 0, (0, 0, 0), (0, 0, 0, 1), {}),
+                                                    ("左足ＩＫ", 4, (0, 1, 0), (0, 0, 0, 1), {})]))
+    for unit in ("0.08", "0.1"):
+        assert main(["datagen", "ingest", str(tmp_path / "a.pmx"), "--out", str(tmp_path / unit), "--mmd-unit", unit,
+                     "--quiet"]) == 0
+    default, tenth = (read_records(tmp_path / u, "characters")[0] for u in ("0.08", "0.1"))
+    assert default.meta["mmd"]["metres_per_unit"] == 0.08 and tenth.meta["mmd"]["metres_per_unit"] == 0.1
+    # the fixture's bone 左足 sits at (1, 8, 0) MMD units and vertex 1 at (1, 0, -1): times 0.1, z mirrored
+    np.testing.assert_allclose(tenth.keypoints[tenth.bone_names.index("左足")], [0.1, 0.8, 0.0], atol=1e-7)
+    np.testing.assert_allclose(tenth.vertices[1], [0.1, 0.0, 0.1], atol=1e-7)
+    np.testing.assert_allclose(tenth.vertices, default.vertices * 1.25, atol=1e-6)
+    (lift,) = read_records(tmp_path / "0.1", "motions")
+    ik = tenth.bone_names.index("左足ＩＫ")
+    np.testing.assert_allclose(lift.transforms[4, ik, 4:], tenth.keypoints[ik] + [0, 0.1, 0], atol=1e-6)
+    b08, b10 = (read_records(tmp_path / u, "rigid_bodies") for u in ("0.08", "0.1"))
+    for a, b in zip(b08, b10):
+        np.testing.assert_allclose(b.position, a.position * 1.25, atol=1e-6)
+        np.testing.assert_allclose(b.size, a.size * 1.25, atol=1e-6)
+    for bad in ("0", "-0.08", "nan", "metres"):
+        with pytest.raises(SystemExit) as exc:
+            main(["datagen", "ingest", str(tmp_path / "a.pmx"), "--out", str(tmp_path / "bad"), "--mmd-unit", bad])
+        assert exc.value.code == 2
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(ValueError, match="--mmd-unit: expected metres per MMD unit"):
+        ingest_assets([tmp_path / "a.pmx"], tmp_path / "bad", progress=False, mmd_unit=float("inf"))

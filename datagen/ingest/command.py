@@ -20,7 +20,7 @@ get different IDs (assets/<stem>-<path hash>). A crash, a timeout, an unreadable
 a glTF resource outside the asset's folder becomes a status row and the rest goes on. One Blender
 process ingests many assets (factory reset in between; a fresh one after a crash).
 
-MMD models (.pmx, .pmd) are read without Blender (datagen/mmd): 1 MMD unit = 0.08 m, z mirrored,
+MMD models (.pmx, .pmd) are read without Blender (datagen/mmd): 1 MMD unit = 0.08 m (--mmd-unit), z mirrored,
 rigid bodies and joints in the tables rigid_bodies and joints, and each <stem>.vmd or
 <stem>_<clip>.vmd beside a model (or given with it) played on it with MMD's IK and grants
 (see schemas/FORMAT.md).
@@ -56,6 +56,9 @@ def register(subparsers) -> None:
                    help="metres per BVH file unit, > 0, or 'auto' (default): the first of centimetres, metres, "
                         "CMU units (0.056444), inches, millimetres that makes the rest skeleton 0.3-3 m tall; "
                         "the choice is recorded in each character's meta")
+    p.add_argument("--mmd-unit", type=positive_float, default=0.08, metavar="METRES",
+                   help="metres per MMD unit for .pmx/.pmd/.vmd files, > 0 (default 0.08, the scale of mmd_tools "
+                        "and of MMD players); recorded in each MMD character's meta.mmd.metres_per_unit")
     p.add_argument("--export", type=comma_choices(EXPORT_FORMATS), default=(), help="comma-separated of obj,bvh: also write OUT/export/ files")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--split", choices=("train", "val", "test"), default=None,
@@ -90,7 +93,7 @@ def run(args) -> int:
     cmap = json.loads(open(args.category_map).read()) if args.category_map else None
     s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, args.export, not args.quiet,
                       bvh_scale=args.bvh_scale, allow_external_uris=args.allow_external_uris, split=args.split,
-                      split_file=args.split_file)
+                      split_file=args.split_file, mmd_unit=args.mmd_unit)
     print(summarize_statuses([x for x in s["statuses"] if x.status != "skipped"]))
     for w in s["warnings"]:
         print(f"warning: {w}")

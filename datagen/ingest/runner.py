@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import fnmatch
 import json
+import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ from datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_res
 from datagen.ingest.category import infer_category
 from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
 from datagen.ingest.uris import external_uri_problems
+from datagen.mmd.frame import MMD_UNIT_METRES
 from datagen.splits import split_of
 from mimicbench.argtypes import MAX_JOBS
 from mimicbench.kinematics import transforms_to_array
@@ -60,6 +62,7 @@ class IngestOptions:
     split_file: str | None = None
     assets_per_process: int = 50
     category_map: dict = field(default_factory=dict)
+    mmd_unit: float = MMD_UNIT_METRES
 
     def check(self) -> None:
         """Raise ValueError naming the option and the allowed range."""
@@ -71,6 +74,10 @@ class IngestOptions:
             raise ValueError(f"--bvh-scale: expected 'auto' or metres per BVH unit greater than 0 (0.01 for "
                              f"centimetres), "
                              f"got {self.bvh_scale!r}")
+        if isinstance(self.mmd_unit, bool) or not isinstance(self.mmd_unit, (int, float)) \
+                or not math.isfinite(self.mmd_unit) or not self.mmd_unit > 0:
+            raise ValueError(f"--mmd-unit: expected metres per MMD unit, a finite number greater than 0 (MMD's usual "
+                             f"0.08), got {self.mmd_unit!r}")
         if not isinstance(self.assets_per_process, int) or self.assets_per_process < 1:
             raise ValueError(f"assets_per_process: expected at least 1, got {self.assets_per_process!r}")
         unknown = [x for x in self.export if x not in EXPORT_FORMATS]
@@ -216,7 +223,7 @@ def _existing(out_dir: Path, table: str) -> list:
 def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, category_map: dict | None = None,
                   export=(), progress: bool = True, bvh_scale: float = DEFAULT_BVH_SCALE,
                   allow_external_uris: bool = False, split: str | None = None, split_file: str | None = None,
-                  assets_per_process: int = 50) -> dict:
+                  assets_per_process: int = 50, mmd_unit: float = MMD_UNIT_METRES) -> dict:
     """Ingest assets into ``out_dir`` (keeping what earlier runs put there); returns a summary.
 
     Args:
@@ -232,6 +239,8 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         split: put every asset of this run in this split (``train``, ``val`` or ``test``).
         split_file: JSON split name -> list of character IDs (IDs it lacks get the hashed split).
         assets_per_process: assets one Blender process ingests before a fresh one starts.
+        mmd_unit: metres per MMD unit for .pmx/.pmd/.vmd (default 0.08), recorded in each MMD
+            character's ``meta.mmd.metres_per_unit``.
 
     Raises:
         ValueError: an option out of range (the message says what is allowed).
@@ -239,7 +248,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     from datagen.splits import load_split_file
 
     opts = IngestOptions(jobs, timeout, bvh_scale, allow_external_uris, tuple(export), split, split_file,
-                         assets_per_process, dict(category_map or {}))
+                         assets_per_process, dict(category_map or {}), mmd_unit)
     opts.check()
     split_map = load_split_file(split_file) if split_file else {}
     start = time.perf_counter()
@@ -319,8 +328,8 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         motions.extend(m)
         for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
             statuses.append(StatusRecord(f"{a}#{e['name']}", "ingest", "failed", f"clip {e['name']!r}: {e['reason']}", 0.0))
-    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), progress=progress and bool(mmd_assets),
-                     out_dir=out_dir)
+    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), scale=float(opts.mmd_unit),
+                     progress=progress and bool(mmd_assets), out_dir=out_dir)
     for c in mmd.characters:
         c.split = split or split_map.get(c.character_id) or c.split
     mmd_split = {c.character_id: c.split for c in mmd.characters}
