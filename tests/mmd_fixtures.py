@@ -7,6 +7,9 @@ from __future__ import annotations
 import struct
 
 
+SDEF_C_R0_R1 = (0.5, 1.0, 0.25, 1.0, 1.0, -1.0, 0.0, 2.0, 2.0)  # the SDEF vertex's C, R0, R1 (MMD units)
+
+
 def _text(s: str, enc: str) -> bytes:
     b = s.encode(enc)
     return struct.pack("<i", len(b)) + b
@@ -40,7 +43,7 @@ def pmx_bytes(version: float = 2.0, encoding: int = 0, extra_uv: int = 0, qdef: 
         elif kind == 2:
             out += struct.pack("<4b4f", *data)
         elif kind == 3:
-            out += struct.pack("<2bf9f", 1, 2, 0.75, *([0.0] * 9))
+            out += struct.pack("<2bf9f", 1, 2, 0.75, *SDEF_C_R0_R1)
         else:
             out += struct.pack("<4b4f", 1, 2, -1, -1, 0.75, 0.25, 0, 0)
         out += struct.pack("<f", 1.0)

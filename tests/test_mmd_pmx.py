@@ -13,7 +13,7 @@ from datagen.mmd.errors import MMDFormatError
 from datagen.mmd.pmd import parse_pmd
 from datagen.mmd.pmx import parse_pmx, read_pmx
 from datagen.mmd.records import character_from_mmd
-from tests.mmd_fixtures import pmd_bytes, pmx_bytes
+from tests.mmd_fixtures import SDEF_C_R0_R1, pmd_bytes, pmx_bytes
 
 
 @pytest.fixture(scope="module")
@@ -132,6 +132,14 @@ def test_spec_fixture_pmx(kw):
     dense = c.weights.to_dense()
     np.testing.assert_allclose(dense[3], [0, 0.75, 0.25], atol=1e-6)
     np.testing.assert_allclose(dense[2], [0.5, 0.5, 0], atol=1e-6)
+    sdef = c.meta["mmd"]["sdef"]
+    assert sdef["skinning"].startswith("BDEF2")
+    if kw.get("qdef"):
+        assert sdef["vertices"] == [] and sdef["c"] == []
+    else:  # the fixture's C, R0, R1 in metres with z mirrored: 0.08 * (x, y, -z)
+        assert sdef["vertices"] == [3]
+        expected = 0.08 * np.array(SDEF_C_R0_R1).reshape(3, 3) * [1, 1, -1]
+        np.testing.assert_allclose([sdef["c"][0], sdef["r0"][0], sdef["r1"][0]], expected, atol=1e-7)
 
 
 def test_spec_fixture_pmd_agrees_with_pymeshio():

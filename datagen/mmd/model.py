@@ -126,8 +126,9 @@ class MMDModel:
 
     Arrays: ``positions`` (N, 3) float32 and ``normals`` (N, 3) float32 in MMD units and frame;
     ``deform`` (N,) int8 index into :data:`DEFORM_NAMES`; ``weight_bones`` (N, 4) int32 (-1
-    unused) and ``weight_values`` (N, 4) float32 as stored (BDEF2 holds w, 1-w; SDEF's extra
-    parameters are dropped); ``faces`` (M, 3) int64 as stored (MMD's clockwise front faces).
+    unused) and ``weight_values`` (N, 4) float32 as stored (BDEF2 and SDEF hold w, 1-w);
+    ``sdef_vertices`` (S,) int64 the SDEF vertices and ``sdef`` (S, 3, 3) float32 their C, R0, R1
+    points (MMD units and frame); ``faces`` (M, 3) int64 as stored (MMD's clockwise front faces).
     """
 
     format: str  # "PMX 2.0", "PMX 2.1", "PMD 1.0"
@@ -146,3 +147,5 @@ class MMDModel:
     num_materials: int = 0
     num_morphs: int = 0
     morph_names: list[str] = field(default_factory=list)
+    sdef_vertices: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    sdef: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3), np.float32))

@@ -88,6 +88,8 @@ def parse_pmx(data: bytes, name: str = "<pmx>") -> MMDModel:
         0: struct.Struct(f"<{bfmt}"), 1: struct.Struct(f"<2{bfmt}f"), 2: struct.Struct(f"<4{bfmt}4f"),
         3: struct.Struct(f"<2{bfmt}f9f"), 4: struct.Struct(f"<4{bfmt}4f"),
     }
+    sdef_rows: list[int] = []
+    sdef_values: list[tuple] = []
     buf = r.data
     for i in range(nv):
         if r.left < head.size:
@@ -112,11 +114,16 @@ def parse_pmx(data: bytes, name: str = "<pmx>") -> MMDModel:
         elif t in (1, 3):
             wb[i, :2] = d[:2]
             ww[i, :2] = (d[2], 1.0 - d[2])
+            if t == 3:
+                sdef_rows.append(i)
+                sdef_values.append(d[3:12])
         else:
             wb[i] = d[:4]
             ww[i] = d[4:8]
-    if nv and not (np.isfinite(positions).all() and np.isfinite(normals).all() and np.isfinite(ww).all()):
-        raise MMDFormatError(f"{name}: non-finite vertex position, normal or weight")
+    sdef = np.array(sdef_values, np.float32).reshape(-1, 3, 3)
+    if nv and not (np.isfinite(positions).all() and np.isfinite(normals).all() and np.isfinite(ww).all()
+                   and np.isfinite(sdef).all()):
+        raise MMDFormatError(f"{name}: non-finite vertex position, normal, weight or SDEF parameter")
 
     nidx = r.count("face indices", h.vertex)
     if nidx % 3:
@@ -206,7 +213,7 @@ def parse_pmx(data: bytes, name: str = "<pmx>") -> MMDModel:
     check_indices([j.body_a for j in joints] + [j.body_b for j in joints], nr, "joint rigid body", name)
 
     return MMDModel(f"PMX {h.version:.1f}", model_name, model_name_en, comment, positions, normals, deform, wb, ww,
-                    faces, bones, bodies, joints, nmat, nm, morph_names)
+                    faces, bones, bodies, joints, nmat, nm, morph_names, np.asarray(sdef_rows, np.int64), sdef)
 
 
 def _read_bone(r: BoundedReader, h: _Header, text, idx, i: int) -> MMDBone:

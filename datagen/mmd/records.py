@@ -3,7 +3,7 @@
 Bones are put in topological order (parents first, file order otherwise kept); positions go to
 metres in the dataset frame (:mod:`datagen.mmd.frame`); faces are reversed to stay
 counter-clockwise seen from outside after the mirror; BDEF1/2/4 weights are summed per bone
-(SDEF as BDEF2, QDEF as BDEF4) and renormalised. Japanese names are kept as authored; the English
+(SDEF as BDEF2, its C/R0/R1 kept in ``meta["mmd"]["sdef"]``; QDEF as BDEF4) and renormalised. Japanese names are kept as authored; the English
 canonical name, the file's own English name, and the IK, twist and grant (付与) roles of each bone
 go to ``meta["mmd"]``.
 """
@@ -100,6 +100,19 @@ def skin_weights(model: MMDModel, new_index: np.ndarray, name: str) -> tuple[Spa
     return SparseWeights.from_csr(m), int(empty.sum())
 
 
+SDEF_SKINNING = ("BDEF2: the vertex is skinned by linear blend skinning with the file's weights w and 1 - w on "
+                 "its two bones; MMD's SDEF would instead blend about C between R0 and R1 (kept here)")
+
+
+def sdef_meta(model: MMDModel, scale: float) -> dict:
+    """The SDEF vertices' parameters as ``meta.mmd.sdef``: ``vertices`` (S,) vertex indices (the
+    dataset keeps the file's vertex order), ``c``, ``r0``, ``r1`` (S, 3) metres in the dataset
+    frame, and ``skinning``, how the dataset skins them (:data:`SDEF_SKINNING`)."""
+    pts = frame.point(np.asarray(model.sdef, np.float64).reshape(-1, 3, 3), scale)
+    return {"skinning": SDEF_SKINNING, "vertices": np.asarray(model.sdef_vertices).tolist(),
+            "c": pts[:, 0].tolist(), "r0": pts[:, 1].tolist(), "r1": pts[:, 2].tolist()}
+
+
 def character_from_mmd(model: MMDModel, character_id: str, source: str, split: str, category: str = "unknown",
                        scale: float = frame.MMD_UNIT_METRES) -> CharacterRecord:
     """The character record of ``model`` (see the module docstring); ``scale`` metres per MMD unit."""
@@ -160,6 +173,7 @@ def character_from_mmd(model: MMDModel, character_id: str, source: str, split: s
         "deform_layer": [int(model.bones[i].layer) for i in order],
         "grants": grants, "ik": iks, "deform_counts": deform_counts, "reweighted_vertices": reweighted,
         "apparel_chains": chains, "apparel_mask_rule": "weights on apparel bones sum to >= 0.5",
+        "sdef": sdef_meta(model, scale),
         "materials": model.num_materials, "morphs": model.num_morphs,
         "rigid_bodies": len(model.rigid_bodies), "joints": len(model.joints),
     }}
