@@ -1,9 +1,12 @@
 """The data contract's version, stored in every shard's Arrow metadata and in manifest.json.
 
 Bump the major number for a change that old readers cannot read (a column removed, renamed or
-retyped); bump the minor number for an added nullable column.
+retyped); bump the minor number for an added nullable column or table.
+
+History: 1.2 result columns of the apparel protocol; 1.3 the tables ``rigid_bodies`` and
+``joints`` (an MMD character's physics, read by the apparel stage).
 """
-SCHEMA_VERSION = "1.2"
+SCHEMA_VERSION = "1.3"
 METADATA_KEY = b"mimicbench.schema_version"
 TABLE_KEY = b"mimicbench.table"
 
