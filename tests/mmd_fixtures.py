@@ -101,11 +101,13 @@ def pmd_bytes() -> bytes:
     return out
 
 
-def vmd_bytes(keys, morphs=(), model: str = "model") -> bytes:
+def vmd_bytes(keys, morphs=(), model: str = "model", ik=None) -> bytes:
     """A VMD (version 0002) with bone keys ``(name, frame, (x, y, z), (qx, qy, qz, qw), curves)``,
     ``curves`` a dict channel index (0 x, 1 y, 2 z, 3 rotation) -> (x1, y1, x2, y2) bytes 0..127
     (unlisted channels linear: 20, 20, 107, 107), laid out as MMD writes them (the first 16 bytes:
-    x1 of the four channels, y1, x2, y2; the other 48 bytes MMD's shifted copies)."""
+    x1 of the four channels, y1, x2, y2; the other 48 bytes MMD's shifted copies). ``ik``: show/IK
+    keys ``(frame, shown, [(IK bone name, on), ...])`` written after the empty camera, light and
+    self-shadow sections (none: the file ends after the self-shadow count)."""
     name = lambda s, n: s.encode("cp932")[:n].ljust(n, b"\0")  # noqa: E731
     out = b"Vocaloid Motion Data 0002".ljust(30, b"\0") + name(model, 20) + struct.pack("<I", len(keys))
     for bone, frame, pos, rot, curves in keys:
@@ -116,4 +118,11 @@ def vmd_bytes(keys, morphs=(), model: str = "model") -> bytes:
     out += struct.pack("<I", len(morphs))
     for morph, frame, weight in morphs:
         out += name(morph, 15) + struct.pack("<If", frame, weight)
-    return out + struct.pack("<III", 0, 0, 0)
+    out += struct.pack("<III", 0, 0, 0)
+    if ik is not None:
+        out += struct.pack("<I", len(ik))
+        for frame, shown, states in ik:
+            out += struct.pack("<IBI", frame, shown, len(states))
+            for bone, on in states:
+                out += name(bone, 20) + struct.pack("<B", on)
+    return out

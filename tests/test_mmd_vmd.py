@@ -200,3 +200,45 @@ def test_motion_record_skins_like_mmd_in_the_dataset_frame():
                 mmd[i] += wi * (R[0, b] @ (p - rest[b]) + t[0, b])
     ours = linear_blend_skinning(c.vertices, c.keypoints, c.weights, rec.transforms[0])
     np.testing.assert_allclose(ours, mmd * [0.08, 0.08, -0.08], atol=1e-5)
+
+
+def test_show_ik_section_read_exactly_and_bounded():
+    keys = [("センター", 0, (0, 0, 0), (0, 0, 0, 1), {})]
+    ik = [(0, 1, [("左足ＩＫ", 1), ("右足ＩＫ", 1)]), (12, 1, [("左足ＩＫ", 0)]), (30, 0, [])]
+    v = parse_vmd(vmd_bytes(keys, ik=ik), "ik.vmd")
+    assert v.ik_frames.tolist() == [0, 12, 30] and v.num_shadow_keys == 0
+    assert v.ik_states == [{"左足ＩＫ": True, "右足ＩＫ": True}, {"左足ＩＫ": False}, {}]
+    assert parse_vmd(vmd_bytes(keys), "none.vmd").ik_states == []  # no section: every IK bone on
+    data = vmd_bytes(keys, ik=ik)
+    with pytest.raises(MMDFormatError, match="^ik.vmd: .*(truncated|show/IK)"):
+        parse_vmd(data[:-5], "ik.vmd")
+    with pytest.raises(MMDFormatError, match="IK flag 2"):
+        parse_vmd(vmd_bytes(keys, ik=[(0, 1, [("左足ＩＫ", 2)])]), "ik.vmd")
+
+
+def test_gene_stand_show_ik_section_names_its_six_ik_bones(assets_dir):
+    v = read_vmd(assets_dir / "mmd" / "Gene_stand.vmd")
+    # LICENSES.md: Gene has 6 IK chains; the clip's one show/IK key at frame 0 turns them all on
+    assert v.ik_frames.tolist() == [0] and len(v.ik_states[0]) == 6 and all(v.ik_states[0].values())
+    assert {"左足ＩＫ", "右足ＩＫ", "左つま先ＩＫ", "右つま先ＩＫ"} <= set(v.ik_states[0])
+
+
+@pytest.mark.slow
+def test_ik_off_keys_leave_the_leg_to_its_keys(assets_dir):
+    from datagen.mmd.pmx import read_pmx
+
+    gene = read_pmx(assets_dir / "mmd" / "Gene.pmx")
+    names = [b.name for b in gene.bones]
+    ankle, goal = names.index("左足首"), names.index("左足ＩＫ")
+    # the left foot's IK goal lifted 3 units and moved 2 back; IK on, off from frame 4, on from 7
+    lift = [("左足ＩＫ", f, (0, 3, -2), (0, 0, 0, 1), {}) for f in (0, 10)]
+    ik = [(0, 1, [("左足ＩＫ", 1)]), (4, 1, [("左足ＩＫ", 0)]), (7, 1, [("左足ＩＫ", 1), ("髪ＩＫ", 0)])]
+    v = parse_vmd(vmd_bytes(lift, ik=ik), "lift.vmd")
+    R, t, report = pose_clip(v, gene, 11)
+    on = np.array([f < 4 or f >= 7 for f in range(11)])
+    gap = np.linalg.norm(t[:, ankle] - t[:, goal], axis=1) * 0.08  # metres
+    assert gap[on].max() < 0.01 and (np.linalg.norm(t[:, goal] - gene.bones[ankle].position, axis=1) > 3).all()
+    # IK off: no key moves the leg, so the ankle stays where the rest pose has it
+    np.testing.assert_allclose(t[~on, ankle], np.tile(gene.bones[ankle].position, (3, 1)), atol=1e-4)
+    assert report["ik_keys"] == 3 and report["ik_off_frames"] == {"左足ＩＫ": 3}
+    assert report["ik_unmatched"] == ["髪ＩＫ"]

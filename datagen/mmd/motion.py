@@ -6,7 +6,8 @@ order). Keys on one bone and frame that repeat keep the last one in the file. Ea
 channels are sampled at every frame from 0 to the last key (30 fps) with MMD's Bezier curves
 (:mod:`datagen.mmd.bezier`): translation per axis, rotation by slerp. Each frame is then posed
 with grants and IK (:class:`datagen.mmd.pose.MMDPoser`) and converted to the dataset frame.
-Morph keys are not used (the dataset has no morph targets); their count is reported.
+Show/IK keys switch IK bones off and on (:func:`ik_switches`). Morph keys are not used (the
+dataset has no morph targets); their count is reported.
 """
 from __future__ import annotations
 
@@ -88,15 +89,38 @@ def sample_channels(vmd: VMDMotion, model: MMDModel, num_frames: int | None = No
     return rot, trans, report
 
 
+def ik_switches(vmd: VMDMotion, model: MMDModel, num_frames: int) -> tuple[np.ndarray, dict]:
+    """(F, K) bool: whether each IK bone (file order) solves at frames 0..F-1, from the show/IK
+    keys: a key holds from its frame until the next key that names the bone (MMD steps these
+    keys, no interpolation); before its first key an IK bone is on. Report: ``ik_keys`` (count),
+    ``ik_off_frames`` ({IK bone: frames off}), ``ik_unmatched`` (named IK bones the model lacks
+    or that are not IK bones)."""
+    on = np.ones((num_frames, len(model.bones)), bool)
+    index = {b.name: i for i, b in enumerate(model.bones) if b.ik is not None}
+    unmatched = set()
+    order = np.argsort(vmd.ik_frames, kind="stable")  # equal frames: the later key in the file wins
+    for k in order:
+        start = int(vmd.ik_frames[k])
+        for name, enabled in vmd.ik_states[k].items():
+            if name not in index:
+                unmatched.add(name)
+            elif start < num_frames:
+                on[start:, index[name]] = enabled
+    off = {model.bones[i].name: int((~on[:, i]).sum()) for i in index.values() if (~on[:, i]).any()}
+    return on, {"ik_keys": int(len(vmd.ik_frames)), "ik_off_frames": off, "ik_unmatched": sorted(unmatched)}
+
+
 def pose_clip(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None, chunk: int = 512):
     """Global rotations (F, K, 3, 3) and bone heads (F, K, 3) in the file's frame, and the report
-    (frames posed ``chunk`` at a time)."""
+    (frames posed ``chunk`` at a time; IK bones switched off by show/IK keys do not solve)."""
     rot, trans, report = sample_channels(vmd, model, num_frames)
+    ik_on, ik_report = ik_switches(vmd, model, len(rot))
+    report.update(ik_report)
     poser = MMDPoser(model)
     R = np.empty(rot.shape[:2] + (3, 3))
     t = np.empty(rot.shape[:2] + (3,))
     for s in range(0, len(rot), chunk):
-        R[s:s + chunk], t[s:s + chunk] = poser.evaluate(rot[s:s + chunk], trans[s:s + chunk])
+        R[s:s + chunk], t[s:s + chunk] = poser.evaluate(rot[s:s + chunk], trans[s:s + chunk], ik_on[s:s + chunk])
     return R, t, report
 
 

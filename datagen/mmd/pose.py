@@ -135,15 +135,28 @@ class MMDPoser:
             return
         self._update(reversed(path))
 
-    def evaluate(self, anim_rot: np.ndarray, anim_trans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _undo_ik(self, ik_bone: int, off: np.ndarray) -> None:
+        """Frames ``off`` (F,) bool: the IK rotations of ``ik_bone``'s links back to identity."""
+        links = [link.bone for link in self.model.bones[ik_bone].ik.links]
+        for b in links:
+            self.ik_rot[off, b] = IDENTITY
+            self.update_local(b)
+        for b in reversed(links):  # links run from the effector up: refresh from the top link down
+            self.update_global(b)
+
+    def evaluate(self, anim_rot: np.ndarray, anim_trans: np.ndarray,
+                 ik_on: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Pose frames: global rotations (F, K, 3, 3) and bone heads (F, K, 3), file frame, from
-        animated local rotations (F, K, 4) and translations (F, K, 3); (K, ...) inputs give (K, ...)."""
+        animated local rotations (F, K, 4) and translations (F, K, 3); (K, ...) inputs give (K, ...).
+        ``ik_on`` (F, K) bool: IK bones that solve at each frame (default all); where an IK bone
+        is off, its links keep their animated rotations (the VMD's show/IK keys)."""
         from datagen.mmd.grant import apply_grant
         from datagen.mmd.ik import solve_ik
 
         single = np.ndim(anim_rot) == 2
         if single:
             anim_rot, anim_trans = np.asarray(anim_rot)[None], np.asarray(anim_trans)[None]
+            ik_on = None if ik_on is None else np.asarray(ik_on)[None]
         self.reset(anim_rot, anim_trans)
         bones = self.model.bones
         for after in (False, True):
@@ -159,6 +172,8 @@ class MMDPoser:
                     self.update_global(i)
                 if bones[i].ik is not None:
                     solve_ik(self, i)
+                    if ik_on is not None and not ik_on[:, i].all():
+                        self._undo_ik(i, ~np.asarray(ik_on[:, i], bool))
                     self.update_global(i)
         if single:
             return self.R[0].copy(), self.t[0].copy()

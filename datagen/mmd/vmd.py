@@ -3,12 +3,13 @@
 Why not a library: pypmxvmd 2.7.2 reads VMD but turns rotations into Euler degrees (about 1e-4
 lost per quaternion component); mmd-bone-tools reads only names. This reader keeps the
 quaternions (float32 x, y, z, w as stored) and the 64 interpolation bytes exactly, checks every
-count against the bytes left, and names the file in every error. Camera, light, shadow and IK
-visibility sections are counted, not kept.
+count against the bytes left, and names the file in every error. Camera, light and shadow
+sections are counted, not kept; the show/IK section (MMD 7.40+: per key a frame, the model's
+visibility and an on/off flag per IK bone) is kept as ``ik_frames`` and ``ik_states``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,8 @@ class VMDMotion:
     float32 translation from the rest pose in the parent's frame (MMD units, MMD frame),
     ``rotations`` (n, 4) float32 (x, y, z, w) local rotation from rest, ``interpolation`` (n, 64)
     uint8 (see :mod:`datagen.mmd.bezier`). Morph keys: ``morph_names``, ``morph_frames``,
-    ``morph_weights``."""
+    ``morph_weights``. Show/IK keys: ``ik_frames`` (m,) int64 and ``ik_states`` m dicts
+    ``{IK bone name: enabled}`` (an IK bone a key does not name keeps its state)."""
 
     model_name: str
     bone_names: list[str]
@@ -45,6 +47,9 @@ class VMDMotion:
     morph_weights: np.ndarray
     num_camera_keys: int = 0
     num_light_keys: int = 0
+    num_shadow_keys: int = 0
+    ik_frames: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    ik_states: list = field(default_factory=list)  # per show/IK key: {IK bone name: on}
 
     @property
     def last_frame(self) -> int:
@@ -107,7 +112,27 @@ def parse_vmd(data: bytes, name: str = "<vmd>") -> VMDMotion:
     if r.left:
         lights = r.count("light keys", 28)
         r.take(28 * lights, "light keys")
+    shadows = 0
+    ik_frames: list[int] = []
+    ik_states: list[dict] = []
+    if r.left:
+        shadows = r.count("self-shadow keys", 9)
+        r.take(9 * shadows, "self-shadow keys")
+    if r.left:
+        for k in range(r.count("show/IK keys", 9)):
+            ik_frames.append(r.int(4, f"show/IK key {k} frame", signed=False))
+            r.int(1, f"show/IK key {k} visibility", signed=False)
+            state = {}
+            for e in range(r.count(f"IK entries of show/IK key {k}", 21)):
+                bone = r.fixed_text(20, f"show/IK key {k} IK bone name {e}")
+                flag = r.int(1, f"show/IK key {k} IK flag {e}", signed=False)
+                if flag > 1:
+                    raise MMDFormatError(f"{name}: show/IK key {k}: IK flag {flag} for {bone!r}, expected 0 (off) "
+                                         f"or 1 (on)")
+                state[bone] = bool(flag)
+            ik_states.append(state)
     return VMDMotion(model_name, _names(bones["name"], r, "bone name"), bones["frame"].astype(np.int64),
                      bones["position"].copy(), bones["rotation"].copy(), bones["interpolation"].copy(),
                      _names(morphs["name"], r, "morph name"), morphs["frame"].astype(np.int64),
-                     morphs["weight"].astype(np.float32), cams, lights)
+                     morphs["weight"].astype(np.float32), cams, lights, shadows,
+                     np.asarray(ik_frames, np.int64), ik_states)
