@@ -159,3 +159,50 @@ def test_gene_stand_through_ingest_and_apparel(assets_dir, tmp_path):
     # no explosion: the apparel mesh stays within 5% of the height of the clip's, and smooth
     assert q["secondary_motion_max_pct"] < 5.0 and q["max_accel"] < 50.0
     assert len(read_records(tmp_path / "sim", "rigid_bodies")) == 87
+
+
+def _held_out_names(names: list[str]) -> list[str]:
+    """Another rig's naming: English bone names without the zoo's prefix, and chains named
+    Flap/Strand/Drape (no apparel word) instead of Skirt/Hair/Cape."""
+    chain = {"Skirt": "Flap", "Hair": "Strand", "Cape": "Drape"}
+    out = []
+    for n in names:
+        n = n.split(":", 1)[-1]
+        parts = n.split("_")
+        out.append(f"{chain[parts[0]]}{parts[1]}.{int(parts[2])}" if parts[0] in chain else n)
+    return out
+
+
+@pytest.mark.slow
+def test_held_out_pmx_with_other_names_gets_its_apparel_from_its_bodies(tmp_path):
+    import dataclasses
+
+    from datagen.mmd.chain_physics import chain_physics
+    from datagen.mmd.pmx_writer import write_pmx
+    from datagen.zoo.build import build_character
+    from datagen.zoo.plan import plan_zoo
+    from mimicbench.cli import main
+    from schemas.shards import read_records
+    from tests.mmd_fixtures import vmd_bytes
+
+    spec = [s for s in plan_zoo(24, seed=0) if s.category == "apparel"][0]
+    zoo = build_character(spec, "train", 0, 10).record
+    c = dataclasses.replace(zoo, bone_names=_held_out_names(zoo.bone_names), bone_roles=None)
+    bodies, joints = chain_physics(c)
+    write_pmx(tmp_path / "rig.pmx", c, bodies, joints)
+    # a quarter turn of the hips in 6 frames, then held: the apparel lags and swings back
+    turn = [("Hips", f, (0, 0, 0), (0, np.sin(a / 2), 0, np.cos(a / 2)), {}) for f, a in ((0, 0), (6, np.pi / 2),
+                                                                                           (20, np.pi / 2))]
+    (tmp_path / "rig_turn.vmd").write_bytes(vmd_bytes(turn))
+    assert main(["datagen", "ingest", str(tmp_path / "rig.pmx"), "--out", str(tmp_path / "ds"), "--quiet"]) == 0
+    (rig,) = read_records(tmp_path / "ds", "characters")
+    assert rig.bone_names == c.bone_names and "Strand03.2" in rig.bone_names
+    np.testing.assert_array_equal(rig.apparel_bone_mask, zoo.apparel_bone_mask)  # from the dynamic bodies alone
+    assert main(["datagen", "apparel", str(tmp_path / "ds"), str(tmp_path / "sim"), "--relax-frames", "10", "--quiet"]) == 0
+    motions = {m.name: m for m in read_records(tmp_path / "sim", "motions")}
+    kin, sim = motions["turn"], motions["turn@sim"]
+    q = read_records(tmp_path / "sim", "characters")[0].meta["apparel"]["clips"]["turn"]
+    assert q["physics"] == "file" and q["links"] == int(zoo.apparel_bone_mask.sum()) and q["dropped_joints"] == 0
+    body = ~rig.apparel_bone_mask
+    np.testing.assert_array_equal(sim.transforms[:, body], kin.transforms[:, body])
+    assert q["secondary_motion_max_pct"] > 0.5 and q["secondary_motion_max_pct"] < 20.0
