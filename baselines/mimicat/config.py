@@ -1,0 +1,60 @@
+"""Config presets of the MimiCAT reference: ``small`` (2 CPU cores, minutes) and ``paper``.
+
+One dict for all four stages; the trainer (:mod:`mimicbench.training.loop`) reads ``lr``,
+``weight_decay``, ``grad_clip`` and ``epochs`` from a stage's section or the top level, and each
+stage reads its own section. ``paper`` has the paper's transformer sizes (6 layers, 8 heads,
+width 256, MLP 2048) and AdamW at lr 1e-4 (Sec. 4); ``small`` keeps every stage's structure at
+sizes that train on 2 CPU cores in minutes, with a higher learning rate (5e-4) so that a few
+epochs get somewhere. ``--set shape.width=128`` overrides a value.
+
+Sections:
+- ``data``: ``split`` the characters trained on (``train``, ``val``, ``test`` or ``all``);
+  ``points`` P, the vertices E reads per mesh (rest or posed, in the rest frame: centre of the
+  rest bounding box, divided by its largest side); ``frames_per_motion`` posed frames drawn per
+  clip per epoch.
+- ``shape`` (E, the shape autoencoder): ``tokens`` l_E, ``width`` d, ``heads``, ``layers``
+  (self-attention blocks after the cross-attention), ``mlp``, ``decoder_layers``; ``queries``
+  UDF query points per shape, ``surface_samples`` for the UDF target, ``fourier`` frequencies.
+- ``prior`` (F): ``width``, ``heads``, ``layers``, ``mlp``, ``fourier``,
+  ``output_scale``; ``max_keypoints`` per character (more are
+  subsampled each step).
+- ``corr`` (G) and ``transfer`` (H): sizes (owned by their stages).
+"""
+from __future__ import annotations
+
+import copy
+
+SMALL = {
+    "lr": 5e-4,
+    "weight_decay": 0.01,
+    "grad_clip": 1.0,
+    "data": {"split": "train", "points": 512, "frames_per_motion": 4},
+    "shape": {"tokens": 16, "width": 64, "heads": 4, "layers": 2, "mlp": 128, "decoder_layers": 1,
+              "fourier": 6, "queries": 512, "surface_samples": 4096, "batch_size": 8, "epochs": 20},
+    "prior": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "fourier": 6,
+              "max_keypoints": 64, "batch_size": 8, "epochs": 15},
+    "corr": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 8, "epochs": 10},
+    "transfer": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 4, "epochs": 10},
+}
+
+PAPER = {
+    "lr": 1e-4,
+    "weight_decay": 0.01,
+    "grad_clip": 1.0,
+    "data": {"split": "train", "points": 2048, "frames_per_motion": 16},
+    "shape": {"tokens": 64, "width": 256, "heads": 8, "layers": 6, "mlp": 2048, "decoder_layers": 2,
+              "fourier": 8, "queries": 2048, "surface_samples": 16384, "batch_size": 32, "epochs": 200},
+    "prior": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "fourier": 8,
+              "max_keypoints": 256, "batch_size": 32, "epochs": 100},
+    "corr": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 32, "epochs": 100},
+    "transfer": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 16, "epochs": 100},
+}
+
+PRESETS = {"small": SMALL, "paper": PAPER}
+
+
+def preset(name: str) -> dict:
+    """A deep copy of the preset ``name`` (``small`` or ``paper``)."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown MimiCAT config {name!r}; expected one of {', '.join(PRESETS)}")
+    return copy.deepcopy(PRESETS[name])
