@@ -1,0 +1,73 @@
+"""Test-time as-rigid-as-possible refinement of an LBS-posed mesh (libigl's ARAP).
+
+LBS blends rigid bone transforms and so thins joints and shears skin between bones. The
+refinement keeps the vertices that one bone owns outright (largest skin weight >= ``rigid``) where
+LBS put them and solves ARAP (Sorkine and Alexa 2007; libigl ``arap_precomputation`` /
+``arap_solve``) from the rest mesh for the others, starting from the LBS result. Each connected
+component of the mesh keeps at least one fixed vertex (its most rigidly bound one) so the solve is
+well posed. The precomputation depends only on the rest mesh and its weights and is cached per
+character.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class ArapRefiner:
+    """Refine LBS-posed meshes of characters by ARAP.
+
+    Args:
+        rigid: a vertex whose largest skin weight is at least this is held at its LBS position.
+        iterations: ARAP local-global iterations.
+    """
+
+    def __init__(self, rigid: float = 0.99, iterations: int = 10):
+        if not 0 < rigid <= 1:
+            raise ValueError(f"rigid: expected a weight in (0, 1], got {rigid}")
+        self.rigid = rigid
+        self.iterations = iterations
+        self._cache: dict[str, tuple] = {}
+
+    def handles(self, faces: np.ndarray, weight_values: np.ndarray, num_vertices: int) -> np.ndarray:
+        """(H,) int32 fixed vertices: rigidly bound ones plus one per component that has none."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        top = np.asarray(weight_values).max(axis=1)
+        fixed = top >= self.rigid
+        f = np.asarray(faces, np.int64)
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(num_vertices, num_vertices))
+        n_comp, label = connected_components(graph, directed=False)
+        for c in range(n_comp):
+            members = np.flatnonzero(label == c)
+            if not fixed[members].any():
+                fixed[members[np.argmax(top[members])]] = True
+        return np.flatnonzero(fixed).astype(np.int32)
+
+    def refine(self, key: str, rest_vertices: np.ndarray, faces: np.ndarray, weight_values: np.ndarray,
+               posed: np.ndarray) -> np.ndarray:
+        """ARAP-refined vertices (N, 3) float32; the LBS result itself if the solve is not finite.
+
+        Args:
+            key: cache key of the character (its ID).
+            rest_vertices: (N, 3) rest mesh; faces: (M, 3) triangles.
+            weight_values: (N, J) skin weight values (their row maximum decides what is rigid).
+            posed: (N, 3) LBS-posed vertices.
+        """
+        import igl
+
+        if key not in self._cache:
+            v = np.ascontiguousarray(rest_vertices, np.float64)
+            b = self.handles(faces, weight_values, len(v))
+            data = igl.ARAPData()
+            data.max_iter = self.iterations
+            igl.arap_precomputation(v, np.ascontiguousarray(faces, np.int64), 3, b, data)
+            self._cache[key] = (b, data)
+        b, data = self._cache[key]
+        u0 = np.ascontiguousarray(posed, np.float64)
+        out = igl.arap_solve(np.ascontiguousarray(u0[b]), data, u0.copy())
+        out = np.asarray(out, np.float64)
+        if out.shape != u0.shape or not np.isfinite(out).all():
+            return np.asarray(posed, np.float32)
+        return out.astype(np.float32)

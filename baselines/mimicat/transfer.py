@@ -1,0 +1,160 @@
+"""The pose-transfer transformer H (MimiCAT Eq. 3, 4, 7, 8).
+
+For a source pose and a target character, with a soft correspondence M from G:
+
+1. Initialisation (Eq. 3-4, :mod:`baselines.mimicat.initialisation`): per target keypoint j a
+   rotation q̄_j and a position t̄_j.
+2. Shape conditioning: the residual feature ``delta_f = E(V_s posed) - E(V_s rest)`` (l_E, d)
+   says how the source's shape moved; the target's rest shape tokens E(V_t) attend to it
+   (cross-attention, queries from the target, keys and values from delta_f), giving posed
+   target shape tokens.
+3. Keypoint tokens from ``[c_j, c̄_j, t̄_j, q̄_j]``: the target's skeleton features (rest
+   position c_j among them), the M-weighted source rest keypoint c̄_j (source frame), the
+   initial displacement (t̄_j - c_j) / size and q̄_j.
+4. Transformer blocks over keypoint and shape tokens (padding masked), a decoder to a
+   per-keypoint correction (δ rotation, δ translation): ``q_j = q̄_j ⊗ normalise(1, δ)``,
+   ``t_j = t̄_j + size · δt``. The decoder's last layer starts at zero, so an untrained H returns
+   the initialisation exactly and training can only move away from it where the losses say so.
+5. LBS (Eq. 1) poses the target mesh.
+
+Training (Eq. 7-8) is by cycle consistency, see :mod:`baselines.mimicat.transfer_losses`.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from baselines.mimicat.correspondence import mlp, transformer
+from baselines.mimicat.corr_data import KEYPOINT_FEATURES
+from baselines.mimicat.initialisation import initial_pose
+from baselines.mimicat.transfer_data import CharacterTensors, pad
+from mimicbench.skinning_torch import linear_blend_skinning_torch
+
+TOKEN_FEATURES = KEYPOINT_FEATURES + 3 + 3 + 4
+
+
+def quat_multiply_torch(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Hamilton product (..., 4) of quaternions (w, x, y, z)."""
+    aw, ax, ay, az = a.unbind(-1)
+    bw, bx, by, bz = b.unbind(-1)
+    return torch.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                        aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], dim=-1)
+
+
+def pose_mesh(char: CharacterTensors, q: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+    """The character's vertices (N, 3) posed by global rotations q (K, 4) and positions t (K, 3) (LBS)."""
+    transforms = torch.cat([q, t], dim=-1).to(torch.float32)
+    return linear_blend_skinning_torch(char.vertices, char.keypoints, char.weight_values, transforms,
+                                       char.weight_indices)
+
+
+class PoseTransferTransformer(nn.Module):
+    """H: source pose + target character + M -> target transforms (q, t) per keypoint.
+
+    Args:
+        shape_width: width d of the shape encoder's tokens.
+        width, layers, heads, mlp_width: transformer sizes.
+        average: rotation average of the initialisation, ``eq4`` or ``naive`` (ablation A1).
+    """
+
+    def __init__(self, shape_width: int, width: int = 64, layers: int = 2, heads: int = 4, mlp_width: int = 128,
+                 average: str = "eq4"):
+        super().__init__()
+        self.average = average
+        self.token_encoder = mlp(TOKEN_FEATURES, width, width)
+        self.target_projector = nn.Linear(shape_width, width)
+        self.delta_projector = nn.Linear(shape_width, width)
+        self.cross = nn.MultiheadAttention(width, heads, batch_first=True)
+        self.cross_norm = nn.LayerNorm(width)
+        self.segment = nn.Embedding(2, width)  # keypoint token, shape token
+        self.blocks = transformer(width, layers, heads, mlp_width)
+        self.norm = nn.LayerNorm(width)
+        self.decoder = mlp(width, width, 6)
+        nn.init.zeros_(self.decoder[-1].weight)
+        nn.init.zeros_(self.decoder[-1].bias)
+
+    def initialise(self, src: CharacterTensors, q_src: torch.Tensor, t_src: torch.Tensor, tgt: CharacterTensors,
+                   m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Eq. 3-4 for one pair: q̄ (Kt, 4), t̄ (Kt, 3) and the keypoint token inputs (Kt, TOKEN_FEATURES)."""
+        q_bar, t_bar = initial_pose(q_src, t_src, src.keypoints, tgt.keypoints, tgt.parents, m,
+                                    tgt.size / src.size, self.average)
+        q_bar, t_bar = q_bar.to(torch.float32), t_bar.to(torch.float32)
+        mf = m.to(torch.float32)
+        mass = mf.sum(dim=0, keepdim=True).clamp_min(1e-9)
+        c_bar = (mf / mass).T @ ((src.keypoints - src.centre) / src.size)
+        tokens = torch.cat([tgt.features, c_bar, (t_bar - tgt.keypoints) / tgt.size, q_bar], dim=-1)
+        return q_bar, t_bar, tokens
+
+    def forward(self, src: list[CharacterTensors], q_src: list[torch.Tensor], t_src: list[torch.Tensor],
+                tgt: list[CharacterTensors], m: list[torch.Tensor], delta_f: torch.Tensor,
+                shape_t: torch.Tensor) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        """Per pair of the batch, the target's global rotations (Kt, 4) and positions (Kt, 3).
+
+        Args:
+            src, tgt: the B source and target characters.
+            q_src, t_src: per pair (Ks, 4) source global rotations and (Ks, 3) posed keypoints.
+            m: per pair (Ks, Kt) soft correspondence.
+            delta_f: (B, l, d) E(source posed) - E(source rest).
+            shape_t: (B, l, d) E(target rest).
+        """
+        inits = [self.initialise(s, q, t, g, mm) for s, q, t, g, mm in zip(src, q_src, t_src, tgt, m)]
+        tokens, mask = pad([i[2] for i in inits])
+        kp = self.token_encoder(tokens) + self.segment.weight[0]
+        query = self.target_projector(shape_t)
+        delta = self.delta_projector(delta_f)
+        posed_shape = self.cross_norm(query + self.cross(query, delta, delta, need_weights=False)[0])
+        h = torch.cat([kp, posed_shape + self.segment.weight[1]], dim=1)
+        valid = torch.cat([mask, torch.ones(mask.shape[0], posed_shape.shape[1], dtype=torch.bool,
+                                            device=mask.device)], dim=1)
+        h = self.norm(self.blocks(h, src_key_padding_mask=~valid))
+        out = self.decoder(h[:, :kp.shape[1]])
+        result = []
+        for b, (q_bar, t_bar, _) in enumerate(inits):
+            k = len(q_bar)
+            dq = torch.cat([torch.ones_like(out[b, :k, :1]), out[b, :k, :3]], dim=-1)
+            dq = dq / dq.norm(dim=-1, keepdim=True)
+            result.append((quat_multiply_torch(q_bar, dq), t_bar + tgt[b].size * out[b, :k, 3:]))
+        return result
+
+
+def encode_pair_shapes(encoder: nn.Module, src: list[CharacterTensors], src_posed: list[torch.Tensor],
+                       tgt: list[CharacterTensors]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """E's tokens for a batch: source rest, source posed, target rest (each (B, l, d)) and delta_f."""
+    from baselines.mimicat.transfer_data import shape_tokens
+
+    b = len(src)
+    pts = torch.stack([s.normalised(s.vertices) for s in src] + [s.normalised(p) for s, p in zip(src, src_posed)]
+                      + [t.normalised(t.vertices) for t in tgt])
+    tok = shape_tokens(encoder, pts)
+    f_s, f_sp, f_t = tok[:b], tok[b:2 * b], tok[2 * b:]
+    return f_s, f_sp, f_t, f_sp - f_s
+
+
+def transfer_batch(encoder: nn.Module, g: nn.Module, h: PoseTransferTransformer, src: list[CharacterTensors],
+                   q_src: list[torch.Tensor], t_src: list[torch.Tensor], src_posed: list[torch.Tensor],
+                   tgt: list[CharacterTensors], m: list[torch.Tensor] | None = None):
+    """The cascade E -> G -> H for a batch of pairs.
+
+    Args:
+        encoder: the shape encoder E; g: the correspondence transformer G (used when ``m`` is None);
+            h: the pose-transfer transformer H.
+        src, tgt: characters; q_src, t_src: per pair the source pose (Ks, 4), (Ks, 3);
+        src_posed: per pair the posed source vertices (Ns, 3).
+        m: per pair (Ks, Kt) correspondences to use instead of G's.
+
+    Returns:
+        ``[(q (Kt, 4), t (Kt, 3))]``, the correspondences used, and the shape tokens
+        ``(f_s, f_sp, f_t, delta_f)``.
+    """
+    f_s, f_sp, f_t, delta_f = encode_pair_shapes(encoder, src, src_posed, tgt)
+    if m is None:
+        kp_s, mask_s = pad([s.features for s in src])
+        kp_t, mask_t = pad([t.features for t in tgt])
+        m = g(kp_s, mask_s, kp_t, mask_t, f_s, f_t)
+    return h(src, q_src, t_src, tgt, m, delta_f, f_t), m, (f_s, f_sp, f_t, delta_f)
+
+
+def as_numpy_transforms(q: torch.Tensor, t: torch.Tensor) -> np.ndarray:
+    """(K, 7) float32 transforms from torch rotations and positions."""
+    return torch.cat([q, t], dim=-1).detach().cpu().numpy().astype(np.float32)
