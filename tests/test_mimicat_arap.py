@@ -26,10 +26,10 @@ def test_handles_hold_and_every_component_gets_one():
     b = ref.handles(rig.faces, rig.weights.values, len(rig.vertices))
     top = np.asarray(rig.weights.values).max(axis=1)
     assert set(np.flatnonzero(top >= 0.9)) <= set(b)
-    # two copies of the tube side by side, all weights blended: one handle per copy
+    # two copies of the tube side by side, all weights blended: three handles per copy
     faces = np.concatenate([rig.faces, rig.faces + len(rig.vertices)])
     blended = np.full((2 * len(rig.vertices), 2), 0.5)
-    assert len(ref.handles(faces, blended, 2 * len(rig.vertices))) == 2
+    assert len(ref.handles(faces, blended, 2 * len(rig.vertices))) == 6
     pose = posed(rig, bend(rig, 0.8, 1))
     out = ref.refine("t", rig.vertices, rig.faces, rig.weights.values, pose)
     bb = ref.handles(rig.faces, rig.weights.values, len(rig.vertices))
@@ -37,3 +37,47 @@ def test_handles_hold_and_every_component_gets_one():
     assert np.isfinite(out).all()
     with pytest.raises(ValueError, match="rigid"):
         ArapRefiner(rigid=0)
+
+
+def _faces(ref, prims):
+    out, offset = [], 0
+    for p in prims:
+        spec = ref.json["meshes"][p.mesh]["primitives"][p.index]
+        if spec.get("mode", 4) == 4:  # triangles, indexed or not (glTF 2.0, 3.7.2.1)
+            idx = ref.accessor(spec["indices"]) if "indices" in spec else np.arange(len(p.positions))
+            out.append(idx.reshape(-1, 3).astype(np.int64) + offset)
+        offset += len(p.positions)
+    return np.concatenate(out)
+
+
+def _weight_values(p) -> np.ndarray:
+    """(V, 8) normalised weight values of a primitive (one rigid influence when unskinned)."""
+    w = np.ones((len(p.positions), 1)) if p.weights is None else p.weights / np.maximum(p.weights.sum(1, keepdims=True), 1e-12)
+    return np.pad(w, ((0, 0), (0, 8 - w.shape[1])))
+
+
+@pytest.mark.parametrize("name", ["Fox", "CesiumMan", "Quaternius_Horse", "Quaternius_Dolphin", "Quaternius_Stegosaurus",
+                                  "Quaternius_Triceratops", "Quaternius_MantaRay", "Quaternius_Rat", "Quaternius_Husky",
+                                  "RobotExpressive"])
+def test_real_gltf_characters(assets_dir, name):
+    """Every real glTF character with a clip: skinned by an independent glTF evaluator at rest and
+    mid-clip; ARAP keeps rest at rest, holds its handles and stays finite."""
+    from tests.gltf_reference import GltfReference
+
+    ref = GltfReference(assets_dir / "glb" / f"{name}.glb")
+    prims = ref.primitives()
+    if not ref.animations or not any(p.skin is not None for p in prims):
+        pytest.fail(f"{name}: expected a skinned glTF with clips")
+    rest = ref.vertices(None)
+    lo, hi = ref.clip_range(0)
+    pose = ref.vertices(0, (lo + hi) / 2)
+    faces = _faces(ref, prims)
+    values = np.concatenate([_weight_values(p) for p in prims])
+    refiner = ArapRefiner()
+    size = float((rest.max(0) - rest.min(0)).max())
+    np.testing.assert_allclose(refiner.refine(name + "/rest", rest, faces, values, rest), rest, atol=1e-4 * size)
+    out = refiner.refine(name, rest, faces, values, pose)
+    b = refiner.handles(refiner.solvable_faces(rest, faces), values, len(rest))
+    assert np.isfinite(out).all()
+    np.testing.assert_allclose(out[b], pose[b], atol=1e-4 * size)
+    assert np.abs(out - pose).max() < 0.5 * size  # a refinement, not a different pose

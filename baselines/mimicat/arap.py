@@ -5,7 +5,8 @@ refinement keeps the vertices that one bone owns outright (largest skin weight >
 LBS put them and solves ARAP (Sorkine and Alexa 2007; libigl ``arap_precomputation`` /
 ``arap_solve``) from the rest mesh for the others, starting from the LBS result. Each connected
 component of the mesh keeps at least one fixed vertex (its most rigidly bound one) so the solve is
-well posed. The precomputation depends only on the rest mesh and its weights and is cached per
+well posed; a vertex that no triangle uses is held too, and degenerate (zero-area) triangles,
+whose cotangent weights are infinite, are left out of the solve. The precomputation depends only on the rest mesh and its weights and is cached per
 character.
 """
 from __future__ import annotations
@@ -28,21 +29,35 @@ class ArapRefiner:
         self.iterations = iterations
         self._cache: dict[str, tuple] = {}
 
+    @staticmethod
+    def solvable_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        """(M', 3) int64 the triangles of non-zero area (relative to the mesh's size)."""
+        v = np.asarray(vertices, np.float64)
+        f = np.asarray(faces, np.int64)
+        area = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+        size = float((v.max(axis=0) - v.min(axis=0)).max()) if len(v) else 1.0
+        return f[area > 1e-10 * size * size]
+
     def handles(self, faces: np.ndarray, weight_values: np.ndarray, num_vertices: int) -> np.ndarray:
-        """(H,) int32 fixed vertices: rigidly bound ones plus one per component that has none."""
+        """(H,) int32 fixed vertices: rigidly bound ones, those no triangle of ``faces`` uses, and
+        the three most rigidly bound
+        vertices of each connected component that has fewer than three."""
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
 
         top = np.asarray(weight_values).max(axis=1)
         fixed = top >= self.rigid
         f = np.asarray(faces, np.int64)
+        used = np.zeros(num_vertices, bool)
+        used[f.ravel()] = True
+        fixed |= ~used
         edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
         graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(num_vertices, num_vertices))
         n_comp, label = connected_components(graph, directed=False)
         for c in range(n_comp):
             members = np.flatnonzero(label == c)
-            if not fixed[members].any():
-                fixed[members[np.argmax(top[members])]] = True
+            if fixed[members].sum() < 3:  # fewer than three leave a rotation free: fix the most rigid three
+                fixed[members[np.argsort(-top[members], kind="stable")[:3]]] = True
         return np.flatnonzero(fixed).astype(np.int32)
 
     def refine(self, key: str, rest_vertices: np.ndarray, faces: np.ndarray, weight_values: np.ndarray,
@@ -59,10 +74,11 @@ class ArapRefiner:
 
         if key not in self._cache:
             v = np.ascontiguousarray(rest_vertices, np.float64)
-            b = self.handles(faces, weight_values, len(v))
+            f = np.ascontiguousarray(self.solvable_faces(v, faces))
+            b = self.handles(f, weight_values, len(v))
             data = igl.ARAPData()
             data.max_iter = self.iterations
-            igl.arap_precomputation(v, np.ascontiguousarray(faces, np.int64), 3, b, data)
+            igl.arap_precomputation(v, f, 3, b, data)
             self._cache[key] = (b, data)
         b, data = self._cache[key]
         u0 = np.ascontiguousarray(posed, np.float64)
