@@ -125,13 +125,16 @@ def test_gene_scene_plan(assets_dir):
     # LICENSES.md: 9 physics + 53 physics-and-bone bodies, every one hangs from a bone-following one
     assert links == [i for i, b in enumerate(bodies) if b.mode != "static"] and len(links) == 62
     assert plan.unanchored == [] and all(bodies[c.anchor].mode == "static" for c in plan.chains)
-    # left out, by the file's own numbers: the 13 reverse ("-") joints double a tree joint's pair;
-    # the 8 ring joints ("_J", y translation free) and 9 weight joints ("補", all free) close loops
+    # by the file's own numbers: the 8 cloak ring joints ("_J", free along y only) close loops as
+    # point-to-point constraints; left out are the 13 reverse ("-") joints, which double a tree
+    # joint's pair, and the 9 weight joints ("補"), free on every axis
+    assert sorted(joints[j].name for j in plan.loops) == sorted(j.name for j in joints if j.name.endswith("_J"))
+    assert len(plan.loops) == 8
     names = {joints[j].name: why for j, why in plan.dropped.items()}
-    assert len(names) == 30 and plan.loops == []
+    assert len(names) == 22
     assert {n for n, why in names.items() if why == "its bodies are joined already"} == \
         {n for n in names if n.endswith("-")} and sum(n.endswith("-") for n in names) == 13
-    assert sum(n.endswith("_J") for n in names) == 8 and sum(n.endswith("補") for n in names) == 9
+    assert sum(n.endswith("補") for n in names) == 9
 
 
 @pytest.mark.slow
@@ -206,3 +209,35 @@ def test_held_out_pmx_with_other_names_gets_its_apparel_from_its_bodies(tmp_path
     body = ~rig.apparel_bone_mask
     np.testing.assert_array_equal(sim.transforms[:, body], kin.transforms[:, body])
     assert q["secondary_motion_max_pct"] > 0.5 and q["secondary_motion_max_pct"] < 20.0
+
+
+@pytest.mark.parametrize("free_axes, held", [(0, True), (1, True), (2, False)])
+def test_a_loop_joint_ties_a_free_bob_to_a_held_one(free_axes, held):
+    # bob 1 hangs on a locked (fixed) joint, horizontal; bob 2, 0.2 m beside it, on a free joint;
+    # a third joint ties bob 2 to bob 1: point-to-point (bob 2 stays up) unless two or more of
+    # its translation axes are free (dropped: bob 2 swings down under the pivot)
+    side = np.array([0.0, 0.0, 0.2])
+    bodies = [_body(0, "sphere", [0.02, 0, 0], PIVOT, "static", group=3),
+              _body(1, "sphere", [0.05, 0, 0], PIVOT + [ARM, 0, 0], "dynamic", group=1, mask=0, bone=1),
+              _body(2, "sphere", [0.05, 0, 0], PIVOT + [ARM, 0, 0] + side, "dynamic", group=1, mask=0, bone=1)]
+    z = np.zeros(3)
+    fixed, free = _joint(0, 1, z, z), _joint(0, 2, *FREE)
+    free = JointRecord(**{**free.__dict__, "position": np.float32(PIVOT + side)})
+    lo, hi = np.zeros(3, np.float32), np.zeros(3, np.float32)
+    lo[:free_axes], hi[:free_axes] = 1.0, -1.0  # lower above upper: free
+    tie = JointRecord("toy", 2, "tie", "", "spring_6dof", 1, 2, np.float32(PIVOT + [ARM, 0, 0] + side),
+                      np.float32([1, 0, 0, 0]), lo, hi, np.float32(z), np.float32(z), np.float32(z), np.float32(z))
+    plan = plan_scene(bodies, [fixed, free, tie])
+    assert plan.loops == ([2] if held else []) and (2 in plan.dropped) != held
+    keypoints = np.array([PIVOT, PIVOT + [ARM, 0, 0]])
+    rest = rest_transforms(keypoints).astype(np.float64)
+    with FileWorld(bodies, [fixed, free, tie], keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08) as world:
+        for _ in range(480):
+            world.set_body_pose(rest)
+            world.step()
+        positions, _, _ = world.body_poses()
+    assert positions[1][1] == pytest.approx(PIVOT[1], abs=0.01)  # the fixed bob holds
+    if held:
+        assert positions[2][1] == pytest.approx(PIVOT[1], abs=0.03)
+    else:
+        assert positions[2][1] < PIVOT[1] - 0.4

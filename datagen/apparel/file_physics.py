@@ -22,9 +22,10 @@ The Bullet scene (pybullet, one DIRECT client per clip):
   asymmetric range such as a skirt's [-3, 60] degrees stays asymmetric) and its half-widths are
   the half-ranges; a free axis (lower above upper, Bullet's convention) gets a half-width of
   3.1 rad. Tree joints lock translation (MMD's joints almost always do; a translation range is
-  counted in ``dropped``). A joint that would close a loop is a point-to-point constraint when
-  its translations are locked and its bodies are not joined already; otherwise it is dropped
-  and counted with the reason.
+  noted). A joint that would close a loop is a point-to-point constraint when at least two of
+  its translation axes are locked (the third is then locked too: a ring of cloak panels whose
+  joints let them slide along one axis stays a ring) and its bodies are not joined already;
+  otherwise it is dropped and counted with the reason.
 - **Springs** (rotation stiffness per axis, MMD's units: torque per radian, times
   ``metres_per_unit`` squared for metres) become the joint's position motor toward the rest pose.
   Bullet's motor drives the joint's velocity toward ``gain * error / dt`` with a torque limit per
@@ -194,8 +195,8 @@ def plan_scene(bodies: list[RigidBodyRecord], joints: list[JointRecord]) -> Scen
             dropped[j] = "a body of it is not tied to a static body"
         elif frozenset((a, b)) in joined:
             dropped[j] = "its bodies are joined already"
-        elif not locked_t[j]:
-            dropped[j] = "closes a loop with free translation"
+        elif _locked(jr.translation_min, jr.translation_max).sum() < 2:
+            dropped[j] = "closes a loop with two or three free translation axes"
         else:
             loops.append(j)
             joined.add(frozenset((a, b)))
