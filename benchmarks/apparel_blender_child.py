@@ -33,7 +33,7 @@ def select_only(obj):
 
 def main(inp, out):
     d = np.load(inp)
-    start = time.perf_counter()
+    start = time.process_time()
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     frames = len(d["torso_yaw"])
@@ -93,11 +93,11 @@ def main(inp, out):
             setattr(con, f"use_limit_lin_{axis}", True)
             setattr(con, f"limit_lin_{axis}_lower", 0.0)
             setattr(con, f"limit_lin_{axis}_upper", 0.0)
-    built = time.perf_counter() - start
-    start = time.perf_counter()
+    built = time.process_time() - start
+    start = time.process_time()
     with bpy.context.temp_override(scene=scene, point_cache=world.point_cache):
         bpy.ops.ptcache.bake(bake=True)
-    baked = time.perf_counter() - start
+    baked = time.process_time() - start
     if not world.point_cache.is_baked:
         raise RuntimeError("Blender did not bake the rigid-body cache")
     np.savez(out, bake_seconds=baked, build_seconds=built)

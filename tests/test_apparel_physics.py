@@ -89,6 +89,26 @@ def test_swing_limit_holds_a_horizontal_chain_under_gravity():
     assert tip[1] < 1.0 - 0.05  # the chain sags below its rest height
 
 
+def test_gravity_is_a_parameter():
+    # a horizontal chain with neither motor nor stiffness: without gravity it stays level, with the
+    # default 9.8 m/s^2 it sags, and more under 3 times that gravity
+    assert ApparelParams().simulation.gravity == 9.8
+    tips = {}
+    for g in (0.0, 9.8, 29.4):
+        rec = make_character(horizontal=True)
+        params = params_from_json({"simulation": {"gravity": g}, "kinds": {"skirt": {
+            "swing_limit": 3.0, "twist_limit": 0.1, "strength": 0.0, "stiffness": 0.0}}})
+        physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+        sim, _ = simulate_motion(rec, physics, make_motion(rec, np.zeros(6)), params, 240.0, 0)
+        tips[g] = sim.transforms[:, LINKS, 5].astype(np.float64)  # tip height per frame
+    np.testing.assert_allclose(tips[0.0], 1.0, atol=1e-3)
+    # starting from rest, the early drop scales with g (drop ~ a t^2 / 2 with a proportional to g):
+    # three times the gravity drops the tip about three times as far in the first frame
+    drop = {g: 1.0 - tip for g, tip in tips.items()}
+    assert drop[9.8][0] > 0.003 and drop[29.4][0] / drop[9.8][0] == pytest.approx(3.0, rel=0.15)
+    assert np.all(np.diff(drop[9.8]) > 0)  # and keeps falling
+
+
 def test_exploding_parameters_raise():
     params = params_from_json({"simulation": {"gravity": 10000.0}})
     with pytest.raises(SimulationExploded, match="m/s"):

@@ -101,7 +101,7 @@ def test_cli_runs_and_rejects_bad_options(toy_dataset, tmp_path, capsys):
     assert main(["datagen", "apparel", str(toy_dataset), str(tmp_path / "cli"), "--relax-frames", "4",
                  "--params", str(params), "--quiet"]) == 0
     assert "2 clips simulated" in capsys.readouterr().out
-    for bad in (["--fps", "0"], ["--relax-frames", "-1"], ["--jobs", "0"]):
+    for bad in (["--fps", "0"], ["--relax-frames", "-1"], ["--jobs", "0"], ["--gravity", "-1"]):
         with pytest.raises(SystemExit) as exc:
             main(["datagen", "apparel", str(toy_dataset), str(tmp_path / "x")] + bad)
         assert exc.value.code == 2

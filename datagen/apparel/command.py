@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 from mimicbench.argtypes import float_in, nonnegative_int, positive_int
 
@@ -35,6 +36,9 @@ def register(subparsers) -> None:
                         "gets ceil(fps / clip fps) steps")
     p.add_argument("--relax-frames", type=nonnegative_int, default=30,
                    help="frames blending from rest into the clip's first pose, simulated and dropped, >= 0 (default 30)")
+    p.add_argument("--gravity", type=float_in(0.0, 1000.0), default=None, metavar="M_PER_S2",
+                   help="gravity along -Y in m/s^2, 0 to 1000 (default 9.8, or the --params file's "
+                        "simulation.gravity); MMD's own 98 units/s^2 at 0.08 m a unit would be 7.84")
     p.add_argument("--params", default=None, metavar="FILE", help="JSON file overriding simulation parameters")
     p.add_argument("--apparel-bones", nargs="+", default=None, metavar="GLOB",
                    help="glob patterns on bone names choosing the apparel bones, case-insensitive (e.g. '*hair*' "
@@ -50,6 +54,8 @@ def run(args) -> int:
     from datagen.apparel.stage import simulate_dataset
 
     params = load_params(args.params)
+    if args.gravity is not None:
+        params = dataclasses.replace(params, simulation=dataclasses.replace(params.simulation, gravity=args.gravity))
     s = simulate_dataset(args.in_dataset, args.out_dataset, args.fps, args.relax_frames, params, args.apparel_bones,
                          args.jobs, progress=not args.quiet)
 

@@ -50,9 +50,7 @@ def simulate_clip(world: ApparelWorld, transforms: np.ndarray, substeps: int, re
     for f, pose in enumerate(poses):
         steps = np.repeat(pose[None], substeps, axis=0)
         steps[:, driven] = blend_poses(previous[driven], pose[driven], fractions)  # only bones the world reads
-        for step_pose in steps:
-            world.set_body_pose(step_pose)
-            world.step()
+        world.drive(steps)
         previous = pose
         quats, positions, speed = world.read_links()
         if not (np.isfinite(quats).all() and np.isfinite(positions).all() and np.isfinite(speed)):

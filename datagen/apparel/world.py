@@ -87,11 +87,7 @@ class ApparelWorld:
         with tempfile.TemporaryDirectory(prefix="mimicbench-apparel-") as tmp:
             for i, chain in enumerate(chains):
                 root_head = np.asarray(chain.links[0].head, np.float64)
-                path = Path(tmp) / f"chain{i}.urdf"
-                path.write_text(chain_urdf(chain, root_head))
-                body = pb.loadURDF(str(path), basePosition=root_head.tolist(),
-                                   flags=pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER,
-                                   physicsClientId=cid)
+                body = self._load(Path(tmp) / f"chain{i}.urdf", chain, root_head)
                 self._set_dynamics(body, chain)
                 constraint = pb.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
                                                  root_head.tolist(), physicsClientId=cid)
@@ -103,9 +99,19 @@ class ApparelWorld:
                                                                          if c.spec.anchor_bone >= 0}), int)
         self._anchor_bones = np.array([self.chains[i].spec.anchor_bone for i in self._anchored], int)
         self._anchor_offsets = np.array([self.chains[i].anchor_offset for i in self._anchored]).reshape(-1, 3)
+        self._anchor_constraints = [self.chains[i].constraint for i in self._anchored]
+        self._piece_bones = np.array([piece.bone for piece in pieces], int)
+        self._placed_pieces = np.full((len(pieces), 7), np.nan)  # last placement (t, q_xyzw); NaN: never
+        self._placed_anchors = np.full((len(self._anchored), 7), np.nan)
         rest = [bone_frame(link.axis).as_quat() for c in self.chains for link in c.spec.links]  # (x, y, z, w)
         self._rest_frames_inv = quat_conjugate(np.array([(q[3], q[0], q[1], q[2]) for q in rest]).reshape(-1, 4))
         self._exclude_rest_overlaps()
+
+    def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray) -> int:
+        path.write_text(chain_urdf(chain, root_head))
+        return self.pb.loadURDF(str(path), basePosition=root_head.tolist(),
+                                flags=self.pb.URDF_USE_INERTIA_FROM_FILE | self.pb.URDF_MAINTAIN_LINK_ORDER,
+                                physicsClientId=self.client)
 
     def _set_dynamics(self, body: int, chain: ChainSpec) -> None:
         pb, cid = self.pb, self.client
@@ -132,31 +138,56 @@ class ApparelWorld:
         """
         pb, cid = self.pb, self.client
         piece_of = {piece.bone: body for piece, body in zip(self.pieces, self.piece_ids)}
-        chain_links = [(c.body, j) for c in self.chains for j in range(len(c.spec.links))]
-        for c in self.chains:
+        pairs = set()  # (body A, link A, body B, link B) with A a chain
+        for n, c in enumerate(self.chains):
             anchor_piece = piece_of.get(c.spec.anchor_bone)
-            for j in range(len(c.spec.links)):
-                root = c.spec.link_parents[j] < 0
-                others = [(body, -1) for body in self.piece_ids if root or body == anchor_piece]
-                others += [(body, k) for body, k in chain_links if body != c.body]
-                for body, other in others:
-                    if pb.getClosestPoints(c.body, body, REST_CONTACT_MARGIN, linkIndexA=j, linkIndexB=other,
-                                           physicsClientId=cid):
-                        pb.setCollisionFilterPair(c.body, body, j, other, 0, physicsClientId=cid)
+            for body in self.piece_ids:  # one query per pair of bodies; each point names its links
+                for point in pb.getClosestPoints(c.body, body, REST_CONTACT_MARGIN, physicsClientId=cid):
+                    j = point[3]
+                    if j >= 0 and (c.spec.link_parents[j] < 0 or body == anchor_piece):
+                        pairs.add((c.body, j, body, -1))
+            for other in self.chains[n + 1:]:
+                for point in pb.getClosestPoints(c.body, other.body, REST_CONTACT_MARGIN, physicsClientId=cid):
+                    if point[3] >= 0 and point[4] >= 0:
+                        pairs.add((c.body, point[3], other.body, point[4]))
+        for body_a, link_a, body_b, link_b in sorted(pairs):
+            pb.setCollisionFilterPair(body_a, body_b, link_a, link_b, 0, physicsClientId=cid)
 
     def set_body_pose(self, pose: np.ndarray) -> None:
-        """Place body pieces and chain anchors at ``pose`` (K, 7) (q_w, q_x, q_y, q_z, t)."""
+        """Place body pieces and chain anchors at ``pose`` (K, 7) (q_w, q_x, q_y, q_z, t), no step."""
+        self.drive(np.asarray(pose, np.float64)[None], step=False)
+
+    def drive(self, poses: np.ndarray, step: bool = True) -> None:
+        """Follow body poses ``poses`` (S, K, 7), one physics step after each (the substeps of a frame).
+
+        The pieces' placements and the anchors' pivots and orientations of all S poses are computed
+        at once; a piece is re-placed and an anchor constraint changed only when its bone moved
+        since the last placement. ``step=False`` places without stepping (S = 1).
+        """
         pb, cid = self.pb, self.client
-        for piece, body in zip(self.pieces, self.piece_ids):
-            q, t = pose[piece.bone, :4], pose[piece.bone, 4:]
-            pb.resetBasePositionAndOrientation(body, t.tolist(), xyzw(q), physicsClientId=cid)
-        if not len(self._anchored):
-            return
-        q = pose[self._anchor_bones, :4]
-        pivots = pose[self._anchor_bones, 4:] + _rotate(q, self._anchor_offsets)
-        for i, pivot, qi in zip(self._anchored, pivots.tolist(), q):
-            pb.changeConstraint(self.chains[i].constraint, jointChildPivot=pivot, jointChildFrameOrientation=xyzw(qi),
-                                maxForce=float(self.sim.anchor_force), physicsClientId=cid)
+        poses = np.asarray(poses, np.float64)
+        piece_t = poses[:, self._piece_bones, 4:]  # (S, P, 3)
+        piece_q = poses[:, self._piece_bones][..., [1, 2, 3, 0]]  # (S, P, 4) x, y, z, w
+        q = poses[:, self._anchor_bones, :4]  # (S, A, 4)
+        pivots = poses[:, self._anchor_bones, 4:] + _rotate(q.reshape(-1, 4), np.broadcast_to(
+            self._anchor_offsets, q.shape[:2] + (3,)).reshape(-1, 3)).reshape(q.shape[:2] + (3,))
+        anchor = np.concatenate([pivots, q[..., [1, 2, 3, 0]]], axis=-1)  # (S, A, 7)
+        piece = np.concatenate([piece_t, piece_q], axis=-1)  # (S, P, 7)
+        piece_moved = np.any(piece != np.concatenate([self._placed_pieces[None], piece[:-1]]), axis=-1)
+        anchor_moved = np.any(anchor != np.concatenate([self._placed_anchors[None], anchor[:-1]]), axis=-1)
+        self._placed_pieces, self._placed_anchors = piece[-1], anchor[-1]
+        piece_l, anchor_l = piece.tolist(), anchor.tolist()
+        reset, change, stepper = pb.resetBasePositionAndOrientation, pb.changeConstraint, pb.stepSimulation
+        for s in range(len(poses)):
+            for i in np.flatnonzero(piece_moved[s]).tolist():
+                p = piece_l[s][i]
+                reset(self.piece_ids[i], p[:3], p[3:], physicsClientId=cid)
+            for i in np.flatnonzero(anchor_moved[s]).tolist():
+                a = anchor_l[s][i]
+                change(self._anchor_constraints[i], jointChildPivot=a[:3], jointChildFrameOrientation=a[3:],
+                       physicsClientId=cid)
+            if step:
+                stepper(physicsClientId=cid)
 
     def place_chains_at(self, pose: np.ndarray) -> None:
         """Teleport every chain rigidly with its anchor bone (used once, before the first step)."""
@@ -179,17 +210,15 @@ class ApparelWorld:
         orientation (Z along the bone), and the frame's origin (the bone head).
         """
         pb, cid = self.pb, self.client
-        quats, positions, speed = [], [], 0.0
-        for c in self.chains:
-            states = pb.getLinkStates(c.body, list(range(len(c.spec.links))), computeLinkVelocity=1,
-                                      computeForwardKinematics=1, physicsClientId=cid)
-            for s in states:
-                x, y, z, w = s[5]
-                quats.append((w, x, y, z))
-                positions.append(s[4])
-                speed = max(speed, float(np.linalg.norm(s[6])))
-        world = np.array(quats, np.float64).reshape(-1, 4)
-        return (quat_multiply(world, self._rest_frames_inv), np.array(positions, np.float64).reshape(-1, 3), speed)
+        states = [s for c in self.chains
+                  for s in pb.getLinkStates(c.body, list(range(len(c.spec.links))), computeLinkVelocity=1,
+                                            computeForwardKinematics=1, physicsClientId=cid)]
+        if not states:
+            return np.zeros((0, 4)), np.zeros((0, 3)), 0.0
+        world = np.array([s[5] for s in states], np.float64)[:, [3, 0, 1, 2]]  # (L, 4) w, x, y, z
+        positions = np.array([s[4] for s in states], np.float64)
+        speed = float(np.linalg.norm(np.array([s[6] for s in states], np.float64), axis=1).max())
+        return quat_multiply(world, self._rest_frames_inv), positions, speed
 
     def close(self) -> None:
         if self.client is not None:
