@@ -1,7 +1,9 @@
 """``mimicbench demo``: the whole toolkit end to end on a small procedural zoo, offline.
 
 Builds a zoo, resamples it to 5,000 faces, computes bone-name correspondences, makes h2h and cct
-cases, runs every bundled method and prints the leaderboard with the path of its HTML page.
+cases, runs every bundled method and prints the leaderboard with the path of its HTML page; then
+simulates the apparel characters' clips with Bullet, makes apparel cases and prints the apparel
+table of :data:`BUNDLED_APPAREL`.
 Sized to finish within about 10 minutes on 2 CPU cores.
 """
 from __future__ import annotations
@@ -11,7 +13,11 @@ import shutil
 import time
 from pathlib import Path
 
+from mimicbench.argtypes import positive_int
+
 BUNDLED = ("identity", "name_copy", "nearest_joint", "text_soft")
+BUNDLED_APPAREL = ("lbs_kinematic", "body_only")
+"""Methods run on the apparel protocol (motion transfer on simulated apparel)."""
 
 
 def register(subparsers) -> None:
@@ -19,7 +25,8 @@ def register(subparsers) -> None:
         "demo", help="build a small zoo, run every bundled method, print the leaderboard",
         description="Run the whole toolkit offline on a small procedural zoo: zoo -> resample (5,000 faces) "
         "-> correspondences (MiniLM bone-name embeddings) -> h2h and cct cases -> every bundled method -> "
-        "leaderboard (Markdown, CSV, JSON, HTML). Example:\n  mimicbench demo --out demo-output",
+        "leaderboard (Markdown, CSV, JSON, HTML); then the apparel characters' clips simulated with Bullet -> "
+        "apparel cases -> lbs_kinematic and body_only -> the apparel table. Example:\n  mimicbench demo --out demo-output",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="demo-output", help="folder for the datasets and results (default demo-output)")
     p.add_argument("--characters", type=int, default=16, help="zoo size (default 16)")
@@ -27,6 +34,7 @@ def register(subparsers) -> None:
     p.add_argument("--h2h-poses", type=int, default=10, help="poses per h2h pair (default 10)")
     p.add_argument("--cct-pairs", type=int, default=24, help="cross-category pairs (default 24)")
     p.add_argument("--cct-poses", type=int, default=4, help="poses per cct pair (default 4)")
+    p.add_argument("--apparel-windows", type=positive_int, default=4, help="16-frame windows per simulated clip (default 4)")
     p.add_argument("--fresh", action="store_true", help="delete OUT first instead of resuming")
     p.set_defaults(func=run)
 
@@ -75,11 +83,35 @@ def run(args) -> int:
         counts = step("cases", make_cases)
         print("   " + ", ".join(f"{p}: {n} cases" for p, n in counts.items()))
     step("run methods", lambda: run_benchmark(data, BUNDLED, ("h2h", "cct"), results, progress=True))
+    step("apparel: simulate, cases, run methods", lambda: run_apparel(data, out, args))
     paths = write_leaderboard(results)
     from benchmark.aggregate import aggregate
 
     print()
     print(markdown_tables(aggregate(results)))
+    print(markdown_tables(aggregate(out / "results-apparel")))
     print("timings: " + ", ".join(f"{n} {s:.0f} s" for n, s in steps) + f"; total {time.perf_counter() - t0:.0f} s")
     print(f"leaderboard: {paths['html'].resolve()}")
     return 0
+
+
+def run_apparel(data: Path, out: Path, args) -> None:
+    """Simulate the apparel characters' clips (Bullet), build apparel cases from every split (the
+    demo zoo has too few apparel characters for one split) and run :data:`BUNDLED_APPAREL`."""
+    from benchmark.cases import build_cases, write_cases
+    from benchmark.evaluator import run_benchmark
+    from benchmark.provenance import cases_are_current
+    from datagen.apparel.stage import simulate_dataset
+    from schemas.shards import has_table
+
+    sim, results = out / "zoo5k_sim", out / "results-apparel"
+    s = simulate_dataset(data, sim, progress=False)  # resumes when already simulated
+    print(f"   {s['simulated'] + s['reused']} clips simulated on {s['characters']} apparel characters")
+    if not has_table(sim, "cases") or not cases_are_current(sim):
+        if results.exists():
+            shutil.rmtree(results)
+        cases = build_cases(sim, "all", protocols=("apparel",), sizes={"apparel": (None, args.apparel_windows)},
+                            seed=args.seed)
+        print("   " + ", ".join(f"{p}: {n} cases" for p, n in write_cases(
+            sim, cases, {"stage": "demo cases", "split": "all"}).items()))
+    run_benchmark(sim, BUNDLED_APPAREL, ("apparel",), results, progress=True)

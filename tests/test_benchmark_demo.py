@@ -20,5 +20,15 @@ def test_demo_prints_a_leaderboard_with_four_methods_and_two_protocols(tmp_path,
         assert all(e["complete"] for e in entries)
     h2h = {e["method"]: e["pmd"] for e in board["protocols"]["h2h"]}
     assert h2h["identity"] == max(h2h.values()) and h2h["name_copy"] < 1.0
+    # the apparel table: both bundled apparel methods on every case of the zoo's 2 apparel characters;
+    # lbs_kinematic moves body vertices exactly as the ground truth does (PMD_b = 0) but not apparel
+    from benchmark.aggregate import aggregate
+    from benchmark.demo import BUNDLED_APPAREL
+
+    assert "| lbs_kinematic v1 |" in printed and "| body_only v1 |" in printed
+    apparel = {e["method"]: e for e in aggregate(out / "results-apparel")["protocols"]["apparel"]}
+    assert set(apparel) == set(BUNDLED_APPAREL) == {"lbs_kinematic", "body_only"}
+    assert all(e["complete"] and e["ok"] > 0 and e["failed"] == 0 for e in apparel.values())
+    assert apparel["lbs_kinematic"]["pmd_body"] == 0.0 and apparel["lbs_kinematic"]["pmd_apparel"] > 0.0
     # a second run resumes: nothing is recomputed
     assert main(["demo", "--out", str(out), "--characters", "14"]) == 0
