@@ -137,6 +137,8 @@ def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> lis
         return _call(method, list(requests), [r.expected_shape if isinstance(r, MotionRequest) else
                                               len(r.target.vertices) for r in requests])
 
+    call.method_tags = tuple(getattr(method.metadata, "tags", ()))  # e.g. an ablation that reads the GT mask
+
     outcomes = protocol.evaluate(cases, data, call)
     if samples is not None:  # predictions of a few sampled cases, for the leaderboard's pictures
         for leg in ("forward", "returned"):

@@ -21,6 +21,10 @@ BUILTIN = {
     "text_soft": "baselines.text_soft:TextSoft",
     "lbs_kinematic": "baselines.lbs_kinematic:LbsKinematic",
     "body_only": "baselines.body_only:BodyOnly",
+    "mmdmc": "baselines.mmdmc.method:Mmdmc",
+    "mmdmc_body_only": "baselines.mmdmc.method:MmdmcBodyOnly",
+    "mmdmc_no_refine": "baselines.mmdmc.method:MmdmcNoRefine",
+    "mmdmc_gt_mask": "baselines.mmdmc.method:MmdmcGtMask",
 }
 
 _registered: dict[str, object] = {}

@@ -9,7 +9,7 @@ after frame).
 
 Request (:class:`benchmark.request.MotionRequest`): the character at rest with its rig, the
 kinematic window (F, K, 7) with the mask of body bones, and the fps; the apparel vertex mask is
-not given. The method returns the posed mesh of every frame, (F, N, 3).
+not given (except to oracle ablations tagged ``reads_gt_apparel_mask``, in ``extras``). The method returns the posed mesh of every frame, (F, N, 3).
 
 Ground truth: the simulated window posed by LBS. Scores per frame, then the mean over the
 window (MMDMC): PMD over all vertices, PMD_a over the ground truth's apparel vertices and PMD_b
@@ -36,6 +36,9 @@ DEFAULT_FPS = 30.0
 """The fps a request states when the evaluation data does not know the clip's."""
 REFERENCE_HEIGHT_CM = 170.0
 """MMDMC reports centimetres of a character 1.70 m tall."""
+GT_MASK_TAG = "reads_gt_apparel_mask"
+"""A method whose metadata.tags hold this (an oracle ablation such as ``mmdmc_gt_mask``) gets the
+ground-truth apparel vertex mask in ``request.extras["apparel_vertex_mask"]``; no other method does."""
 
 
 def apparel_scores(pred: np.ndarray, truth: np.ndarray, apparel: np.ndarray, frame: RestFrame) -> dict:
@@ -105,12 +108,14 @@ class ApparelMotion(BenchmarkProtocol):
 
     def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
         chars = [data.characters[c.target_id] for c in cases]
+        gt_mask = GT_MASK_TAG in getattr(call, "method_tags", ())
         requests = []
         for c, ch in zip(cases, chars):
             k = len(ch.rig.parents)
+            extras = {"apparel_vertex_mask": np.asarray(ch.record.apparel_vertex_mask, bool)} if gt_mask else {}
             requests.append(MotionRequest(ch.rig, np.asarray(c.source_transforms, np.float32).reshape(-1, k, 7),
                                           ~np.asarray(ch.record.apparel_bone_mask, bool),
-                                          float(data.motion_fps.get(c.motion_id, DEFAULT_FPS)), c.case_id))
+                                          float(data.motion_fps.get(c.motion_id, DEFAULT_FPS)), c.case_id, extras))
         answers = call(requests)
         out = []
         for c, ch, (pred, err, sec) in zip(cases, chars, answers):

@@ -1,0 +1,166 @@
+"""Data for the MMDMC reference: characters prepared once (unit-height frame, body joints,
+geodesics), and the training dataset's clip pairs (kinematic clip, ``<clip>@sim``).
+
+A training dataset is one written by ``mimicbench datagen apparel``: characters with apparel
+bones and, per clip, the kinematic motion and the simulated one. Ground truth of a frame is the
+simulated clip posed by LBS with the dataset's weights. The body module's target is the
+kinematic clip posed with the apparel bones' weight moved onto the nearest body bones
+(:func:`baselines.body_only.body_weights`): the ground truth itself on body vertices, the body
+part under the apparel elsewhere (what a skinning of body joints can reach).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from baselines.mmdmc.geodesic import geodesic_distances
+from mimicbench.mesh import unique_edges, unit_height_frame
+from mimicbench.skinning import linear_blend_skinning
+from mimicbench.weights import SparseWeights
+
+SIM_SUFFIX = "@sim"
+
+
+@dataclass
+class Prepared:
+    """A character in the form the modules read.
+
+    Attributes:
+        character_id: stable ID.
+        rest: (N, 3) float32 rest vertices, metres.
+        faces: (M, 3) int32.
+        keypoints: (K, 3) float32 rest joints, metres.
+        parents: (K,) int32.
+        body: (K,) bool body bones (the request's ``body_bones``).
+        centre: (3,) float64, height: float: the unit-height frame (rest bounding-box centre, Y extent).
+        geo: (N, Kb) float32 geodesic distance to each body joint's anchor, divided by the height.
+        edges: (E, 2) int64 unique mesh edges.
+        apparel: (N,) bool ground-truth apparel vertices (training data only).
+        weights: ground-truth skin weights (training data only).
+    """
+
+    character_id: str
+    rest: np.ndarray
+    faces: np.ndarray
+    keypoints: np.ndarray
+    parents: np.ndarray
+    body: np.ndarray
+    centre: np.ndarray
+    height: float
+    geo: np.ndarray
+    edges: np.ndarray
+    apparel: np.ndarray | None = None
+    weights: SparseWeights | None = None
+    cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def body_index(self) -> np.ndarray:
+        """(Kb,) indices of the body bones."""
+        return np.flatnonzero(self.body)
+
+    def norm(self, points: np.ndarray) -> np.ndarray:
+        """Metres -> unit-height frame, (..., 3) float32."""
+        return ((np.asarray(points, np.float64) - self.centre) / self.height).astype(np.float32)
+
+    @property
+    def rest_norm(self) -> np.ndarray:
+        return self.norm(self.rest)
+
+    @property
+    def joints_norm(self) -> np.ndarray:
+        """(Kb, 3) rest body joints in the unit-height frame."""
+        return self.norm(self.keypoints[self.body])
+
+
+def prepare(character_id: str, vertices, faces, keypoints, parents, body, bridge_neighbours: int = 4,
+            apparel=None, weights: SparseWeights | None = None) -> Prepared:
+    """A :class:`Prepared` character (computes G over the body joints)."""
+    v = np.asarray(vertices, np.float32)
+    body = np.asarray(body, bool)
+    if body.shape != (len(keypoints),) or not body.any():
+        raise ValueError(f"{character_id}: expected a body-bone mask of {len(keypoints)} entries with at least one "
+                         f"body bone, got shape {body.shape} with {int(body.sum())} body bones")
+    centre, height = unit_height_frame(v)
+    geo = geodesic_distances(v, faces, np.asarray(keypoints)[body], bridge_neighbours) / height
+    return Prepared(character_id, v, np.asarray(faces, np.int32), np.asarray(keypoints, np.float32),
+                    np.asarray(parents, np.int32), body, centre, height, geo.astype(np.float32),
+                    unique_edges(faces), None if apparel is None else np.asarray(apparel, bool), weights)
+
+
+@dataclass
+class ClipPair:
+    """A clip of a training character: kinematic and simulated transforms, each (F, K, 7)."""
+
+    character_id: str
+    name: str
+    kinematic: np.ndarray
+    simulated: np.ndarray
+
+    @property
+    def frames(self) -> int:
+        return len(self.kinematic)
+
+
+@dataclass
+class TrainingData:
+    """Prepared training characters and their clip pairs."""
+
+    characters: dict[str, Prepared]
+    clips: list[ClipPair]
+
+    @classmethod
+    def load(cls, dataset, split: str = "all", bridge_neighbours: int = 4) -> "TrainingData":
+        """Characters of ``split`` (``all``: every split) that have apparel bones and simulated clips."""
+        from schemas.shards import read_records
+
+        dataset = Path(dataset)
+        chars = {c.character_id: c for c in read_records(dataset, "characters")
+                 if len(c.faces) and np.asarray(c.apparel_bone_mask, bool).any() and split in ("all", c.split)}
+        by_char: dict[str, dict] = {}
+        for m in read_records(dataset, "motions"):
+            if m.character_id in chars:
+                by_char.setdefault(m.character_id, {})[m.name] = m
+        clips = []
+        for cid in sorted(by_char):
+            k = len(chars[cid].parents)
+            for name, sim in sorted(by_char[cid].items()):
+                kin = by_char[cid].get(name[: -len(SIM_SUFFIX)]) if name.endswith(SIM_SUFFIX) else None
+                if kin is None or kin.num_frames != sim.num_frames:
+                    continue
+                clips.append(ClipPair(cid, kin.name, np.asarray(kin.transforms, np.float32).reshape(-1, k, 7),
+                                      np.asarray(sim.transforms, np.float32).reshape(-1, k, 7)))
+        if not clips:
+            raise ValueError(f"{dataset}: no character with apparel bones and a simulated clip ('<clip>@sim') in "
+                             f"split {split!r}; make one with `mimicbench datagen apparel IN {dataset}`")
+        used = sorted({c.character_id for c in clips})
+        prepared = {}
+        for cid in used:
+            c = chars[cid]
+            prepared[cid] = prepare(cid, c.vertices, c.faces, c.keypoints, c.parents,
+                                    ~np.asarray(c.apparel_bone_mask, bool), bridge_neighbours,
+                                    c.apparel_vertex_mask, c.weights)
+        return cls(prepared, clips)
+
+
+def posed(character: Prepared, transforms: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """Ground truth (..., n, 3) float32 metres: LBS with the dataset's weights of transforms (..., K, 7),
+    for the vertices ``rows`` (all by default)."""
+    w = character.weights if rows is None else character.weights.take(rows)
+    v = character.rest if rows is None else character.rest[rows]
+    return linear_blend_skinning(v, character.keypoints, w, transforms).astype(np.float32)
+
+
+def body_target_weights(character: Prepared) -> np.ndarray:
+    """(N, Kb) float32 dense weights over the body bones: the dataset's, with apparel bones' weight moved
+    onto the nearest body bone (cached on the character)."""
+    if "body_weights" not in character.cache:
+        from types import SimpleNamespace
+
+        from baselines.body_only import body_weights
+
+        rig = SimpleNamespace(weights=character.weights, vertices=character.rest, keypoints=character.keypoints,
+                              parents=character.parents)
+        character.cache["body_weights"] = body_weights(rig, character.body)[:, character.body].astype(np.float32)
+    return character.cache["body_weights"]

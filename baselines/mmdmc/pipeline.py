@@ -1,0 +1,133 @@
+"""The MMDMC forward pass at inference (Fig. 2): f_c's apparel mask, f_s's weights and LBS of the
+body motion, f_d's rollout on the apparel vertices, f_j's refinement.
+
+The rollout starts where a request starts: nothing is known of the apparel before the window, so
+the K = 3 history states are the body state of the window's first frame (the apparel at rest on
+the body, not moving). Per-character results (mask, weights, EdgeConv neighbours) are cached on
+the :class:`~baselines.mmdmc.data.Prepared` character.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from baselines.mmdmc.apparel import HISTORY, apparel_components, component_neighbours
+from baselines.mmdmc.body import skin
+from baselines.mmdmc.data import Prepared
+
+
+@dataclass
+class Modules:
+    """Trained modules (any may be None when a variant does not use it)."""
+
+    seg: torch.nn.Module | None
+    body: torch.nn.Module
+    apparel: torch.nn.Module | None
+    refine: torch.nn.Module | None
+    knn: int = 8
+    threshold: float = 0.5
+
+
+def device_of(module: torch.nn.Module) -> torch.device:
+    return next(module.parameters()).device
+
+
+@torch.no_grad()
+def apparel_probability(seg: torch.nn.Module, prep: Prepared) -> np.ndarray:
+    """(N,) float32 f_c's apparel probability of every vertex (cached)."""
+    key = ("prob", id(seg))
+    if key not in prep.cache:
+        x = torch.as_tensor(prep.rest_norm, device=device_of(seg))[None]
+        prep.cache[key] = torch.sigmoid(seg(x))[0].cpu().numpy()
+    return prep.cache[key]
+
+
+@torch.no_grad()
+def skinning_weights(body: torch.nn.Module, prep: Prepared) -> torch.Tensor:
+    """(N, Kb) f_s's weights over the body joints (cached)."""
+    key = ("weights", id(body))
+    if key not in prep.cache:
+        dev = device_of(body)
+        prep.cache[key] = body(torch.as_tensor(prep.rest_norm, device=dev)[None],
+                               torch.as_tensor(prep.joints_norm, device=dev)[None],
+                               torch.as_tensor(prep.geo, device=dev)[None])[0]
+    return prep.cache[key]
+
+
+def body_states(prep: Prepared, weights: torch.Tensor, transforms) -> torch.Tensor:
+    """(F, N, 3) unit-height frame: LBS of the rest mesh with ``weights`` (N, Kb) and the body bones of
+    ``transforms`` (F, K, 7)."""
+    dev = weights.device
+    t = torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body], device=dev)
+    posed = skin(torch.as_tensor(prep.rest, device=dev), torch.as_tensor(prep.keypoints[prep.body], device=dev),
+                 weights, t)
+    return to_unit(prep, posed)
+
+
+def to_unit(prep: Prepared, metres: torch.Tensor) -> torch.Tensor:
+    c = torch.as_tensor(prep.centre, dtype=metres.dtype, device=metres.device)
+    return (metres - c) / prep.height
+
+
+def from_unit(prep: Prepared, unit: torch.Tensor) -> torch.Tensor:
+    c = torch.as_tensor(prep.centre, dtype=unit.dtype, device=unit.device)
+    return unit * prep.height + c
+
+
+def apparel_layout(prep: Prepared, mask: np.ndarray, knn: int) -> tuple[np.ndarray, np.ndarray]:
+    """Apparel vertex indices (A,) and their EdgeConv neighbours (A, knn) (local indices, same component)."""
+    mask = np.asarray(mask, bool)
+    key = ("layout", mask.tobytes(), knn)
+    if key not in prep.cache:
+        idx = np.flatnonzero(mask)
+        labels = apparel_components(prep.faces, mask)
+        prep.cache[key] = (idx, component_neighbours(prep.rest[idx], labels, knn))
+    return prep.cache[key]
+
+
+@torch.no_grad()
+def rollout_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, joints: torch.Tensor,
+                      idx: np.ndarray, neighbours: np.ndarray) -> torch.Tensor:
+    """Apparel states (F, A, 3) over a window whose body states are (F, N, 3) and posed body joints
+    (F, Kb, 3) (unit-height frame), started from the first frame's body state at rest."""
+    dev = body.device
+    ib = torch.as_tensor(idx, device=dev)
+    sb = body[:, ib]  # (F, A, 3)
+    history = sb[:1].expand(HISTORY, -1, -1)[None]
+    body_seq = torch.cat([sb[:1], sb], 0)[None]  # frames -1..F-1
+    joint_seq = torch.cat([joints[:1].expand(HISTORY, -1, -1), joints], 0)[None]  # frames -3..F-1
+    rest = torch.as_tensor(prep.rest_norm[idx], device=dev)[None]
+    states, _ = dyn.rollout(history, body_seq, rest, joint_seq, torch.as_tensor(neighbours, device=dev))
+    return states[0]
+
+
+@torch.no_grad()
+def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
+            gt_mask: np.ndarray | None = None) -> np.ndarray:
+    """Posed vertices (F, N, 3) float32, metres, of a window of transforms (F, K, 7).
+
+    Args:
+        variant: ``full`` (body + apparel + refinement), ``no_refine`` (body + apparel),
+            ``body_only`` (the body module alone).
+        gt_mask: (N,) bool apparel mask to use instead of f_c's (the ``GT Mask`` ablation).
+    """
+    if variant not in ("full", "no_refine", "body_only"):
+        raise ValueError(f"variant: expected 'full', 'no_refine' or 'body_only', got {variant!r}")
+    w = skinning_weights(modules.body, prep)
+    s = body_states(prep, w, transforms)  # (F, N, 3)
+    if variant == "body_only":
+        return from_unit(prep, s).cpu().numpy().astype(np.float32)
+    prob = apparel_probability(modules.seg, prep)
+    mask = prob > modules.threshold if gt_mask is None else np.asarray(gt_mask, bool)
+    y = s.clone()
+    if mask.any():
+        idx, nb = apparel_layout(prep, mask, modules.knn)
+        joints = to_unit(prep, torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body, 4:], device=s.device))
+        y[:, torch.as_tensor(idx, device=s.device)] = rollout_from_body(modules.apparel, prep, s, joints, idx, nb)
+    if variant == "full" and modules.refine is not None:
+        p = torch.as_tensor(mask if gt_mask is not None else prob, dtype=s.dtype, device=s.device)
+        rest = torch.as_tensor(prep.rest_norm, device=s.device)
+        y = y + modules.refine(s, y, p.expand(len(y), -1), rest[None])
+    return from_unit(prep, y).cpu().numpy().astype(np.float32)

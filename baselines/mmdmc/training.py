@@ -1,0 +1,272 @@
+"""The MMDMC reference's training stages for the shared trainer (``mimicbench train mmdmc``).
+
+Stages, in order (Sec. 4.5 of the paper: segmentation and body trained independently, the rest
+end to end on their outputs):
+
+- ``seg``: f_c, binary cross entropy against the dataset's apparel vertex mask.
+- ``body``: f_s, L1 vertex (Eq. 8), edge length (Eq. 9) and weight smoothness (Eq. 10) against the
+  body target (:mod:`baselines.mmdmc.data`).
+- ``apparel`` (needs seg, body): f_d rolled out over windows of T frames from K = 3 ground-truth
+  states (Eq. 11), on the apparel vertices f_c finds, from f_s's body states; L1 vertex, edge
+  length (Eq. 14-15) and an L2 regulariser on the displacements.
+- ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference; L1 vertex,
+  edge length, L2 on the corrections.
+
+Each batch is built from the training dataset (``mimicbench datagen apparel`` output) with the
+epoch's generator; a vertex subsample (``points``) stands in for the whole mesh in ``seg`` and
+``body``, its rest-pose nearest neighbours for the mesh edges.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from scipy.spatial import cKDTree
+
+from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbours, apparel_components
+from baselines.mmdmc.body import BodySkinning, skin
+from baselines.mmdmc.config import CONFIGS
+from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
+from baselines.mmdmc.losses import edge_length, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
+from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, rollout_from_body,
+                                      skinning_weights, to_unit)
+from baselines.mmdmc.refine import JointRefiner
+from baselines.mmdmc.segmentation import ApparelSegmenter
+from mimicbench.training.batching import rank_batches
+from mimicbench.training.registry import register_trainable
+from mimicbench.training.stage import StageContext, TrainStage
+
+_DATA: dict = {}
+
+
+def training_data(config: dict, context: StageContext) -> TrainingData:
+    """The dataset's prepared characters and clips, loaded once per process."""
+    key = (str(context.dataset), config.get("split", "all"), config["bridge_neighbours"])
+    if key not in _DATA:
+        _DATA[key] = TrainingData.load(context.dataset, config.get("split", "all"), config["bridge_neighbours"])
+    return _DATA[key]
+
+
+def setting(config: dict, stage: str, key: str):
+    """``config[stage][key]`` when the stage overrides it, else ``config[key]`` (as the trainer reads them)."""
+    sub = config.get(stage)
+    return sub[key] if isinstance(sub, dict) and key in sub else config[key]
+
+
+def _draws(config: dict, context: StageContext, rng: np.random.Generator, n_choices: int, stage: str):
+    """This rank's batches of one epoch: lists of draws in [0, n_choices), with per-draw seeds."""
+    n = setting(config, stage, "batches_per_epoch") * config["batch_size"]
+    picks = rng.integers(0, n_choices, size=n)
+    seeds = rng.integers(0, 2**31 - 1, size=n)
+    for idx in rank_batches(n, config["batch_size"], rng, context.rank, context.world_size):
+        yield [(int(picks[i]), int(seeds[i])) for i in idx]
+
+
+def _subsample(n: int, points: int, rng: np.random.Generator) -> np.ndarray:
+    return np.sort(rng.choice(n, size=min(points, n), replace=False))
+
+
+def _knn_edges(points: np.ndarray, k: int) -> np.ndarray:
+    """(P*k, 2) int64 pairs of each point with its k nearest others."""
+    _, nn_ = cKDTree(points).query(points, k=k + 1)
+    return np.stack([np.repeat(np.arange(len(points)), k), nn_[:, 1:].reshape(-1)], 1).astype(np.int64)
+
+
+# ---- seg -------------------------------------------------------------------------------------
+
+def build_seg(config: dict, context: StageContext | None = None) -> torch.nn.Module:
+    return ApparelSegmenter(config["seg_hidden"])
+
+
+def batches_seg(config: dict, context: StageContext, rng: np.random.Generator):
+    data = training_data(config, context)
+    ids = sorted(data.characters)
+    for batch in _draws(config, context, rng, len(ids), "seg"):
+        pts, labels = [], []
+        for pick, seed in batch:
+            r = np.random.default_rng(seed)
+            c = data.characters[ids[pick]]
+            rows = _subsample(len(c.rest), config["points"], r)
+            scale = r.uniform(0.9, 1.1)
+            pts.append(c.rest_norm[rows] * scale)
+            labels.append(c.apparel[rows])
+        yield {"points": np.stack(pts).astype(np.float32), "labels": np.stack(labels).astype(np.float32)}
+
+
+def loss_seg(module, batch, context) -> dict:
+    logits = module(batch["points"])
+    bce = torch.nn.functional.binary_cross_entropy_with_logits(logits, batch["labels"])
+    accuracy = ((logits > 0).float() == batch["labels"]).float().mean().detach()
+    return {"total": bce, "bce": bce, "accuracy": accuracy}
+
+
+# ---- body ------------------------------------------------------------------------------------
+
+def build_body(config: dict, context: StageContext | None = None) -> torch.nn.Module:
+    return BodySkinning(config["body_hidden"])
+
+
+def _body_item(c: Prepared, transforms: np.ndarray, config: dict, r: np.random.Generator) -> dict:
+    rows = _subsample(len(c.rest), config["points"], r)
+    bw = body_target_weights(c)[rows]
+    t_body = transforms[c.body]
+    target = skin(torch.as_tensor(c.rest[rows]), torch.as_tensor(c.keypoints[c.body]), torch.as_tensor(bw),
+                  torch.as_tensor(t_body)).numpy()
+    return {"points": c.rest_norm[rows], "joints": c.joints_norm, "geo": c.geo[rows], "rest": c.rest[rows],
+            "rest_joints": c.keypoints[c.body], "transforms": t_body, "target": c.norm(target),
+            "centre": c.centre.astype(np.float32), "height": np.float32(c.height),
+            "edges": _knn_edges(c.rest[rows], config["neighbours_loss"])}
+
+
+def batches_body(config: dict, context: StageContext, rng: np.random.Generator):
+    data = training_data(config, context)
+    frames = [(i, f) for i, clip in enumerate(data.clips) for f in range(clip.frames)]
+    for batch in _draws(config, context, rng, len(frames), "body"):
+        items = []
+        for pick, seed in batch:
+            ci, f = frames[pick]
+            clip = data.clips[ci]
+            items.append(_body_item(data.characters[clip.character_id], clip.kinematic[f], config,
+                                    np.random.default_rng(seed)))
+        kmax = max(len(it["joints"]) for it in items)
+        out = {k: [] for k in items[0]}
+        out["joint_mask"] = []
+        for it in items:
+            pad = kmax - len(it["joints"])
+            ident = np.tile(np.array([1, 0, 0, 0, 0, 0, 0], np.float32), (pad, 1))
+            out["joint_mask"].append(np.r_[np.ones(len(it["joints"]), bool), np.zeros(pad, bool)])
+            for k, v in it.items():
+                if k in ("joints", "rest_joints"):
+                    v = np.concatenate([v, np.zeros((pad, 3), np.float32)])
+                elif k == "geo":
+                    v = np.concatenate([v, np.ones((len(v), pad), np.float32)], 1)
+                elif k == "transforms":
+                    v = np.concatenate([v, ident])
+                out[k].append(v)
+        yield {k: np.stack(v) for k, v in out.items()}
+
+
+def loss_body(module, batch, context) -> dict:
+    w = module(batch["points"], batch["joints"], batch["geo"], batch["joint_mask"])
+    terms = {"vertex": 0.0, "edge": 0.0, "smooth": 0.0}
+    b = len(w)
+    for i in range(b):
+        pred = (skin(batch["rest"][i], batch["rest_joints"][i], w[i], batch["transforms"][i]) - batch["centre"][i]) \
+            / batch["height"][i]
+        terms["vertex"] = terms["vertex"] + vertex_l1(pred, batch["target"][i]) / b
+        terms["edge"] = terms["edge"] + edge_length(pred, batch["target"][i], batch["edges"][i]) / b
+        terms["smooth"] = terms["smooth"] + weight_smoothness(w[i], batch["edges"][i]) / b
+    return weighted_total(terms, context.config)
+
+
+# ---- apparel ---------------------------------------------------------------------------------
+
+def build_apparel(config: dict, context: StageContext | None = None) -> torch.nn.Module:
+    return ApparelDynamics(config["apparel_hidden"], config["code"])
+
+
+def _predicted_mask(c: Prepared, context: StageContext, config: dict) -> np.ndarray:
+    return apparel_probability(context.frozen["seg"], c) > config["threshold"]
+
+
+def _pick_components(c: Prepared, mask: np.ndarray, cap: int, r: np.random.Generator) -> np.ndarray:
+    """Apparel vertex indices: every one, or whole components drawn at random until ``cap``."""
+    idx = np.flatnonzero(mask)
+    if cap <= 0 or len(idx) <= cap:
+        return idx
+    labels = apparel_components(c.faces, mask)
+    keep, total = [], 0
+    for lab in r.permutation(np.unique(labels)):
+        members = idx[labels == lab]
+        if keep and total + len(members) > cap:
+            continue
+        keep.append(members)
+        total += len(members)
+    return np.sort(np.concatenate(keep))
+
+
+def _windows(data: TrainingData, first: int, length: int) -> list[tuple[int, int]]:
+    return [(i, t0) for i, clip in enumerate(data.clips) for t0 in range(first, clip.frames - length + 1)]
+
+
+def batches_apparel(config: dict, context: StageContext, rng: np.random.Generator):
+    data = training_data(config, context)
+    t = config["window"]
+    windows = _windows(data, HISTORY, t)
+    if not windows:
+        raise ValueError(f"no clip has the {HISTORY + t} frames an apparel window needs (window={t})")
+    for batch in _draws(config, context, rng, len(windows), "apparel"):
+        for pick, seed in batch:  # one window a step: apparel vertex counts differ between characters
+            ci, t0 = windows[pick]
+            clip = data.clips[ci]
+            c = data.characters[clip.character_id]
+            mask = _predicted_mask(c, context, config)
+            if not mask.any():
+                continue
+            idx = _pick_components(c, mask, config["apparel_points"], np.random.default_rng(seed))
+            nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
+                                      config["knn"])
+            w = skinning_weights(context.frozen["body"], c).cpu()
+            frames = slice(t0 - HISTORY, t0 + t)
+            kin = clip.kinematic[frames]
+            s = to_unit(c, skin(torch.as_tensor(c.rest[idx]), torch.as_tensor(c.keypoints[c.body]), w[idx],
+                                torch.as_tensor(kin[:, c.body]))).numpy()  # frames t0-3..t0+T-1
+            truth = c.norm(posed(c, clip.simulated[frames], idx))
+            yield {"history": truth[None, :HISTORY], "body": s[None, HISTORY - 1:], "rest": c.rest_norm[idx][None],
+                   "joints": c.norm(kin[:, c.body, 4:])[None], "neighbours": nb, "truth": truth[None, HISTORY:],
+                   "edges": np.stack([np.repeat(np.arange(len(idx)), nb.shape[1] - 1), nb[:, 1:].reshape(-1)], 1)}
+
+
+def loss_apparel(module, batch, context) -> dict:
+    states, disp = module.rollout(batch["history"], batch["body"], batch["rest"], batch["joints"], batch["neighbours"])
+    return weighted_total({"vertex": vertex_l1(states, batch["truth"]),
+                           "edge": edge_length(states, batch["truth"], batch["edges"]),
+                           "reg": l2_regulariser(disp)}, context.config)
+
+
+# ---- refine ----------------------------------------------------------------------------------
+
+def build_refine(config: dict, context: StageContext | None = None) -> torch.nn.Module:
+    return JointRefiner(config["refine_hidden"])
+
+
+def batches_refine(config: dict, context: StageContext, rng: np.random.Generator):
+    data = training_data(config, context)
+    t = config["window"]
+    windows = _windows(data, 0, t)
+    for batch in _draws(config, context, rng, len(windows), "refine"):
+        for pick, _seed in batch:
+            ci, t0 = windows[pick]
+            clip = data.clips[ci]
+            c = data.characters[clip.character_id]
+            kin = clip.kinematic[t0:t0 + t]
+            prob = apparel_probability(context.frozen["seg"], c)
+            mask = prob > config["threshold"]
+            w = skinning_weights(context.frozen["body"], c)
+            s = body_states(c, w, kin)
+            y = s.clone()
+            if mask.any():
+                idx, nb = apparel_layout(c, mask, config["knn"])
+                joints = to_unit(c, torch.as_tensor(kin[:, c.body, 4:], device=s.device))
+                y[:, torch.as_tensor(idx, device=s.device)] = rollout_from_body(context.frozen["apparel"], c, s,
+                                                                                joints, idx, nb)
+            yield {"body": s.cpu().numpy(), "combined": y.cpu().numpy(), "prob": np.tile(prob, (t, 1)),
+                   "rest": c.rest_norm[None], "truth": c.norm(posed(c, clip.simulated[t0:t0 + t])), "edges": c.edges}
+
+
+def loss_refine(module, batch, context) -> dict:
+    corr = module(batch["body"], batch["combined"], batch["prob"], batch["rest"])
+    pred = batch["combined"] + corr
+    return weighted_total({"vertex": vertex_l1(pred, batch["truth"]),
+                           "edge": edge_length(pred, batch["truth"], batch["edges"]),
+                           "reg": l2_regulariser(corr)}, context.config)
+
+
+STAGES = [
+    TrainStage("seg", build_seg, batches_seg, loss_seg),
+    TrainStage("body", build_body, batches_body, loss_body),
+    TrainStage("apparel", build_apparel, batches_apparel, loss_apparel, needs=("seg", "body")),
+    TrainStage("refine", build_refine, batches_refine, loss_refine, needs=("seg", "body", "apparel")),
+]
+BUILDERS = {s.name: s.build for s in STAGES}
+
+register_trainable("mmdmc", STAGES, CONFIGS)
