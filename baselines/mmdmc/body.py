@@ -4,7 +4,8 @@ geodesic attention, then linear blend skinning.
 For vertex i and body joint k the pair feature is an MLP of (v_i - c_k, |v_i - c_k|, G_ik); the
 geodesic attention ``M = softmax_k(f_m(G))`` pools the pair features into a vertex context; a
 PointNet over (v_i, context_i) adds local and global shape features; the head scores every pair
-from (pair feature, context, PointNet features) and ``W = softmax_k(scores)``.
+from (pair feature, context, PointNet features), a geodesic prior -G_ik / tau (tau learnt) is added,
+and ``W = softmax_k(scores)``.
 
 Positions and G are in the character's unit-height frame. The posed mesh is LBS of the rest mesh
 (metres) with W over the body joints and the body joints' transforms (K, 7); a request's
@@ -14,11 +15,15 @@ skeleton.
 """
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 
 from baselines.mmdmc.segmentation import mlp
 from mimicbench.skinning_torch import linear_blend_skinning_torch
+
+PRIOR_TAU = 0.03
+"""Initial temperature of the geodesic prior on the skinning scores (fraction of the height)."""
 
 
 class BodySkinning(nn.Module):
@@ -37,6 +42,9 @@ class BodySkinning(nn.Module):
         self.local = mlp([3 + hidden, 2 * hidden, 2 * hidden])
         self.globl = mlp([2 * hidden, 2 * hidden])
         self.head = mlp([hidden + hidden + 4 * hidden + 1, 2 * hidden, 1], last_act=False)
+        # geodesic prior on the scores: -G / tau (tau learnt, unit-height frame); an untrained head
+        # then skins each vertex to the joints nearest along the surface instead of to all alike
+        self.log_tau = nn.Parameter(torch.tensor(float(np.log(PRIOR_TAU))))
 
     def _pairs(self, points, joints, geo):
         rel = points[:, :, None, :] - joints[:, None, :, :]  # (B, n, K, 3)
@@ -79,7 +87,7 @@ class BodySkinning(nn.Module):
             k = e.shape[2]
             per_vertex = torch.cat([context[:, s], local[:, s], g[:, None].expand(-1, e.shape[1], -1)], dim=-1)
             x = torch.cat([e, per_vertex[:, :, None].expand(-1, -1, k, -1), geo[:, s, :, None]], dim=-1)
-            scores.append(self.head(x)[..., 0])
+            scores.append(self.head(x)[..., 0] - geo[:, s] / self.log_tau.exp())
         scores = torch.cat(scores, dim=1)
         if joint_mask is not None:
             scores = scores.masked_fill(~joint_mask[:, None, :], float("-inf"))

@@ -24,8 +24,8 @@ SMALL = {**COMMON, "lr": 1e-3, "weight_decay": 1e-4, "points": 1024, "batch_size
          "seg_hidden": 64, "body_hidden": 32, "apparel_hidden": 48, "refine_hidden": 32, "code": 16,
          "apparel_points": 1024,
          # per-stage settings (the trainer reads config[stage][key] before config[key])
-         "seg": {"epochs": 3}, "body": {"epochs": 5}, "apparel": {"epochs": 3},
-         "refine": {"epochs": 1, "batches_per_epoch": 15}}
+         "seg": {"epochs": 12}, "body": {"epochs": 3, "batches_per_epoch": 30, "points": 512},
+         "apparel": {"epochs": 1, "batches_per_epoch": 12}, "refine": {"epochs": 1, "batches_per_epoch": 5}}
 
 PAPER = {**COMMON, "lr": 1e-4, "weight_decay": 1e-4, "points": 4096, "batch_size": 8, "batches_per_epoch": 500,
          "seg_hidden": 128, "body_hidden": 64, "apparel_hidden": 128, "refine_hidden": 64, "code": 64,

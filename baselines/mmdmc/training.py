@@ -106,7 +106,7 @@ def build_body(config: dict, context: StageContext | None = None) -> torch.nn.Mo
 
 
 def _body_item(c: Prepared, transforms: np.ndarray, config: dict, r: np.random.Generator) -> dict:
-    rows = _subsample(len(c.rest), config["points"], r)
+    rows = _subsample(len(c.rest), setting(config, "body", "points"), r)
     bw = body_target_weights(c)[rows]
     t_body = transforms[c.body]
     target = skin(torch.as_tensor(c.rest[rows]), torch.as_tensor(c.keypoints[c.body]), torch.as_tensor(bw),

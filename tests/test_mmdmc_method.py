@@ -1,0 +1,105 @@
+"""The registered MMDMC methods with the shipped checkpoint, on a zoo apparel character."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from benchmark.registry import get_method
+from benchmark.request import MotionRequest, Rig
+from mimicbench.quaternion import quat_to_matrix
+from mimicbench.weights import SparseWeights
+
+NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_refine", "mmdmc_gt_mask")
+
+
+@pytest.fixture(scope="module")
+def character(tmp_path_factory):
+    """A zoo apparel character's rig, a 6-frame window of its first clip and its record."""
+    from datagen.zoo import build_zoo
+    from schemas.shards import read_records
+
+    root = tmp_path_factory.mktemp("mmdmc_zoo")
+    build_zoo(root, 1, seed=11, categories=["apparel"], clips_per_character=1, progress=False)
+    rec = read_records(root, "characters")[0]
+    motion = read_records(root, "motions")[0]
+    rig = Rig(rec.character_id, rec.category, rec.vertices, rec.faces, rec.keypoints, rec.parents, rec.weights,
+              rec.bone_names)
+    k = len(rec.parents)
+    window = np.asarray(motion.transforms, np.float32).reshape(-1, k, 7)[10:16]
+    return rig, window, rec
+
+
+def request(rig, window, rec, extras=None):
+    return MotionRequest(rig, window, ~np.asarray(rec.apparel_bone_mask, bool), 30.0, "toy", extras or {})
+
+
+def naive_lbs(rest, keypoints, dense, transforms):
+    """v_i = sum_k W_ik (R_k (v_i - c_k) + t_k), a loop over joints (the spec, MimiCAT Eq. 1)."""
+    out = np.zeros((len(transforms), len(rest), 3))
+    for f, tr in enumerate(transforms):
+        for k in range(len(keypoints)):
+            r = quat_to_matrix(tr[k, :4].astype(np.float64))
+            out[f] += dense[:, k:k + 1] * ((rest - keypoints[k]) @ r.T + tr[k, 4:])
+    return out
+
+
+def test_methods_are_registered_for_the_apparel_protocol():
+    for name in NAMES:
+        m = get_method(name)
+        assert m.metadata.name == name and m.metadata.protocols == ("apparel",) and m.metadata.needs_training
+    assert "reads_gt_apparel_mask" in get_method("mmdmc_gt_mask").metadata.tags
+    assert not any("reads_gt_apparel_mask" in get_method(n).metadata.tags for n in NAMES[:3])
+
+
+def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(character):
+    from baselines.mmdmc.pipeline import skinning_weights
+
+    rig, window, rec = character
+    outs = {}
+    for name in NAMES[:3]:
+        m = get_method(name)
+        m.setup("cpu")
+        [out] = m.transfer_motion([request(rig, window, rec)])
+        assert out.shape == (len(window), len(rig.vertices), 3) and out.dtype == np.float32
+        assert np.isfinite(out).all()
+        outs[name] = (m, out)
+    m, body = outs["mmdmc_body_only"]
+    prep = next(iter(m._prepared.values()))
+    w = skinning_weights(m.modules.body, prep).numpy().astype(np.float64)
+    assert np.allclose(w.sum(1), 1.0, atol=1e-5) and (w >= 0).all()
+    bones = np.flatnonzero(~np.asarray(rec.apparel_bone_mask, bool))
+    ref = naive_lbs(np.asarray(rig.vertices, np.float64), np.asarray(rig.keypoints, np.float64)[bones], w,
+                    window[:, bones].astype(np.float64))
+    np.testing.assert_allclose(body, ref, atol=2e-4)
+    # the apparel module moves apparel vertices only where f_c finds apparel; the rest stays the body's
+    apparel = outs["mmdmc_no_refine"][1]
+    moved = np.abs(apparel - body).max(axis=(0, 2)) > 0
+    from baselines.mmdmc.pipeline import apparel_probability
+
+    assert not moved[apparel_probability(m.modules.seg, prep) <= m.modules.threshold].any()
+
+
+def test_never_reads_the_targets_weights_or_apparel_mask(character):
+    rig, window, rec = character
+    rng = np.random.default_rng(0)
+    scrambled = SparseWeights(rng.integers(0, len(rig.parents), rig.weights.indices.shape).astype(np.int32),
+                              np.asarray(rig.weights.values)[rng.permutation(len(rig.vertices))], len(rig.parents))
+    other = dataclasses.replace(rig, weights=scrambled)
+    m = get_method("mmdmc")
+    [a] = m.transfer_motion([request(rig, window, rec)])
+    m2 = get_method("mmdmc")  # a fresh instance: nothing cached from the first rig
+    [b] = m2.transfer_motion([request(other, window, rec)])
+    np.testing.assert_array_equal(a, b)
+
+
+def test_gt_mask_variant_uses_the_mask_it_is_given(character):
+    rig, window, rec = character
+    m = get_method("mmdmc_gt_mask")
+    with pytest.raises(ValueError, match="apparel_vertex_mask"):
+        m.transfer_motion([request(rig, window, rec)])
+    mask = np.asarray(rec.apparel_vertex_mask, bool)
+    [with_gt] = m.transfer_motion([request(rig, window, rec, {"apparel_vertex_mask": mask})])
+    [none] = m.transfer_motion([request(rig, window, rec, {"apparel_vertex_mask": np.zeros_like(mask)})])
+    assert np.isfinite(with_gt).all() and not np.allclose(with_gt[:, mask], none[:, mask])
