@@ -77,15 +77,15 @@ class Prepared:
 def prepare(character_id: str, vertices, faces, keypoints, parents, body, bridge_neighbours: int = 4,
             apparel=None, weights: SparseWeights | None = None) -> Prepared:
     """A :class:`Prepared` character (computes G over the body joints)."""
-    v = np.asarray(vertices, np.float32)
-    body = np.asarray(body, bool)
+    v = np.array(vertices, np.float32)  # own writable copies: torch tensors are made from them
+    body = np.array(body, bool)
     if body.shape != (len(keypoints),) or not body.any():
         raise ValueError(f"{character_id}: expected a body-bone mask of {len(keypoints)} entries with at least one "
                          f"body bone, got shape {body.shape} with {int(body.sum())} body bones")
     centre, height = unit_height_frame(v)
     geo = geodesic_distances(v, faces, np.asarray(keypoints)[body], bridge_neighbours) / height
-    return Prepared(character_id, v, np.asarray(faces, np.int32), np.asarray(keypoints, np.float32),
-                    np.asarray(parents, np.int32), body, centre, height, geo.astype(np.float32),
+    return Prepared(character_id, v, np.array(faces, np.int32), np.array(keypoints, np.float32),
+                    np.array(parents, np.int32), body, centre, height, geo.astype(np.float32),
                     unique_edges(faces), None if apparel is None else np.asarray(apparel, bool), weights)
 
 

@@ -26,6 +26,7 @@ ENV = "MIMICBENCH_MMDMC_CHECKPOINTS"
 CITATION = ("Rong Wang, Wei Mao, Changsheng Lu, Hongdong Li. Towards High-Quality 3D Motion Transfer with "
             "Realistic Apparel Animation. ECCV 2024.")
 STAGES = ("seg", "body", "apparel", "refine")
+VARIANT_STAGES = {"full": STAGES, "no_refine": ("seg", "body", "apparel"), "body_only": ("body",)}
 
 
 def checkpoint_path(stage: str, folder: str | os.PathLike | None = None) -> Path:
@@ -41,14 +42,16 @@ def checkpoint_path(stage: str, folder: str | os.PathLike | None = None) -> Path
                             f"and set {ENV}=RUN")
 
 
-def load_modules(folder=None, device: str = "cpu"):
-    """:class:`~baselines.mmdmc.pipeline.Modules` from checkpoints (see :func:`checkpoint_path`)."""
+def load_modules(folder=None, device: str = "cpu", stages=STAGES):
+    """:class:`~baselines.mmdmc.pipeline.Modules` from checkpoints (see :func:`checkpoint_path`); the
+    stages left out of ``stages`` stay None."""
     from baselines.mmdmc.pipeline import Modules
     from baselines.mmdmc.training import BUILDERS
     from mimicbench.training.checkpoint import load_module, read_header
 
-    mods = {s: load_module(checkpoint_path(s, folder), lambda cfg, s=s: BUILDERS[s](cfg, None), device) for s in STAGES}
-    config = read_header(checkpoint_path("apparel", folder))["config"]
+    mods = {s: load_module(checkpoint_path(s, folder), lambda cfg, s=s: BUILDERS[s](cfg, None), device) if s in stages
+            else None for s in STAGES}
+    config = read_header(checkpoint_path("body", folder))["config"]
     return Modules(mods["seg"], mods["body"], mods["apparel"], mods["refine"], config["knn"], config["threshold"])
 
 
@@ -67,7 +70,7 @@ class Mmdmc(PoseTransferMethod):
 
     def setup(self, device: str = "cpu") -> None:
         self.device = device
-        self.modules = load_modules(device=device)
+        self.modules = load_modules(device=device, stages=VARIANT_STAGES[self.variant])
 
     def transfer(self, requests):
         raise NotImplementedError(f"{self.metadata.name} answers motion requests only (the apparel protocol)")

@@ -127,7 +127,7 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
         joints = to_unit(prep, torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body, 4:], device=s.device))
         y[:, torch.as_tensor(idx, device=s.device)] = rollout_from_body(modules.apparel, prep, s, joints, idx, nb)
     if variant == "full" and modules.refine is not None:
-        p = torch.as_tensor(mask if gt_mask is not None else prob, dtype=s.dtype, device=s.device)
+        p = torch.as_tensor(np.array(mask if gt_mask is not None else prob), dtype=s.dtype, device=s.device)
         rest = torch.as_tensor(prep.rest_norm, device=s.device)
         y = y + modules.refine(s, y, p.expand(len(y), -1), rest[None])
     return from_unit(prep, y).cpu().numpy().astype(np.float32)
