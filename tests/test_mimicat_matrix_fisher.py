@@ -97,7 +97,7 @@ def test_nll_is_minimised_at_the_mode_and_is_normalised(uniform_rotations):
     assert (nll_random >= nll_mode - 1e-9).all()
     torch.testing.assert_close(torch.linalg.det(m), torch.tensor(1.0, dtype=F.dtype))
     # exp(-nll) is a density w.r.t. the uniform probability measure: its mean over uniform samples is 1
-    n = 20_000
+    n = 5_000
     dens = np.exp(-negative_log_likelihood(F.expand(n, 3, 3), torch.tensor(uniform_rotations[:n])).numpy())
     assert abs(dens.mean() - 1.0) < 4 * dens.std() / np.sqrt(len(dens)) + 1e-3
 
@@ -111,3 +111,57 @@ def test_float32_batch_and_bad_shapes():
     assert torch.isfinite(F.grad).all()
     with pytest.raises(ValueError, match="3, 3"):
         negative_log_likelihood(F[:, :2], R[:, :2])
+
+
+def test_bingham_matrix_is_the_quadratic_form_of_the_trace():
+    from baselines.mimicat.matrix_fisher import bingham_matrix
+    from mimicbench.quaternion import quat_to_matrix
+
+    F = rotated((5.0, 2.0, -1.0), 4) + np.random.default_rng(0).normal(size=(3, 3))
+    q = Rotation.random(50, random_state=3).as_quat()[:, [3, 0, 1, 2]]  # (w, x, y, z)
+    np.testing.assert_allclose(np.einsum("ni,ij,nj->n", q, bingham_matrix(F), q),
+                               np.einsum("ij,nij->n", F, quat_to_matrix(q)), atol=1e-12)
+
+
+@pytest.mark.parametrize("s", [(0.0, 0.0, 0.0), (3.0, 1.0, -0.5), (40.0, 20.0, 5.0), (300.0, 1.0, 0.0),
+                               (2e3, 2e3, 2e3), (30.0, 30.0, -30.0)])
+def test_samples_are_rotations_with_the_mean_of_the_normaliser_gradient(s):
+    """Rejection sampling (Bingham, Kent et al.) and d log c / dF = E[R] are independent routes to E[R]."""
+    from baselines.mimicat.matrix_fisher import sample
+
+    F = rotated(s, 9)
+    R = sample(F[None], 20_000, np.random.default_rng(1))[:, 0]
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-9)
+    np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape), atol=1e-9)
+    expected = mean_rotation(torch.tensor(F)).numpy()
+    se = R.std(0) / np.sqrt(len(R))
+    assert (np.abs(R.mean(0) - expected) < 5 * se + 1e-3).all(), (R.mean(0), expected)
+    again = sample(F[None], 10, np.random.default_rng(1))
+    np.testing.assert_array_equal(again, sample(F[None], 10, np.random.default_rng(1)))
+
+
+def test_sampling_loss_gradient_matches_the_expected_distance():
+    """The surrogate's gradient estimates d E[||R' - R||^2 / 8] / dF, here by finite differences of
+    the exact expectation (6 - 2 tr(E[R']^T R)) / 8 with E[R'] = d log c / dF."""
+    from baselines.mimicat.matrix_fisher import sampling_loss
+
+    F0 = torch.tensor(rotated((3.0, 2.0, 1.0), 5))
+    R = torch.tensor(Rotation.random(1, random_state=6).as_matrix()[0])
+
+    def expected(F):
+        return (6 - 2 * (mean_rotation(F) * R).sum()) / 8
+
+    F = F0.clone().requires_grad_(True)
+    surrogate, dist = sampling_loss(F, R, 40_000, np.random.default_rng(2))
+    (g,) = torch.autograd.grad(surrogate, F)
+    fd = torch.zeros(3, 3, dtype=torch.float64)
+    eps = 1e-5
+    for i in range(3):
+        for j in range(3):
+            d = torch.zeros(3, 3, dtype=torch.float64)
+            d[i, j] = eps
+            fd[i, j] = (expected(F0 + d) - expected(F0 - d)) / (2 * eps)
+    assert abs(float(dist) - float(expected(F0))) < 0.01
+    assert float((g - fd).norm() / fd.norm()) < 0.15, (g, fd)
+    with pytest.raises(ValueError, match="n >= 2"):
+        sampling_loss(F, R, 1, np.random.default_rng(0))

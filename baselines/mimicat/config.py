@@ -15,9 +15,9 @@ Sections:
 - ``shape`` (E, the shape autoencoder): ``tokens`` l_E, ``width`` d, ``heads``, ``layers``
   (self-attention blocks after the cross-attention), ``mlp``, ``decoder_layers``; ``queries``
   UDF query points per shape, ``surface_samples`` for the UDF target, ``fourier`` frequencies.
-- ``prior`` (F): ``width``, ``heads``, ``layers``, ``mlp``, ``fourier``,
-  ``output_scale``; ``max_keypoints`` per character (more are
-  subsampled each step).
+- ``prior`` (F): ``width``, ``heads``, ``layers``, ``mlp``, ``fourier``, ``output_scale``;
+  ``sampling_weight`` and ``samples`` of the sampling term (A3; 0 turns it off);
+  ``max_keypoints`` scored per character (more are subsampled each step).
 - ``corr`` (G) and ``transfer`` (H): sizes (owned by their stages).
 """
 from __future__ import annotations
@@ -30,9 +30,10 @@ SMALL = {
     "grad_clip": 1.0,
     "data": {"split": "train", "points": 512, "frames_per_motion": 4},
     "shape": {"tokens": 16, "width": 64, "heads": 4, "layers": 2, "mlp": 128, "decoder_layers": 1,
-              "fourier": 6, "queries": 512, "surface_samples": 4096, "batch_size": 8, "epochs": 20},
+              "fourier": 6, "queries": 512, "surface_samples": 4096, "batch_size": 8, "epochs": 12},
     "prior": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "fourier": 6,
-              "max_keypoints": 64, "batch_size": 8, "epochs": 15},
+              "max_keypoints": 64, "sampling_weight": 0.1, "samples": 4,
+              "batch_size": 8, "epochs": 12},
     "corr": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 8, "epochs": 10},
     "transfer": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 4, "epochs": 10},
 }
@@ -45,7 +46,8 @@ PAPER = {
     "shape": {"tokens": 64, "width": 256, "heads": 8, "layers": 6, "mlp": 2048, "decoder_layers": 2,
               "fourier": 8, "queries": 2048, "surface_samples": 16384, "batch_size": 32, "epochs": 200},
     "prior": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "fourier": 8,
-              "max_keypoints": 256, "batch_size": 32, "epochs": 100},
+              "max_keypoints": 256, "sampling_weight": 0.1, "samples": 8,
+              "batch_size": 32, "epochs": 100},
     "corr": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 32, "epochs": 100},
     "transfer": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 16, "epochs": 100},
 }

@@ -154,3 +154,94 @@ def mean_rotation(F: torch.Tensor) -> torch.Tensor:
     s_ = s.requires_grad_(True)
     (ds,) = torch.autograd.grad(log_normaliser_of_singular_values(s_).sum(), s_)
     return ((U * ds[..., None, :]) @ V.transpose(-1, -2)).to(F.dtype)
+
+
+def _quat_to_matrix_homogeneous(q: np.ndarray) -> np.ndarray:
+    """R(q) (..., 3, 3) as a homogeneous quadratic in q (w, x, y, z) (a rotation when |q| = 1)."""
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1),
+    ], -2)
+
+
+def bingham_matrix(F: np.ndarray) -> np.ndarray:
+    """A (..., 4, 4) symmetric with ``q^T A q = tr(F^T R(q))`` for unit quaternions q (polarisation)."""
+    F = np.asarray(F, np.float64)
+    eye = np.eye(4)
+    A = np.empty(F.shape[:-2] + (4, 4))
+    for a in range(4):
+        for b in range(4):
+            plus = np.einsum("...ij,ij->...", F, _quat_to_matrix_homogeneous(eye[a] + eye[b]))
+            minus = np.einsum("...ij,ij->...", F, _quat_to_matrix_homogeneous(eye[a] - eye[b]))
+            A[..., a, b] = (plus - minus) / 4
+    return A
+
+
+def sample(F: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` rotations from p(R | F) for each F (..., 3, 3) -> (n, ..., 3, 3) float64.
+
+    Through the Bingham distribution of the unit quaternion (density exp(q^T A q) on S^3, see
+    :func:`bingham_matrix`), by rejection from an angular central Gaussian envelope (Kent, Ganeiber
+    & Mardia, "A new method to simulate the Bingham and related distributions", 2013), whose
+    acceptance rate stays bounded away from 0 at any concentration. Not differentiable: for
+    gradients use :func:`sampling_loss`.
+    """
+    F = np.asarray(F, np.float64)
+    lead = F.shape[:-2]
+    A = bingham_matrix(F.reshape(-1, 3, 3))                            # (M, 4, 4)
+    m = len(A)
+    lam_max = np.linalg.eigvalsh(A)[:, -1]
+    psi = lam_max[:, None, None] * np.eye(4) - A                       # PSD, smallest eigenvalue 0
+    lam = np.clip(np.linalg.eigvalsh(psi), 0, None)                    # (M, 4)
+    lo, hi = np.full(m, 1e-12), np.full(m, 4.0)                        # b solves sum 1 / (b + 2 lam) = 1
+    for _ in range(80):
+        mid = (lo + hi) / 2
+        big = (1.0 / (mid[:, None] + 2 * lam)).sum(1) > 1
+        lo, hi = np.where(big, mid, lo), np.where(big, hi, mid)
+    b = (lo + hi) / 2
+    omega = np.eye(4) + 2 * psi / b[:, None, None]
+    log_bound = -(4 - b) / 2 + 2 * np.log(4 / b)                       # log M of the envelope
+    chol = np.linalg.cholesky(np.linalg.inv(omega))                    # y ~ N(0, Omega^-1)
+    out = np.zeros((m, n, 4))
+    have = np.zeros(m, int)
+    while (have < n).any():
+        need = np.nonzero(have < n)[0]
+        y = np.einsum("mij,mkj->mki", chol[need], rng.standard_normal((len(need), 2 * n, 4)))
+        x = y / np.linalg.norm(y, axis=-1, keepdims=True)
+        log_f = -np.einsum("mki,mij,mkj->mk", x, psi[need], x)
+        log_g = -2 * np.log(np.einsum("mki,mij,mkj->mk", x, omega[need], x))
+        accept = np.log(rng.random(log_f.shape)) < log_f - log_g - log_bound[need, None]
+        for row, i in enumerate(need):
+            got = x[row][accept[row]][: n - have[i]]
+            out[i, have[i]:have[i] + len(got)] = got
+            have[i] += len(got)
+    R = _quat_to_matrix_homogeneous(out)                               # (M, n, 3, 3)
+    return np.moveaxis(R, 1, 0).reshape((n,) + lead + (3, 3))
+
+
+def sampling_loss(F: torch.Tensor, R: torch.Tensor, n: int, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """The expected distance of samples from p(. | F) to the true R, and a surrogate for its gradient.
+
+    ``d(R', R) = ||R' - R||_F^2 / 8`` (0 equal, 1 opposite). With ``n >= 2`` samples R'_s per F
+    (:func:`sample`), the surrogate ``mean_s (d_s - b_s) log p(R'_s | F)`` (``b_s`` the mean of the
+    other samples' distances, a baseline that keeps it unbiased) has the gradient of
+    ``E_{R' ~ p(. | F)}[d(R', R)]`` (score-function estimator), so minimising it sharpens F
+    around R as drawing samples would.
+
+    Args:
+        F, R: (..., 3, 3). rng: the generator of the samples.
+
+    Returns:
+        ``(surrogate, mean_distance)``: scalars; ``mean_distance`` (no gradient) is the sample
+        estimate of the expected distance, to log.
+    """
+    if n < 2:
+        raise ValueError(f"sampling_loss needs n >= 2 samples for its baseline, got {n}")
+    samples = torch.as_tensor(sample(F.detach().cpu().numpy(), n, rng), dtype=F.dtype, device=F.device)
+    d = ((samples - R[None].to(F.dtype)) ** 2).sum((-1, -2)) / 8          # (n, ...)
+    baseline = (d.sum(0, keepdim=True) - d) / (n - 1)
+    log_p = -negative_log_likelihood(F[None].expand_as(samples), samples)
+    surrogate = ((d - baseline).detach() * log_p).mean()
+    return surrogate, d.mean().detach()

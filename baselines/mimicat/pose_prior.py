@@ -23,7 +23,7 @@ import torch
 from torch import nn
 
 from baselines.mimicat.attention import FourierEmbedding, self_attention_stack
-from baselines.mimicat.matrix_fisher import mode, negative_log_likelihood
+from baselines.mimicat.matrix_fisher import mode, negative_log_likelihood, sampling_loss
 
 
 def bone_vectors(points: torch.Tensor, parents: torch.Tensor) -> torch.Tensor:
@@ -115,20 +115,32 @@ class PosePrior(nn.Module):
         return (nll * mask).sum() / mask.sum().clamp_min(1)
 
 
-def prior_loss(model: PosePrior, f_rest, f_posed, batch: dict) -> dict[str, torch.Tensor]:
+def prior_loss(model: PosePrior, f_rest, f_posed, batch: dict, sampling_weight: float = 0.0, samples: int = 4,
+               rng: np.random.Generator | None = None) -> dict[str, torch.Tensor]:
     """The ``prior`` stage's loss on a collated batch (see :func:`baselines.mimicat.data.prior_example`).
 
-    Returns ``total`` (mean NLL over the scored keypoints, Eq. A2) and, for the log only,
-    ``mode_deg``: mean angle (degrees) between the mode of each F_k and the true R_k.
+    Returns ``total`` = ``nll`` (mean over the scored keypoints, Eq. A2) + ``sampling_weight`` x
+    the sampling term (A3 as done here: ``samples`` rotations drawn from each F_k, their expected
+    distance to R_k minimised through a score-function surrogate, see
+    :func:`baselines.mimicat.matrix_fisher.sampling_loss`; ``sample_dist`` logs that distance,
+    ||R' - R||^2 / 8), and, for the log only, ``mode_deg``: mean angle (degrees) between the
+    mode of each F_k and the true R_k.
     """
     mask = batch["mask"]
     F = model(f_rest, f_posed, batch["rest"], batch["posed"], batch["parents"], mask)
     scored = mask & batch["keep"]
     nll = negative_log_likelihood(F, batch["rotations"].to(F.dtype))
-    total = (nll * scored).sum() / scored.sum().clamp_min(1)
+    nll_mean = (nll * scored).sum() / scored.sum().clamp_min(1)
+    out = {"nll": nll_mean.detach()}
+    total = nll_mean
+    if sampling_weight > 0:
+        surrogate, dist = sampling_loss(F[scored], batch["rotations"][scored], samples,
+                                        rng if rng is not None else np.random.default_rng(0))
+        total = total + sampling_weight * surrogate
+        out["sample_dist"] = dist.float()
     with torch.no_grad():
         m = mode(F.double())
         cos = (((m * batch["rotations"].double()).sum((-1, -2)) - 1) / 2).clamp(-1, 1)
         angle = torch.rad2deg(torch.arccos(cos))
         mode_deg = (angle * scored).sum() / scored.sum().clamp_min(1)
-    return {"total": total, "mode_deg": mode_deg.float()}
+    return {"total": total, **out, "mode_deg": mode_deg.float()}

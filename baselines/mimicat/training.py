@@ -75,7 +75,9 @@ def prior_batches(config: dict, context: StageContext, rng: np.random.Generator)
             ci, mi, f = items[i]
             examples.append(data.prior_example(chars[ci], mi, f, np.random.default_rng([key, int(i)]),
                                                config["data"]["points"], p.get("max_keypoints")))
-        yield data.collate(examples, pad_values={"parents": -1})
+        batch = data.collate(examples, pad_values={"parents": -1})
+        batch["sample_seed"] = [key, int(idx[0])]  # the sampling term's draws (A3)
+        yield batch
 
 
 def prior_stage_loss(module: PosePrior, batch: dict, context: StageContext) -> dict:
@@ -83,7 +85,9 @@ def prior_stage_loss(module: PosePrior, batch: dict, context: StageContext) -> d
     with torch.no_grad():
         f_rest = encoder(batch["rest_points"])
         f_posed = encoder(batch["posed_points"])
-    return prior_loss(module, f_rest, f_posed, batch)
+    p = context.config["prior"]
+    return prior_loss(module, f_rest, f_posed, batch, float(p.get("sampling_weight", 0.0)), int(p.get("samples", 4)),
+                      np.random.default_rng(batch["sample_seed"]))
 
 
 STAGES = [
