@@ -159,3 +159,4 @@ def test_torchrun_two_processes_match_one(data, tmp_path):
         torch.testing.assert_close(two[k], one[k], rtol=1e-5, atol=1e-6)
     with open(tmp_path / "two" / "fit" / "loss.csv") as f:
         assert len(list(csv.DictReader(f))) == 96 // 16
+    assert (tmp_path / "two" / "head" / "model.safetensors").is_file()  # the second stage ran under the same group

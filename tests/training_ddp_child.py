@@ -2,8 +2,9 @@
 import sys
 
 from tests import training_toys  # noqa: F401  (registers "toy")
-from mimicbench.training.loop import train_stage
+from mimicbench.training.loop import train_model
 
 if __name__ == "__main__":
-    train_stage("toy", "fit", sys.argv[1], sys.argv[2], dict(training_toys.CONFIG), "cpu", epochs=1, seed=3,
+    # both stages in one launch: the process group must survive from one stage to the next
+    train_model("toy", "all", sys.argv[1], sys.argv[2], dict(training_toys.CONFIG), "cpu", epochs=1, seed=3,
                 progress=False)

@@ -306,5 +306,13 @@ def train_model(model_name: str, stages, dataset, out, config: dict, device="cpu
     names = [s.name for s in model.stages] if stages == "all" else [stages] if isinstance(stages, str) else list(stages)
     for name in names:
         model.stage(name)  # unknown names fail before any training
-    return [train_stage_result(model_name, name, dataset, out, config, device, epochs, seed, resume, progress)
-            for name in names]
+    # one process group for all stages (under torchrun): joining again after a destroy can hang
+    _, _, _, created = init_distributed(torch.device(device))
+    try:
+        return [train_stage_result(model_name, name, dataset, out, config, device, epochs, seed, resume, progress)
+                for name in names]
+    finally:
+        if created:
+            import torch.distributed as dist
+
+            dist.destroy_process_group()
