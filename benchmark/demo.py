@@ -15,7 +15,8 @@ from pathlib import Path
 
 from mimicbench.argtypes import positive_int
 
-BUNDLED = ("identity", "name_copy", "nearest_joint", "text_soft")
+BUNDLED = ("identity", "name_copy", "nearest_joint", "text_soft",
+           "mimicat")  # the MimiCAT reference with its shipped checkpoint (baselines/mimicat/checkpoints)
 BUNDLED_APPAREL = ("lbs_kinematic", "body_only", "mmdmc")  # mmdmc: the shipped checkpoint, no training
 """Methods run on the apparel protocol (motion transfer on simulated apparel)."""
 

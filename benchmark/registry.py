@@ -25,6 +25,9 @@ BUILTIN = {
     "mmdmc_body_only": "baselines.mmdmc.method:MmdmcBodyOnly",
     "mmdmc_no_refine": "baselines.mmdmc.method:MmdmcNoRefine",
     "mmdmc_gt_mask": "baselines.mmdmc.method:MmdmcGtMask",
+    "mimicat": "baselines.mimicat.method:Mimicat",
+    "mimicat_naive_avg": "baselines.mimicat.method:MimicatNaiveAvg",
+    "mimicat_no_prior": "baselines.mimicat.method:MimicatNoPrior",
 }
 
 _registered: dict[str, object] = {}

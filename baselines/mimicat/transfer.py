@@ -155,6 +155,27 @@ def transfer_batch(encoder: nn.Module, g: nn.Module, h: PoseTransferTransformer,
     return h(src, q_src, t_src, tgt, m, delta_f, f_t), m, (f_s, f_sp, f_t, delta_f)
 
 
+def correspondences(encoder: nn.Module, g: nn.Module, src: list[CharacterTensors], tgt: list[CharacterTensors],
+                    cache: dict | None = None) -> list[torch.Tensor]:
+    """G's soft correspondences (Ks, Kt) for pairs of rest characters, from ``cache`` (keyed by
+    the two character IDs) when there; G is frozen once trained, so M depends on the pair alone."""
+    cache = {} if cache is None else cache
+    keys = [(s.character_id, t.character_id) for s, t in zip(src, tgt)]
+    todo = [i for i, k in enumerate(keys) if k not in cache]
+    if todo:
+        from baselines.mimicat.transfer_data import shape_tokens
+
+        with torch.no_grad():
+            tok = shape_tokens(encoder, torch.stack([src[i].normalised(src[i].vertices) for i in todo]
+                                                    + [tgt[i].normalised(tgt[i].vertices) for i in todo]))
+            kp_s, mask_s = pad([src[i].features for i in todo])
+            kp_t, mask_t = pad([tgt[i].features for i in todo])
+            ms = g(kp_s, mask_s, kp_t, mask_t, tok[:len(todo)], tok[len(todo):])
+        for i, m in zip(todo, ms):
+            cache[keys[i]] = m.detach()
+    return [cache[k] for k in keys]
+
+
 def as_numpy_transforms(q: torch.Tensor, t: torch.Tensor) -> np.ndarray:
     """(K, 7) float32 transforms from torch rotations and positions."""
     return torch.cat([q, t], dim=-1).detach().cpu().numpy().astype(np.float32)

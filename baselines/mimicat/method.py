@@ -1,0 +1,149 @@
+"""``mimicat`` and its ablations behind the adapter API.
+
+The cascade of MimiCAT: the source's pose is read off its posed vertices (weighted Kabsch per
+bone, :func:`baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
+the soft correspondence M; H the target's transforms from the Eq. 3-4 initialisation; LBS poses
+the target and ARAP refines it (:mod:`baselines.mimicat.arap`, ``arap=False`` switches it off).
+
+Weights: the checkpoint folder given as ``checkpoint=`` or by the environment variable
+``MIMICAT_CHECKPOINT``, else the bundled one (``baselines/mimicat/checkpoints``). A folder holds
+either ``<stage>.safetensors`` files (the bundled layout) or a training run's
+``<stage>/model.safetensors`` (``mimicbench train mimicat DATA --out RUN``), stages ``shape``,
+``corr``, ``transfer`` and, for ``mimicat_no_prior``, ``transfer_no_prior``.
+
+Registered names:
+- ``mimicat``: the full model.
+- ``mimicat_naive_avg`` (ablation A1): the same weights with Eq. 4's rotation average replaced
+  by the normalised plain weighted sum of quaternions in the initialisation.
+- ``mimicat_no_prior`` (ablation A2): H trained without the prior term L_reg.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from benchmark.method import MethodMetadata, PoseTransferMethod
+
+BUNDLED = Path(__file__).parent / "checkpoints"
+CITATION = ("Chai et al., MimiCAT: Mimic with Correspondence-Aware Cascade-Transformer for Category-Free 3D Pose "
+            "Transfer, arXiv 2511.18370 (re-implemented from the paper)")
+
+
+def checkpoint_path(folder: Path, stage: str) -> Path:
+    """The weights of ``stage`` in a checkpoint folder (bundled or run layout)."""
+    for p in (folder / f"{stage}.safetensors", folder / stage / "model.safetensors"):
+        if p.is_file():
+            return p
+    raise FileNotFoundError(f"{folder}: no weights for stage {stage!r} (expected {stage}.safetensors or "
+                            f"{stage}/model.safetensors; train with `mimicbench train mimicat DATASET --out RUN`)")
+
+
+class Mimicat(PoseTransferMethod):
+    """The full MimiCAT reference.
+
+    Args:
+        checkpoint: folder of weights (see the module docstring); None for MIMICAT_CHECKPOINT or
+            the bundled one.
+        arap: refine the LBS result by ARAP.
+        batch_size: requests run through the networks at once.
+    """
+
+    metadata = MethodMetadata(name="mimicat", version="1", licence="MIT", needs_training=True, citation=CITATION,
+                              description="MimiCAT cascade: shape encoder, correspondence transformer G, "
+                                          "pose-transfer transformer H, LBS + ARAP (bundled checkpoint)")
+    transfer_stage = "transfer"
+    average = "eq4"
+
+    def __init__(self, checkpoint: str | os.PathLike | None = None, arap: bool = True, batch_size: int = 16):
+        self.checkpoint = Path(checkpoint or os.environ.get("MIMICAT_CHECKPOINT") or BUNDLED)
+        self.arap = arap
+        self.batch_size = batch_size
+        self._modules = None
+        self._chars: dict = {}
+        self._m_cache: dict = {}
+        self._refiner = None
+
+    def setup(self, device: str = "cpu") -> None:
+        import torch
+
+        from baselines.mimicat.transfer_training import section
+        from mimicbench.training.checkpoint import load_module
+        from mimicbench.training.registry import trainable
+        from mimicbench.training.stage import StageContext
+
+        self.device = torch.device(device)
+        model = trainable("mimicat")
+        ctx = StageContext(self.checkpoint, self.device, {})
+        mods = {}
+        for key, stage in (("shape", "shape"), ("corr", "corr"), ("transfer", self.transfer_stage)):
+            mods[key] = load_module(checkpoint_path(self.checkpoint, stage),
+                                    lambda cfg, s=model.stage(stage): s.build(cfg, ctx), self.device)
+        mods["transfer"].average = self.average
+        self.points = int(section(_header_config(checkpoint_path(self.checkpoint, self.transfer_stage)),
+                                  "transfer")["points"])
+        self._modules = mods
+        if self.arap:
+            from baselines.mimicat.arap import ArapRefiner
+
+            self._refiner = ArapRefiner()
+
+    def _character(self, rig):
+        from baselines.mimicat.transfer_data import CharacterTensors
+
+        key = (rig.character_id, len(rig.vertices), len(rig.parents))
+        if key not in self._chars:
+            self._chars[key] = CharacterTensors.of_rig(rig, self.points, self.device)
+        return self._chars[key]
+
+    def transfer(self, requests):
+        if self._modules is None:
+            self.setup("cpu")
+        out = []
+        for i in range(0, len(requests), self.batch_size):
+            out.extend(self._batch(requests[i:i + self.batch_size]))
+        return out
+
+    def _batch(self, requests) -> list[np.ndarray]:
+        import torch
+
+        from baselines.mimicat.transfer import correspondences, pose_mesh, transfer_batch
+        from baselines.posing import source_pose
+
+        src = [self._character(r.source) for r in requests]
+        tgt = [self._character(r.target) for r in requests]
+        q_s, t_s = [], []
+        for r in requests:
+            q, t = source_pose(r)
+            q_s.append(torch.as_tensor(q, dtype=torch.float32, device=self.device))
+            t_s.append(torch.as_tensor(t, dtype=torch.float32, device=self.device))
+        posed = [torch.tensor(np.asarray(r.source_posed, np.float32), device=self.device) for r in requests]
+        m = self._modules
+        with torch.no_grad():
+            ms = correspondences(m["shape"], m["corr"], src, tgt, self._m_cache)
+            result, _, _ = transfer_batch(m["shape"], m["corr"], m["transfer"], src, q_s, t_s, posed, tgt, ms)
+            verts = [pose_mesh(t, q, p).cpu().numpy().astype(np.float32) for t, (q, p) in zip(tgt, result)]
+        if self._refiner is not None:
+            verts = [self._refiner.refine(r.target.character_id, r.target.vertices, r.target.faces,
+                                          r.target.weights.values, v) for r, v in zip(requests, verts)]
+        return verts
+
+
+def _header_config(path: Path) -> dict:
+    from mimicbench.training.checkpoint import read_header
+
+    return read_header(path).get("config", {})
+
+
+class MimicatNaiveAvg(Mimicat):
+    metadata = MethodMetadata(name="mimicat_naive_avg", version="1", licence="MIT", needs_training=True,
+                              citation=CITATION,
+                              description="MimiCAT ablation A1: plain weighted quaternion sum instead of Eq. 4")
+    average = "naive"
+
+
+class MimicatNoPrior(Mimicat):
+    metadata = MethodMetadata(name="mimicat_no_prior", version="1", licence="MIT", needs_training=True,
+                              citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg")
+    transfer_stage = "transfer_no_prior"
