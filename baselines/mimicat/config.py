@@ -18,7 +18,9 @@ Sections:
 - ``prior`` (F): ``width``, ``heads``, ``layers``, ``mlp``, ``fourier``, ``output_scale``;
   ``sampling_weight`` and ``samples`` of the sampling term (A3; 0 turns it off);
   ``max_keypoints`` scored per character (more are subsampled each step).
-- ``corr`` (G) and ``transfer`` (H): sizes (owned by their stages).
+- ``corr`` (G) and ``transfer`` (H): sizes and loss weights (see
+  :mod:`baselines.mimicat.transfer_training`); ``transfer_no_prior`` (H without L_reg, ablation
+  A2) takes every setting from ``transfer`` except ``epochs``, which the loop reads per stage.
 """
 from __future__ import annotations
 
@@ -34,8 +36,11 @@ SMALL = {
     "prior": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "fourier": 6,
               "max_keypoints": 64, "sampling_weight": 0.1, "samples": 4,
               "batch_size": 8, "epochs": 12},
-    "corr": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 8, "epochs": 10},
-    "transfer": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 4, "epochs": 10},
+    "corr": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 8, "epochs": 10, "sinkhorn_iters": 50},
+    "transfer": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 4, "epochs": 10,
+                 "examples_per_epoch": 64, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.01,
+                 "feat_weight": 0.1},
+    "transfer_no_prior": {"epochs": 10},
 }
 
 PAPER = {
@@ -48,8 +53,11 @@ PAPER = {
     "prior": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "fourier": 8,
               "max_keypoints": 256, "sampling_weight": 0.1, "samples": 8,
               "batch_size": 32, "epochs": 100},
-    "corr": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 32, "epochs": 100},
-    "transfer": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 16, "epochs": 100},
+    "corr": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 32, "epochs": 100, "sinkhorn_iters": 50},
+    "transfer": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 16, "epochs": 100,
+                 "examples_per_epoch": 4096, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.01,
+                 "feat_weight": 0.1},
+    "transfer_no_prior": {"epochs": 100},
 }
 
 PRESETS = {"small": SMALL, "paper": PAPER}
