@@ -1,7 +1,8 @@
 """Run a per-item stage function over many items, turning failures into status records.
 
-A stage is a plain function ``item -> result``. :func:`run_stage` calls it for every item (in
-this process, or in a process pool with ``jobs > 1``), shows a progress bar, and returns the
+A stage is a plain function ``item -> result``. :func:`run_stage` calls it for every item through
+an engine (:mod:`datagen.engines`: this process, a process pool with ``jobs > 1``, or Ray tasks
+on a local instance or a cluster), shows a progress bar, and returns the
 results of the items that succeeded together with one :class:`~schemas.status.StatusRecord` per
 item. An exception in one item fails that item only; the reason names the exception.
 ``on_done`` sees each result as soon as it is ready (in completion order), so a stage can write
@@ -9,24 +10,12 @@ finished work incrementally instead of holding everything until the end.
 """
 from __future__ import annotations
 
-import time
-import traceback
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, Callable, Iterable, Sequence
 
 from tqdm.auto import tqdm
 
+from datagen.engines import Engine, LocalEngine, Outcome, TaskResources
 from schemas.status import StatusRecord
-
-
-def _call(fn: Callable, item: Any) -> tuple[bool, Any, str, float]:
-    start = time.perf_counter()
-    try:
-        return True, fn(item), "", time.perf_counter() - start
-    except Exception as exc:  # one bad item must not end the run
-        tb = traceback.extract_tb(exc.__traceback__)
-        where = f" (at {tb[-1].filename.split('/')[-1]}:{tb[-1].lineno})" if tb else ""
-        return False, None, f"{type(exc).__name__}: {exc}{where}", time.perf_counter() - start
 
 
 def run_stage(
@@ -37,44 +26,61 @@ def run_stage(
     jobs: int = 1,
     progress: bool = True,
     on_done: Callable[[int, bool, Any], None] | None = None,
+    engine: Engine | None = None,
+    chunk: int = 1,
+    resources: TaskResources = TaskResources(),
+    ordered: bool = False,
+    keep_results: bool = True,
 ) -> tuple[list[Any], list[StatusRecord]]:
     """Apply ``fn`` to each item; return (results in item order, status records).
 
     Args:
         items: the inputs.
-        fn: the per-item stage function (must be picklable when ``jobs > 1``).
+        fn: the per-item stage function (must be picklable for a process pool or Ray).
         stage: stage name written in the status records.
         name_of: the asset name of an item, for the status records.
-        jobs: worker processes; 1 runs in this process.
+        jobs: worker processes of the local engine when ``engine`` is None; 1 runs in this process.
         progress: show a progress bar.
         on_done: called in this process as ``on_done(index, ok, result)`` when an item finishes
-            (``result`` None for a failed item).
+            (``result`` None for a failed item); in completion order, or in item order with ``ordered``.
+        engine: where the work runs (:mod:`datagen.engines`); default ``LocalEngine(jobs)``.
+        chunk: items per task (per-task overhead is paid once a chunk).
+        resources: what each task asks the engine for (CPUs, memory).
+        ordered: call ``on_done`` in item order (a finished item waits for those before it), so a
+            stage that writes as it goes writes the same bytes on every engine.
+        keep_results: False returns no results (``on_done`` has seen them): memory stays bounded.
     """
     if jobs < 1:
         raise ValueError(f"jobs: expected >= 1, got {jobs}")
-    outcomes: list[tuple[bool, Any, str, float] | None] = [None] * len(items)
+    engine = engine or LocalEngine(jobs)
+    outcomes: list[tuple[bool, str, float] | None] = [None] * len(items)
+    kept: dict[int, Any] = {}
+    waiting: dict[int, Outcome] = {}
+    next_in_order = 0
     bar = tqdm(total=len(items), desc=stage, unit="item", disable=not progress)
 
-    def finished(i: int, outcome) -> None:
-        outcomes[i] = outcome
-        bar.update(1)
+    def deliver(i: int, outcome: Outcome) -> None:
         if on_done is not None:
-            on_done(i, outcome[0], outcome[1])
+            on_done(i, outcome.ok, outcome.result)
 
-    if jobs == 1:
-        for i, item in enumerate(items):
-            finished(i, _call(fn, item))
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(_call, fn, item): i for i, item in enumerate(items)}
-            for fut in as_completed(futures):
-                finished(futures[fut], fut.result())
+    for i, outcome in engine.imap(fn, items, chunk, resources):
+        outcomes[i] = (outcome.ok, outcome.reason, outcome.seconds)
+        if outcome.ok and keep_results:
+            kept[i] = outcome.result
+        bar.update(1)
+        if not ordered:
+            deliver(i, outcome)
+            continue
+        waiting[i] = outcome
+        while next_in_order in waiting:
+            deliver(next_in_order, waiting.pop(next_in_order))
+            next_in_order += 1
     bar.close()
     results, statuses = [], []
-    for item, (ok, result, reason, seconds) in zip(items, outcomes):
+    for i, (item, (ok, reason, seconds)) in enumerate(zip(items, outcomes)):
         statuses.append(StatusRecord(name_of(item), stage, "ok" if ok else "failed", reason, seconds))
-        if ok:
-            results.append(result)
+        if ok and keep_results:
+            results.append(kept[i])
     return results, statuses
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
+from datagen.engines import add_engine_arguments
 from mimicbench.argtypes import float_in, nonnegative_int, positive_int
 
 MIN_PHYSICS_FPS = 30.0
@@ -45,19 +46,21 @@ def register(subparsers) -> None:
                         "'*skirt*'); the apparel vertex mask follows the weights. Default: each character's own "
                         "apparel_bone_mask (the zoo's)")
     p.add_argument("--jobs", type=positive_int, default=1, help="worker processes, >= 1 (default 1)")
+    add_engine_arguments(p)
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from datagen.apparel.params import load_params
+    from datagen.engines import engine_from_args
     from datagen.apparel.stage import simulate_dataset
 
     params = load_params(args.params)
     if args.gravity is not None:
         params = dataclasses.replace(params, simulation=dataclasses.replace(params.simulation, gravity=args.gravity))
     s = simulate_dataset(args.in_dataset, args.out_dataset, args.fps, args.relax_frames, params, args.apparel_bones,
-                         args.jobs, progress=not args.quiet)
+                         args.jobs, progress=not args.quiet, engine=engine_from_args(args))
 
     def fmt(x, digits=3):
         return "n/a" if x is None else round(x, digits)

@@ -22,6 +22,7 @@ import numpy as np
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching
 from datagen.apparel.setup import SIM_SUFFIX, SIM_VERSION, character_physics, simulate_motion
+from datagen.engines import Engine
 from datagen.stage_runner import run_stage, summarize_statuses
 from mimicbench.errors import UserError
 from schemas.errors import DatasetError
@@ -106,7 +107,7 @@ def _previous_work(out_dir: Path, config: dict, progress: bool) -> tuple[dict, d
 
 def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 30, params: ApparelParams | None = None,
                      apparel_bones: list[str] | None = None, jobs: int = 1, batch: int = 16,
-                     progress: bool = True) -> dict:
+                     progress: bool = True, engine: Engine | None = None) -> dict:
     """Simulate the apparel of every clip of ``in_dir`` into ``out_dir`` (a re-run resumes).
 
     Args:
@@ -116,6 +117,8 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         apparel_bones: glob patterns on bone names choosing the apparel bones (default: each
             character's ``apparel_bone_mask``); the apparel vertex mask then follows the weights.
         jobs: worker processes. batch: clips between two writes.
+        engine: where clips are simulated (:mod:`datagen.engines`; default the local engine with
+            ``jobs`` processes; the output does not depend on it).
 
     Returns:
         Summary: characters, clips simulated, reused, failed, mean quality, seconds, statuses.
@@ -156,7 +159,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         chunk = todo[i:i + batch]
         items = [(by_id[m.character_id], *masks[m.character_id], m, file_rows.get(m.character_id)) for m in chunk]
         results, chunk_statuses = run_stage(items, fn, STAGE, name_of=lambda it: it[3].motion_id, jobs=jobs,
-                                            progress=progress)
+                                            progress=progress, engine=engine)
         for sim, q in results:
             sims[sim.motion_id] = sim
             quality[sim.motion_id] = q

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from datagen.engines import add_engine_arguments
 from mimicbench.argtypes import nonnegative_int, positive_float, positive_int
 
 
@@ -43,16 +44,20 @@ def register(subparsers) -> None:
     p.add_argument("--temperature", type=positive_float, default=None,
                    help="Sinkhorn temperature T, > 0 (default 0.1)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="pair sampling seed, >= 0 (default 0)")
+    add_engine_arguments(p)
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from datagen.correspond.stage import correspond_dataset
+    from datagen.engines import engine_from_args
 
     summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder, args.temperature, args.seed,
                                  args.clip_model, args.clip_pretrained, progress=not args.quiet, method=args.method,
-                                 no_match=args.no_match)
+                                 no_match=args.no_match, engine=engine_from_args(args))
+    for failure in summary["failed_blocks"]:
+        print(f"  FAILED {failure}")
     print(f"pairs written: {summary['pairs']} with {summary['encoder']}, method {summary['method']}, in "
           f"{summary['seconds']:.1f} s (report: {args.dataset}/correspond_report.json)")
-    return 0
+    return 1 if summary["failed_blocks"] else 0

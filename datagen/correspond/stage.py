@@ -4,12 +4,14 @@ The method is chosen by name (:mod:`.methods`): ``structure`` (default) or ``tex
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
 from datagen.correspond.canonical import canonicalize_names
@@ -18,13 +20,18 @@ from datagen.correspond.methods import DEFAULT_METHOD, get_method, match_batch, 
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
 from datagen.correspond.structure import skeleton_features
+from datagen.engines import Engine, TaskResources
+from datagen.stage_runner import run_stage
 from schemas.errors import DatasetError
 from schemas.fingerprint import stage_config, tables_fingerprint
 from schemas.manifest import atomic_write_bytes
 from schemas.pair import PairRecord
-from schemas.shards import read_records, splits_of, write_records
+from schemas.shard_stream import ShardStream
+from schemas.shards import read_records, remove_split, splits_of, write_records
 
-BATCH = 2048
+BATCH = 2048  # pairs a block (one task): Sinkhorn runs them CHUNK at a time in one padded batch
+ROWS_PER_SHARD = 5000  # pairs a shard: memory holds one shard's matrices while writing
+TASK_RESOURCES = TaskResources(num_cpus=1, memory=1 << 30)
 
 
 def embed_skeletons(records, encoder) -> dict[str, np.ndarray]:
@@ -87,10 +94,35 @@ def correspondence_for_skeletons(names_a, parents_a, keypoints_a, names_b, paren
     return match_batch(m, ea, eb, [fa], [fb])[0]
 
 
+def _match_block(ids: list[tuple[str, str]], method, emb: dict, feats: dict) -> list[tuple]:
+    """(S_cos, M_hung pairs, M_sink) of a block of (source ID, target ID) pairs, batched (one task)."""
+    return match_batch(method, [emb[a] for a, _ in ids], [emb[b] for _, b in ids],
+                       [feats[a] for a, _ in ids] if feats else None, [feats[b] for _, b in ids] if feats else None)
+
+
+def pair_blocks(chosen: list[tuple], rows_per_shard: int = ROWS_PER_SHARD,
+                batch: int = BATCH) -> tuple[list[list[int]], set[int]]:
+    """Blocks of indices into ``chosen`` (ordered pairs of records), one task each, and the
+    numbers of the blocks that end a shard-sized run.
+
+    Pairs are cut into runs of ``rows_per_shard`` in their sampled order; within a run they are
+    sorted by (K1, K2) so a block pads little, then cut into blocks of ``batch`` pairs. The blocks
+    of a run come before those of the next, so a run is complete (and its shard written) once its
+    last block is in.
+    """
+    blocks, ends = [], set()
+    for s0 in range(0, len(chosen), rows_per_shard):
+        run = sorted(range(s0, min(s0 + rows_per_shard, len(chosen))),
+                     key=lambda i: (chosen[i][0].num_joints, chosen[i][1].num_joints))
+        blocks += [run[b:b + batch] for b in range(0, len(run), batch)]
+        ends.add(len(blocks) - 1)
+    return blocks, ends
+
+
 def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = False, encoder: str = "minilm",
                        temperature: float | None = None, seed: int = 0, clip_model: str = "ViT-B-32",
                        clip_pretrained: str | None = None, progress: bool = True, method: str = DEFAULT_METHOD,
-                       no_match: float | None = None) -> dict:
+                       no_match: float | None = None, engine: Engine | None = None, block: int = BATCH) -> dict:
     """Write ``pairs/`` shards (one group per split) and ``correspond_report.json``; return a summary.
 
     Args:
@@ -107,6 +139,12 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
             answer is stored separately as M_hung. On 300 zoo pairs Sinkhorn needed a median of 21
             sweeps and at most 261; at 0.05 a few pairs needed thousands).
         seed: pair sampling seed.
+        block: pairs a task (default ``BATCH``).
+        engine: where blocks of ``block`` pairs are matched (:mod:`datagen.engines`; default this
+            process). Names are embedded once in this process; each block is one task; shards of
+            ``ROWS_PER_SHARD`` pairs are written in sampled order as their blocks come in, so
+            memory holds one shard however many pairs there are, and the bytes do not depend on
+            the engine.
     """
     start = time.perf_counter()
     dataset_dir = Path(dataset_dir)
@@ -119,35 +157,59 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     emb = embed_skeletons(records, enc)
     feats = skeleton_feature_table(records) if m.uses_structure else {}
     params = json.loads(m.params_json())
-    written, all_pairs_out = {}, []
+    written, matched, statuses = {}, [], []
     config = stage_config({"stage": "correspond", "encoder": enc.name, "temperature": m.temperature, "seed": seed,
                            "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION, "method": params},
                           tables_fingerprint(dataset_dir, ["characters"]))
+    fn = partial(_match_block, method=m, emb=emb, feats=feats)
     for split in splits_of(dataset_dir, "characters"):
         chosen = sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed)
-        # batch pairs of similar sizes together (less padding); rows are written in sampled order
-        order = sorted(range(len(chosen)), key=lambda i: (chosen[i][0].num_joints, chosen[i][1].num_joints))
-        chosen = [chosen[i] for i in order]
-        out = []
-        bar = tqdm(total=len(chosen), desc=f"correspond/{split}", unit="pair", disable=not progress)
-        for i in range(0, len(chosen), BATCH):
-            batch = chosen[i:i + BATCH]
-            mats = match_batch(m, [emb[a.character_id] for a, _ in batch], [emb[b.character_id] for _, b in batch],
-                               [feats[a.character_id] for a, _ in batch] if feats else None,
-                               [feats[b.character_id] for _, b in batch] if feats else None)
-            for (a, b), (s, h, sink) in zip(batch, mats):
-                out.append(PairRecord(f"{a.character_id}->{b.character_id}", a.character_id, b.character_id, split,
-                                      a.num_joints, b.num_joints, s, h, sink, enc.name, float(m.temperature),
-                                      a.category, b.category, m.name, params))
-            bar.update(len(batch))
-        bar.close()
-        out = [rec for _, rec in sorted(zip(order, out), key=lambda x: x[0])]
-        write_records(dataset_dir, "pairs", out, split=split, rows_per_shard=20000, config=config)
-        written[split] = len(out)
-        all_pairs_out.extend(out)
-    report = role_agreement_report(by_id, all_pairs_out, params)
+        blocks, ends = pair_blocks(chosen, ROWS_PER_SHARD, block)
+        stream = ShardStream(dataset_dir, "pairs", split, ROWS_PER_SHARD, config)
+        run: dict[int, PairRecord] = {}
+
+        def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=stream, run=run) -> None:
+            for i, (s, h, sink) in zip(blocks[k], mats if ok else ()):  # a failed block's pairs are left out
+                a, b = chosen[i]
+                run[i] = PairRecord(f"{a.character_id}->{b.character_id}", a.character_id, b.character_id, split,
+                                    a.num_joints, b.num_joints, s, h, sink, enc.name, float(m.temperature),
+                                    a.category, b.category, m.name, params)
+            if k in ends:
+                rows = [run.pop(i) for i in sorted(run)]
+                stream.add(rows)
+                matched.extend(_Matched(p.source_id, p.target_id, p.hungarian) for p in rows)
+                written[split] = written.get(split, 0) + len(rows)
+
+        items = [[(chosen[i][0].character_id, chosen[i][1].character_id) for i in blk] for blk in blocks]
+        try:
+            _, block_statuses = run_stage(items, fn, f"correspond/{split}", progress=progress, on_done=on_done,
+                                          name_of=lambda ids: f"{split} block {ids[0][0]}->{ids[0][1]} "
+                                                              f"(+{len(ids) - 1} pairs)",
+                                          engine=engine, ordered=True, keep_results=False, resources=TASK_RESOURCES)
+        except BaseException:
+            stream.abort()
+            raise
+        stream.close()
+        written.setdefault(split, 0)
+        statuses += [dataclasses.replace(st, stage="correspond", seconds=0.0) for st in block_statuses
+                     if st.status != "ok"]
+    if statuses:  # blocks whose task failed for good (e.g. its worker died on every retry)
+        write_records(dataset_dir, "status", statuses, split="correspond")
+    else:
+        remove_split(dataset_dir, "status", "correspond")
+    report = role_agreement_report(by_id, matched, params)
     atomic_write_bytes(dataset_dir / "correspond_report.json", (json.dumps(report, indent=2) + "\n").encode())
     if progress:
         print(format_report(report))
-    return {"pairs": written, "encoder": enc.name, "method": m.name, "temperature": m.temperature, "report": report,
+    return {"pairs": written, "failed_blocks": [f"{st.asset}: {st.reason}" for st in statuses],
+            "encoder": enc.name, "method": m.name, "temperature": m.temperature, "report": report,
             "seconds": time.perf_counter() - start}
+
+
+@dataclass(frozen=True)
+class _Matched:
+    """What the role-agreement report reads of a pair (not its matrices)."""
+
+    source_id: str
+    target_id: str
+    hungarian: np.ndarray

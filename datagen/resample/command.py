@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from datagen.engines import add_engine_arguments
 from mimicbench.argtypes import MAX_JOBS, int_in, job_count
 
 MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
@@ -31,14 +32,17 @@ def register(subparsers) -> None:
     p.add_argument("--backend", choices=("fast", "pymeshlab"), default="fast",
                    help="fast (fast-simplification, default) or pymeshlab (MeshLab's quadric edge collapse)")
     p.add_argument("--jobs", type=job_count, default=1, help=f"worker processes, 1 to {MAX_JOBS} (default 1)")
+    add_engine_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from datagen.engines import engine_from_args
     from datagen.resample.stage import resample_dataset
 
-    s = resample_dataset(args.in_dataset, args.out_dataset, args.faces, args.backend, args.jobs, not args.quiet)
+    s = resample_dataset(args.in_dataset, args.out_dataset, args.faces, args.backend, args.jobs, not args.quiet,
+                         engine=engine_from_args(args))
     for note in s["notes"]:
         print(f"resample: {note}")
     h = s["hausdorff_pct_mean"]

@@ -9,6 +9,7 @@ tables and of the parameters (faces, backend) match; otherwise it redoes every c
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -21,12 +22,14 @@ import numpy as np
 
 from datagen.resample.character import resample_character
 from datagen.resample.command import MAX_FACES, MIN_FACES
+from datagen.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
 from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_incomplete,
                               save_manifest)
+from schemas.shard_stream import iter_records
 from schemas.shards import has_table, read_records, remove_split, splits_of, write_records
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
@@ -34,6 +37,7 @@ from schemas.validate import validate_dataset
 BACKENDS = ("fast", "pymeshlab")
 PART = "part_"  # split-name prefix of the shards written while the stage runs
 COPIED_TABLES = ("motions", "pairs")  # copied unchanged from the input
+TASK_RESOURCES = TaskResources(num_cpus=1, memory=2 << 30)  # one character: mesh, KD-tree, weights
 
 
 def _one(item, faces, backend):
@@ -158,8 +162,22 @@ def _rows_or_note(out_dir: Path, split: str, notes: list[str]) -> dict:
         return {}
 
 
+def sampled_motions(in_dir: Path) -> dict[str, list]:
+    """Per character ID its motions cut to the 3 frames :func:`sample_frames` takes of each clip
+    (first, middle, last), read one shard at a time: a 4.5-million-frame motions table never sits
+    in memory, and the frames a character is measured on are exactly those of its full clips."""
+    out: dict[str, list] = {}
+    for m in iter_records(in_dir, "motions"):
+        idx = np.linspace(0, m.num_frames - 1, 3).astype(int)
+        out.setdefault(m.character_id, []).append(
+            dataclasses.replace(m, transforms=np.ascontiguousarray(m.transforms[idx]), num_frames=3,
+                                scale=None if m.scale is None else np.ascontiguousarray(m.scale[idx])))
+    return out
+
+
 def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
-                     progress: bool = True, flush_every: int = 8, flush_seconds: float = 60.0) -> dict:
+                     progress: bool = True, flush_every: int = 8, flush_seconds: float = 60.0,
+                     engine: Engine | None = None) -> dict:
     """Resample every character of ``in_dir`` into ``out_dir``, writing finished work as it goes.
 
     Characters that fail get a status row (split ``resample``) with the reason and are left out;
@@ -169,6 +187,8 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
 
     Args:
         flush_every, flush_seconds: write finished characters after this many, or this long.
+        engine: where characters are resampled (:mod:`datagen.engines`; default the local engine
+            with ``jobs`` processes); one character a task of 1 CPU and 2 GiB.
 
     Returns:
         Summary: counts, failures, mean Hausdorff and transfer error (% of height), seconds,
@@ -187,10 +207,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     if not records:
         raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
     inputs = [t for t in ("characters", "motions") if has_table(in_dir, t)]
-    motions: dict[str, list] = {}
-    if "motions" in inputs:
-        for m in read_records(in_dir, "motions"):
-            motions.setdefault(m.character_id, []).append(m)
+    motions = sampled_motions(in_dir) if "motions" in inputs else {}
     config = stage_config({"stage": "resample", "faces": int(faces), "backend": backend},
                           tables_fingerprint(in_dir, inputs), inputs_from=str(in_dir.resolve()),
                           info={"source": str(in_dir)})
@@ -222,7 +239,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     results, statuses = run_stage([(r, motions.get(r.character_id, [])) for r in todo],
                                   partial(_one, faces=faces, backend=backend), "resample",
                                   name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress,
-                                  on_done=on_done)
+                                  on_done=on_done, engine=engine, resources=TASK_RESOURCES)
     flush()
     by_id = dict(done)
     by_id.update({r.character_id: r for r in results})

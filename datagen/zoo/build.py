@@ -17,7 +17,7 @@ from datagen.zoo.templates.humanoid import H2H_SKELETON_ID, H2H_TOPOLOGY, build_
 from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 
-ZOO_VERSION = "1"
+ZOO_VERSION = "2"  # 2: the fourth apparel variant (up to 241 joints)
 TARGET_FACES = 8000
 
 

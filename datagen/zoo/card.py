@@ -6,30 +6,39 @@ import numpy as np
 CARD_HEADER = "| category | characters | joints min / mean / max | clips | frames | faces min / mean / max | vertices mean |"
 
 
+def character_summary(record) -> dict:
+    """What the card needs of a CharacterRecord (no arrays): ID, category, split, skeleton, sizes."""
+    return {"character_id": record.character_id, "category": record.category, "split": record.split,
+            "skeleton_id": record.skeleton_id, "joints": int(record.num_joints), "faces": int(len(record.faces)),
+            "vertices": int(len(record.vertices))}
+
+
 def zoo_stats(characters, motions) -> dict:
     """Per-category and total statistics from CharacterRecords and MotionRecords."""
-    frames: dict[str, int] = {}
-    clips: dict[str, int] = {}
-    cat_of = {c.character_id: c.category for c in characters}
-    for m in motions:
-        cat = cat_of.get(m.character_id, "unknown")
-        frames[cat] = frames.get(cat, 0) + int(m.num_frames)
-        clips[cat] = clips.get(cat, 0) + 1
+    return zoo_stats_from_summaries([character_summary(c) for c in characters],
+                                    [(m.character_id, int(m.num_frames)) for m in motions])
 
-    def row(chars, cat):
-        j = np.array([c.num_joints for c in chars])
-        f = np.array([len(c.faces) for c in chars])
-        v = np.array([len(c.vertices) for c in chars])
-        ids = {c.character_id for c in chars}
+
+def zoo_stats_from_summaries(characters: list[dict], clips: list[tuple[str, int]]) -> dict:
+    """Per-category and total statistics from :func:`character_summary` dicts and (character ID,
+    frames) of every clip, in the order the characters come (categories in first-seen order)."""
+    clips_of: dict[str, list[int]] = {}
+    for cid, frames in clips:
+        clips_of.setdefault(cid, []).append(frames)
+
+    def row(chars):
+        j = np.array([c["joints"] for c in chars])
+        f = np.array([c["faces"] for c in chars])
+        v = np.array([c["vertices"] for c in chars])
+        own = [n for c in chars for n in clips_of.get(c["character_id"], [])]
         return {"characters": len(chars), "joints": [int(j.min()), float(j.mean()), int(j.max())],
                 "faces": [int(f.min()), float(f.mean()), int(f.max())], "vertices_mean": float(v.mean()),
-                "clips": sum(1 for m in motions if m.character_id in ids),
-                "frames": sum(int(m.num_frames) for m in motions if m.character_id in ids)}
+                "clips": len(own), "frames": int(sum(own))}
 
-    cats = sorted({c.category for c in characters}, key=lambda c: [x.category for x in characters].index(c))
-    out = {cat: row([c for c in characters if c.category == cat], cat) for cat in cats}
+    cats = list(dict.fromkeys(c["category"] for c in characters))
+    out = {cat: row([c for c in characters if c["category"] == cat]) for cat in cats}
     if characters:
-        out["all"] = row(list(characters), "all")
+        out["all"] = row(list(characters))
     return out
 
 
@@ -37,7 +46,9 @@ def render_card(stats: dict, config: dict, splits: dict[str, int], family: int) 
     """The CARD.md text."""
     lines = ["# mimicbench procedural zoo", "",
              f"Built by `mimicbench zoo` (zoo version {config['zoo_version']}, seed {config['seed']}): "
-             f"{config['num_characters']} characters, {config['clips_per_character']} clips each at "
+             f"{config['num_characters']} characters, "
+             + (f"{config['motions']} clips spread evenly over them" if config.get("motions") else
+                f"{config['clips_per_character']} clips each") + " at "
              f"{config['fps']:g} fps, {config['frames_per_clip']} frames a clip, frame 0 the rest pose.",
              "Metres, Y up, +Z forward. Meshes are closed capsules, one per bone; skin weights from distances "
              "to bone segments (at most 8 influences, rows sum to 1).", "",

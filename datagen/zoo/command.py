@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.argtypes import comma_choices, int_in, nonnegative_int
+from datagen.engines import add_engine_arguments
+from mimicbench.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonnegative_int
 
 MAX_CHARACTERS = 100_000
 MAX_CLIPS = 100
+MAX_FRAMES = 10_000  # as datagen.zoo.motions.MAX_FRAMES (kept here so --help stays fast)
 
 DESCRIPTION = """\
 Generate procedural rigged, skinned and animated characters of every kind (humanoid, quadruped,
@@ -19,6 +21,8 @@ example:
   mimicbench zoo --out data/zoo --characters 40 --seed 0
   mimicbench zoo --out data/fish --characters 5 --categories fish,reptile --export obj,bvh
   mimicbench validate data/zoo
+  mimicbench zoo --out data/pokeanimdb --characters 975 --motions 28809 --frames-per-clip 155 --jobs 2
+      (PokeAnimDB's Table 1 shape: 975 characters, 28,809 clips, 4.47M frames, 11-241 joints)
 """
 
 
@@ -34,6 +38,13 @@ def register(subparsers) -> None:
                    "commas (default all)")
     p.add_argument("--clips-per-character", type=int_in(1, MAX_CLIPS), default=3,
                    help=f"clips per character, 1 to {MAX_CLIPS} (default 3)")
+    p.add_argument("--motions", type=int_in(1, MAX_CHARACTERS * MAX_CLIPS), default=None,
+                   help="total clips, spread evenly over the characters (instead of --clips-per-character; at least "
+                        "one a character)")
+    p.add_argument("--frames-per-clip", type=int_in(9, MAX_FRAMES), default=45,
+                   help=f"frames of every clip at 30 fps, 9 to {MAX_FRAMES:,} (default 45)")
+    p.add_argument("--jobs", type=job_count, default=1, help=f"worker processes, 1 to {MAX_JOBS} (default 1)")
+    add_engine_arguments(p)
     p.add_argument("--export", type=comma_choices(("obj", "bvh", "pmx")), default=(),
                    help="also write files: comma-separated of obj,bvh,pmx "
                    "(OUT/export/<character>.obj, OUT/export/<character>/<clip>.bvh, OUT/export/<character>.pmx: "
@@ -45,11 +56,13 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from datagen.engines import engine_from_args
     from datagen.zoo import build_zoo
 
     cats = [c.strip() for arg in args.categories for c in arg.split(",") if c.strip()] if args.categories else None
     s = build_zoo(args.out, args.characters, seed=args.seed, categories=cats,
-                  clips_per_character=args.clips_per_character, export=tuple(args.export), progress=not args.quiet)
+                  clips_per_character=args.clips_per_character, export=tuple(args.export), progress=not args.quiet,
+                  motions=args.motions, frames_per_clip=args.frames_per_clip, engine=engine_from_args(args))
     for f in s["failures"]:
         print(f"  FAILED {f}")
     if not args.no_contact_sheet:

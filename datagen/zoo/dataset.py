@@ -2,21 +2,24 @@
 from __future__ import annotations
 
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
+from datagen.engines import Engine
 from datagen.stage_runner import run_stage
 from datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
-from datagen.zoo.card import render_card, zoo_stats
+from datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries
 from datagen.zoo.export_bvh import write_bvh
 from datagen.zoo.export_obj import write_obj
-from datagen.zoo.motions import FPS, NUM_FRAMES
+from datagen.zoo.motions import FPS, MAX_FRAMES, NUM_FRAMES, RAMP_FRAMES
 from datagen.zoo.plan import assign_splits, plan_zoo
 from datagen.zoo.templates.humanoid import H2H_SKELETON_ID
 from schemas.errors import DatasetError
 from schemas.fingerprint import stage_config
 from schemas.manifest import MANIFEST, atomic_write_bytes, load_manifest_for_write, mark_complete, mark_incomplete
+from schemas.shard_stream import ShardStream
 from schemas.shards import SPLITS, write_records
 
 EXPORT_FORMATS = ("obj", "bvh", "pmx")
@@ -54,8 +57,24 @@ def _refuse_foreign_dataset(out: Path) -> None:
                            f"zoo; choose an empty or new --out folder (nothing was changed)")
 
 
+def clips_per_character_for(specs: list, clips_per_character: int, motions: int | None) -> list[int]:
+    """Clips of each character: ``clips_per_character`` each, or ``motions`` in all spread evenly.
+
+    With ``motions`` M over N characters, character i gets ``floor((i+1)M/N) - floor(iM/N)`` clips
+    (so the counts differ by at most one and sum to M exactly); every character gets at least one.
+    """
+    n = len(specs)
+    if motions is None:
+        return [clips_per_character] * n
+    if motions < n:
+        raise ValueError(f"motions: expected at least one clip per character (>= {n}), got {motions}")
+    return [(i + 1) * motions // n - i * motions // n for i in range(n)]
+
+
 def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str] | None = None,
-              clips_per_character: int = 3, export: tuple[str, ...] = (), progress: bool = True) -> dict:
+              clips_per_character: int = 3, export: tuple[str, ...] = (), progress: bool = True,
+              motions: int | None = None, frames_per_clip: int = NUM_FRAMES, engine: Engine | None = None,
+              jobs: int = 1) -> dict:
     """Generate a procedural zoo into ``out_dir``.
 
     Writes ``characters/`` and ``motions/`` shards (one set per split; an empty split gets an
@@ -64,9 +83,20 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     with the build config and its fingerprint, ``CARD.md``, and with ``export`` the .obj/.bvh files.
     While writing, the manifest says ``"complete": false``.
 
+    Characters are built by ``engine`` (default: the local engine with ``jobs`` processes; the
+    bytes do not depend on it) and streamed into the shards in plan order as they finish, so
+    memory holds a few hundred clips, never the whole motions table (a PokeAnimDB-size zoo has
+    4.5 million frames).
+
     A zoo in which every character failed writes nothing: an existing dataset in ``out_dir`` is
     left untouched and :class:`DatasetError` says why. A folder holding a dataset that the zoo did
     not make (ingested assets, a resampled copy) is refused rather than overwritten.
+
+    Args:
+        motions: total clips, spread evenly over the characters (instead of ``clips_per_character``
+            each; PokeAnimDB's 28,809 over 975 characters is 29 or 30 each).
+        frames_per_clip: frames of every clip at 30 fps (PokeAnimDB's 4.47M frames over 28,809
+            clips is about 155).
 
     Returns:
         A summary dict: ``characters``, ``motions``, ``frames``, ``failed``, ``by_category``,
@@ -80,52 +110,72 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         raise ValueError(f"export: unknown format(s) {bad}; expected some of {EXPORT_FORMATS}")
     if clips_per_character < 1:
         raise ValueError(f"clips_per_character: expected >= 1, got {clips_per_character}")
+    if isinstance(frames_per_clip, bool) or not isinstance(frames_per_clip, (int, np.integer)) \
+            or not RAMP_FRAMES < frames_per_clip <= MAX_FRAMES:
+        raise ValueError(f"frames_per_clip: expected an integer from {RAMP_FRAMES + 1} to {MAX_FRAMES}, "
+                         f"got {frames_per_clip!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
     out = Path(out_dir)
     specs = plan_zoo(num_characters, seed, categories)
     if not specs:
         raise ValueError(f"num_characters: expected >= 1, got {num_characters}")
+    clip_counts = clips_per_character_for(specs, clips_per_character, motions)
     splits = assign_splits(specs)
     _refuse_foreign_dataset(out)
+    params = {"stage": "zoo", "generator": "mimicbench.zoo", "zoo_version": ZOO_VERSION, "seed": int(seed),
+              "num_characters": int(num_characters), "categories": list(categories) if categories else None,
+              "clips_per_character": int(clips_per_character), "fps": FPS, "frames_per_clip": int(frames_per_clip),
+              "h2h_skeleton_id": H2H_SKELETON_ID, "split_rule": SPLIT_RULE}
+    if motions is not None:
+        params["motions"] = int(motions)
+    config = stage_config(params, inputs={})
+    items = [(spec, splits[spec.character_id], count) for spec, count in zip(specs, clip_counts)]
+    work = partial(_build_one, out=out, export=export, frames_per_clip=int(frames_per_clip))
+    streams = {(table, split): ShardStream(out, table, split, rows, config)
+               for table, rows in (("characters", 1000), ("motions", 500)) for split in SPLITS}
+    characters, clips = [], []  # small summaries for the card, not the arrays
 
-    def work(spec):
-        built = build_character(spec, splits[spec.character_id], clips_per_character)
-        if export:
-            export_character(out, built, export)
-        return built.record, built.motions
+    def on_done(i: int, ok: bool, result) -> None:
+        if not ok:
+            return
+        record, motions_of = result
+        streams["characters", record.split].add([record])
+        streams["motions", record.split].add(motions_of)
+        characters.append(character_summary(record))
+        clips.extend((m.character_id, int(m.num_frames)) for m in motions_of)
 
-    results, statuses = run_stage(specs, work, "zoo", name_of=lambda s: s.character_id, progress=progress)
-    if not results:
+    try:
+        _, statuses = run_stage(items, work, "zoo", name_of=lambda it: it[0].character_id, jobs=jobs,
+                                progress=progress, on_done=on_done, engine=engine, ordered=True, keep_results=False)
+    except BaseException:
+        for stream in streams.values():
+            stream.abort()
+        raise
+    if not characters:
+        for stream in streams.values():
+            stream.abort()
         reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
         raise DatasetError(f"zoo: every one of the {len(specs)} characters failed ({reasons}"
                            f"{'; ...' if len(statuses) > 3 else ''}); nothing written, {out} left as it was")
     for s in statuses:
         s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
-    characters = [r for r, _ in results]
-    motions = [m for _, ms in results for m in ms]
-    config = stage_config(
-        {"stage": "zoo", "generator": "mimicbench.zoo", "zoo_version": ZOO_VERSION, "seed": int(seed),
-         "num_characters": int(num_characters), "categories": list(categories) if categories else None,
-         "clips_per_character": int(clips_per_character), "fps": FPS, "frames_per_clip": NUM_FRAMES,
-         "h2h_skeleton_id": H2H_SKELETON_ID, "split_rule": SPLIT_RULE}, inputs={})
     mark_incomplete(out, "zoo", config)
     for split in SPLITS:
-        write_records(out, "characters", [c for c in characters if c.split == split], split, config=config)
-        write_records(out, "motions", [m for m in motions if m.split == split], split, rows_per_shard=500,
-                      config=config)
+        streams["characters", split].close()
+        streams["motions", split].close()
     write_records(out, "status", statuses, split="zoo", config=config)
     mark_complete(out)
-    split_counts = {s: sum(1 for c in characters if c.split == s) for s in SPLITS}
-    family = sum(1 for c in characters if c.skeleton_id == H2H_SKELETON_ID)
-    stats = zoo_stats(characters, motions)
+    split_counts = {s: sum(1 for c in characters if c["split"] == s) for s in SPLITS}
+    family = sum(1 for c in characters if c["skeleton_id"] == H2H_SKELETON_ID)
+    stats = zoo_stats_from_summaries(characters, clips)
     atomic_write_bytes(out / "CARD.md", render_card(stats, config, split_counts, family).encode())
     failed = [s for s in statuses if s.status != "ok"]
-    joints = np.array([c.num_joints for c in characters]) if characters else np.zeros(1)
-    faces = np.array([len(c.faces) for c in characters]) if characters else np.zeros(1)
+    joints = np.array([c["joints"] for c in characters])
+    faces = np.array([c["faces"] for c in characters])
     return {
-        "out": str(out), "characters": len(characters), "motions": len(motions),
-        "frames": int(sum(m.num_frames for m in motions)), "failed": len(failed),
+        "out": str(out), "characters": len(characters), "motions": len(clips),
+        "frames": int(sum(f for _, f in clips)), "failed": len(failed),
         "failures": [f"{s.asset}: {s.reason}" for s in failed],
         "by_category": {k: v["characters"] for k, v in stats.items() if k != "all"},
         "splits": split_counts, "h2h_family": family,
@@ -133,3 +183,12 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         "faces": [int(faces.min()), float(faces.mean()), int(faces.max())],
         "seconds": time.perf_counter() - start,
     }
+
+
+def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int):
+    """Build one planned character (and its export files); return (record, motions)."""
+    spec, split, clips = item
+    built = build_character(spec, split, clips, frames_per_clip)
+    if export:
+        export_character(out, built, export)
+    return built.record, built.motions

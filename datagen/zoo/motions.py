@@ -15,6 +15,7 @@ from mimicbench.quaternion import quat_from_axis_angle
 
 FPS = 30.0
 NUM_FRAMES = 45
+MAX_FRAMES = 10_000  # frames a clip at most (about 5.5 minutes at 30 fps)
 RAMP_FRAMES = 8
 
 

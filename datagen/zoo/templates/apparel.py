@@ -2,7 +2,9 @@
 
 Variants (by index, so a zoo always holds the heavy one): 0 = fingers, long hair, skirt and a
 short cape (over 200 joints); 1 = cape and short hair; 2 = coat tails, ponytail and a short
-skirt. Apparel joints carry roles ``apparel/<kind>/<chain>/<segment>``.
+skirt; 3 = everything at once (fingers, long hair, skirt, a long cape, coat tails and a long
+ponytail: 236-241 joints, PokeAnimDB's largest skeleton has 241). Apparel joints carry roles
+``apparel/<kind>/<chain>/<segment>``.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ VARIANTS = (
     {"fingers": 5, "hair": (16, 6), "skirt": (12, 4), "cape": (3, 5), "tails": None, "ponytail": None},
     {"fingers": 0, "hair": (6, 3), "skirt": None, "cape": (5, 5), "tails": None, "ponytail": None},
     {"fingers": 3, "hair": None, "skirt": (8, 3), "cape": None, "tails": (2, 5), "ponytail": 6},
+    {"fingers": 5, "hair": (16, 6), "skirt": (12, 4), "cape": (5, 5), "tails": (2, 5), "ponytail": 9},
 )
 
 

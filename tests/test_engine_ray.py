@@ -1,0 +1,170 @@
+"""The Ray engine gives the local engine's bytes, stage by stage, and survives killed workers.
+
+One local Ray instance (2 CPUs) serves the whole module. The reference is the local engine's
+output for the same call (sha256 of every shard), and for the failure tests a naive loop.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+import signal
+import sys
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ray = pytest.importorskip("ray")
+import cloudpickle  # noqa: E402  (ships with ray)
+
+from datagen.correspond.stage import correspond_dataset  # noqa: E402
+from datagen.engines import LocalEngine, TaskResources, get_engine  # noqa: E402
+from datagen.engines.ray_engine import RayEngine  # noqa: E402
+from datagen.resample.stage import resample_dataset  # noqa: E402
+from datagen.stage_runner import run_stage  # noqa: E402
+from datagen.zoo import build_zoo  # noqa: E402
+from mimicbench.cli import main  # noqa: E402
+from schemas.shards import read_records  # noqa: E402
+
+cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the test's task functions travel by value
+
+
+@pytest.fixture(scope="module")
+def ray_instance():
+    ray.init(num_cpus=2, include_dashboard=False, object_store_memory=200 << 20)
+    yield
+    ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def zoos(ray_instance, tmp_path_factory):
+    """The same 8-character zoo built by each engine (2 clips of 12 frames each)."""
+    root = tmp_path_factory.mktemp("engines")
+    kw = dict(num_characters=8, seed=3, clips_per_character=2, frames_per_clip=12, progress=False)
+    build_zoo(root / "local", **kw)
+    build_zoo(root / "ray", engine=RayEngine(), **kw)
+    return root
+
+
+def shard_hashes(root: Path, tables=("characters", "motions", "pairs")) -> dict:
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for t in tables for p in sorted((root / t).glob("*.parquet"))}
+
+
+def status_rows(root: Path, split: str) -> list:
+    return [(s.asset, s.stage, s.status, s.reason) for s in read_records(root, "status", split)]
+
+
+def test_zoo_on_ray_is_byte_identical(zoos):
+    local, on_ray = shard_hashes(zoos / "local"), shard_hashes(zoos / "ray")
+    assert local and local == on_ray
+    assert (zoos / "local" / "CARD.md").read_bytes() == (zoos / "ray" / "CARD.md").read_bytes()
+    assert shard_hashes(zoos / "local", ("status",)) == shard_hashes(zoos / "ray", ("status",))
+
+
+def test_resample_on_ray_is_byte_identical(zoos):
+    for name, engine in (("local", None), ("ray", RayEngine())):
+        s = resample_dataset(zoos / name, zoos / f"{name}5k", faces=1000, progress=False, engine=engine,
+                             flush_every=3)
+        assert s["failed"] == 0 and s["resampled"] == 8
+    assert shard_hashes(zoos / "local5k") == shard_hashes(zoos / "ray5k")
+    assert status_rows(zoos / "local5k", "resample") == status_rows(zoos / "ray5k", "resample")
+
+
+def test_correspond_on_ray_is_byte_identical_in_blocks(zoos):
+    for name, engine in (("local5k", None), ("ray5k", RayEngine())):
+        s = correspond_dataset(zoos / name, all_pairs=True, progress=False, engine=engine, block=5)
+        assert s["failed_blocks"] == []
+    hashes = shard_hashes(zoos / "local5k", ("pairs",))
+    assert hashes and hashes == shard_hashes(zoos / "ray5k", ("pairs",))
+    # every ordered pair of each split, in sampled order (a naive double loop over sorted IDs)
+    chars = read_records(zoos / "local5k", "characters")
+    pairs = read_records(zoos / "ray5k", "pairs")
+    expect = [(a.character_id, b.character_id) for split in ("train", "val", "test")
+              for a in sorted((c for c in chars if c.split == split), key=lambda c: c.character_id)
+              for b in sorted((c for c in chars if c.split == split), key=lambda c: c.character_id) if a is not b]
+    assert sorted((p.source_id, p.target_id) for p in pairs) == sorted(expect)
+
+
+def test_apparel_on_ray_is_byte_identical(ray_instance, tmp_path):
+    from datagen.apparel.stage import simulate_dataset
+
+    zoo = tmp_path / "zoo"
+    build_zoo(zoo, 1, seed=0, categories=["apparel"], clips_per_character=1, frames_per_clip=12, progress=False)
+    for name, engine in (("local", None), ("ray", RayEngine())):
+        s = simulate_dataset(zoo, tmp_path / name, physics_fps=60.0, relax=2, progress=False, engine=engine)
+        assert s["simulated"] == 1 and s["failed"] == 0
+    assert shard_hashes(tmp_path / "local", ("characters", "motions")) == \
+        shard_hashes(tmp_path / "ray", ("characters", "motions"))
+
+
+class KillOnce:
+    """Wraps a stage function: the first call on ``victim`` SIGKILLs its own worker process."""
+
+    def __init__(self, fn, victim: int, marker: str):
+        self.fn, self.victim, self.marker = fn, victim, marker
+
+    def __call__(self, item):
+        if item == self.victim and not os.path.exists(self.marker):
+            Path(self.marker).write_text(str(os.getpid()))
+            os.kill(os.getpid(), signal.SIGKILL)
+        return self.fn(item)
+
+
+def zoo_character_bytes(i: int) -> bytes:
+    """One zoo character's rest vertices and first clip, as bytes (a deterministic real stage result)."""
+    from datagen.zoo.build import build_character
+    from datagen.zoo.plan import plan_zoo
+
+    built = build_character(plan_zoo(6, seed=1)[i], "train", 1, 10)
+    return built.record.vertices.tobytes() + built.motions[0].transforms.tobytes()
+
+
+def test_a_killed_worker_is_retried_with_identical_output(ray_instance, tmp_path):
+    marker = tmp_path / "killed"
+    expect = [zoo_character_bytes(i) for i in range(6)]  # the naive loop
+    results, statuses = run_stage(list(range(6)), KillOnce(zoo_character_bytes, 2, str(marker)), "zoo",
+                                  engine=RayEngine(max_retries=2), chunk=2, progress=False)
+    assert marker.exists() and int(marker.read_text()) != os.getpid()  # a worker, not this process, died
+    assert [s.status for s in statuses] == ["ok"] * 6
+    assert results == expect
+
+
+def always_dies(item):
+    if item == 1:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return item * 10
+
+
+def test_a_task_failing_for_good_is_a_status_row(ray_instance):
+    results, statuses = run_stage(list(range(4)), always_dies, "unit", name_of=lambda i: f"item{i}",
+                                  engine=RayEngine(max_retries=1), progress=False)
+    assert results == [0, 20, 30]
+    assert [s.status for s in statuses] == ["ok", "failed", "ok", "ok"]
+    assert "WorkerCrashedError" in statuses[1].reason and "1 retries" in statuses[1].reason
+
+
+def test_ordered_delivery_and_resources(ray_instance):
+    seen = []
+    run_stage(list(range(9)), partial(pow, 2), "unit", engine=RayEngine(max_in_flight=2), chunk=2, progress=False,
+              ordered=True, on_done=lambda i, ok, r: seen.append((i, r)),
+              resources=TaskResources(num_cpus=1, memory=64 << 20))
+    assert seen == [(i, 2 ** i) for i in range(9)]
+    with pytest.raises(ValueError, match="num_cpus"):
+        TaskResources(num_cpus=0)
+    with pytest.raises(ValueError, match="engine"):
+        get_engine("spark")
+    with pytest.raises(ValueError, match="ray-address"):
+        get_engine("local", address="auto")
+
+
+def test_cli_stages_take_the_engine(ray_instance, zoos, tmp_path, capsys):
+    out = tmp_path / "cli"
+    assert main(["zoo", "--out", str(out), "--characters", "8", "--seed", "3", "--clips-per-character", "2",
+                 "--frames-per-clip", "12", "--engine", "ray", "--quiet", "--no-contact-sheet"]) == 0
+    assert shard_hashes(out) == shard_hashes(zoos / "local")
+    assert main(["datagen", "resample", str(zoos / "local"), str(tmp_path / "r"), "--engine", "local",
+                 "--ray-address", "auto"]) == 2
+    assert "only with --engine ray" in capsys.readouterr().err
