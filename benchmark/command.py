@@ -84,6 +84,12 @@ def register(subparsers) -> None:
                    help="call methods in this process: no worker start-up, but no timeout and no protection "
                    "from a method that hangs or crashes")
     r.add_argument("--retry-failed", action="store_true", help="also re-run cases whose stored row failed")
+    r.add_argument("--engine", choices=("local", "ray"), default="local",
+                   help="local (default: a worker process a method, or torchrun ranks) or ray: each batch of cases a "
+                        "Ray task, for CPU-bound methods and many small cases (same results rows; no per-case "
+                        "timeout)")
+    r.add_argument("--ray-address", default=None, metavar="ADDRESS",
+                   help="with --engine ray: a running cluster (e.g. ray://head:10001); default: a local Ray instance")
     r.add_argument("--quiet", action="store_true", help="no progress bars")
     r.set_defaults(func=run_run)
 
@@ -121,10 +127,13 @@ def run_cases(args) -> int:
 def run_run(args) -> int:
     from benchmark.evaluator import run_benchmark
     from benchmark.leaderboard import markdown_tables
+    from mimicbench.engines import get_engine
 
     summary = run_benchmark(args.dataset, list(args.methods), list(args.protocols), args.out, args.device,
                             args.batch_size, progress=not args.quiet, retry_failed=args.retry_failed,
-                            case_timeout=args.case_timeout, in_process=args.in_process)
+                            case_timeout=args.case_timeout, in_process=args.in_process,
+                            engine=None if args.engine == "local" and not args.ray_address
+                            else get_engine(args.engine, 1, args.ray_address))
     if summary["rank"] == 0:
         print(markdown_tables(summary["aggregate"]))
         print(f"{summary['computed']} cases computed ({summary['failed']} failed, {summary['not_supported']} not "

@@ -27,6 +27,7 @@ from benchmark.provenance import (check_cases_current, check_method_folder, chec
 from benchmark.registry import get_method
 from benchmark.request import MotionRequest, TransferRequest
 from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
+from benchmark.ray_runner import evaluate_on_engine, ray_path
 from benchmark.samples import SampleSink
 from benchmark.scoring import check_prediction
 from benchmark.worker import InProcessRunner, open_runner
@@ -160,7 +161,8 @@ def check_run_options(methods: Sequence[str], batch_size: int, case_timeout: flo
 
 def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DEFAULT_PROTOCOLS, out="results",
                   device: str = "cpu", batch_size: int = 16, progress: bool = True,
-                  retry_failed: bool = False, case_timeout: float = 600.0, in_process: bool = False) -> dict:
+                  retry_failed: bool = False, case_timeout: float = 600.0, in_process: bool = False,
+                  engine=None) -> dict:
     """Evaluate ``methods`` on the dataset's cases; returns a summary (rank 0 aggregates).
 
     Args:
@@ -173,6 +175,8 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         retry_failed: also re-run cases whose stored row failed (default: only missing ones).
         case_timeout: seconds a request may take in the worker process (> 0).
         in_process: call methods in this process (faster start, no timeout, no crash isolation).
+        engine: a :class:`mimicbench.engines.RayEngine` runs each batch as a Ray task
+            (:mod:`benchmark.ray_runner`); None or a local engine keeps the worker processes.
 
     Raises:
         ValueError: an option out of range, or an unknown protocol.
@@ -188,9 +192,19 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
     metas = [method_meta(m.metadata, dataset, fingerprints) for m in instances]
     for method, meta in zip(instances, metas):  # refuse before anything is written
         check_method_folder(method_dir(out, method.metadata.name, method.metadata.version), meta)
-    data = EvalData.load(dataset)
+    on_ray = engine is not None and getattr(engine, "name", "local") != "local"
+    data = None if on_ray else EvalData.load(dataset)
     ctx = DistributedContext.from_env(device)
+    if on_ray and ctx.world_size > 1:
+        raise ValueError("engine ray: run without torchrun (Ray spreads the cases itself)")
     counts = {"computed": 0, "skipped": 0, "failed": 0, NOT_SUPPORTED: 0}
+
+    def tally(folder, rows) -> None:
+        append_results(folder, rows, ctx.rank)
+        counts["computed"] += len(rows)
+        counts["failed"] += sum(r.status == "failed" for r in rows)
+        counts[NOT_SUPPORTED] += sum(r.status == NOT_SUPPORTED for r in rows)
+
     try:
         if ctx.rank == 0:
             write_run_info(out, {"dataset": str(dataset), "protocols": {p: len(c) for p, c in cases.items()},
@@ -201,6 +215,13 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
                 write_method_meta(folder, meta)
             done = done_case_ids(folder, include_failed=not retry_failed) if folder.exists() else set()
             samples = SampleSink(folder, cases)
+            if on_ray:
+                for name, plist in cases.items():
+                    todo = [c for c in plist if c.case_id not in done]
+                    counts["skipped"] += len(plist) - len(todo)
+                    evaluate_on_engine(engine, method, ray_path(method), name, todo, dataset, device, batch_size,
+                                       samples, lambda rows: tally(folder, rows), progress and bool(todo))
+                continue
             runner = open_runner(method, device, ctx.rank, ctx.world_size, case_timeout, in_process)
             try:
                 for name, plist in cases.items():
@@ -212,10 +233,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
                                disable=not progress or not todo)
                     for start in range(0, len(todo), batch_size):
                         rows = evaluate_batch(runner, protocol, todo[start:start + batch_size], data, samples)
-                        append_results(folder, rows, ctx.rank)
-                        counts["computed"] += len(rows)
-                        counts["failed"] += sum(r.status == "failed" for r in rows)
-                        counts[NOT_SUPPORTED] += sum(r.status == NOT_SUPPORTED for r in rows)
+                        tally(folder, rows)
                         bar.update(len(rows))
                     bar.close()
             except BaseException:

@@ -1,7 +1,7 @@
 """Run a per-item stage function over many items, turning failures into status records.
 
 A stage is a plain function ``item -> result``. :func:`run_stage` calls it for every item through
-an engine (:mod:`datagen.engines`: this process, a process pool with ``jobs > 1``, or Ray tasks
+an engine (:mod:`mimicbench.engines`: this process, a process pool with ``jobs > 1``, or Ray tasks
 on a local instance or a cluster), shows a progress bar, and returns the
 results of the items that succeeded together with one :class:`~schemas.status.StatusRecord` per
 item. An exception in one item fails that item only; the reason names the exception.
@@ -14,7 +14,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from tqdm.auto import tqdm
 
-from datagen.engines import Engine, LocalEngine, Outcome, TaskResources
+from mimicbench.engines import Engine, LocalEngine, Outcome, TaskResources
 from schemas.status import StatusRecord
 
 
@@ -43,7 +43,7 @@ def run_stage(
         progress: show a progress bar.
         on_done: called in this process as ``on_done(index, ok, result)`` when an item finishes
             (``result`` None for a failed item); in completion order, or in item order with ``ordered``.
-        engine: where the work runs (:mod:`datagen.engines`); default ``LocalEngine(jobs)``.
+        engine: where the work runs (:mod:`mimicbench.engines`); default ``LocalEngine(jobs)``.
         chunk: items per task (per-task overhead is paid once a chunk).
         resources: what each task asks the engine for (CPUs, memory).
         ordered: call ``on_done`` in item order (a finished item waits for those before it), so a

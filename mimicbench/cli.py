@@ -37,6 +37,7 @@ COMMAND_MODULES = (
     (None, "benchmark.demo"),
     (None, "datagen.render.command"),
     (None, "mimicbench.commands.train"),
+    (None, "mimicbench.commands.pipeline"),
 )
 
 GROUP_HELP = {
@@ -61,6 +62,7 @@ Typical flow:
   mimicbench validate data/zoo5k                    check shards against manifest.json
   mimicbench render data/zoo zoo/bird-0001 --out bird.png   a character through Blender
   mimicbench train mimicat data/zoo --out runs/m1   train the MimiCAT-style reference (stages, resume)
+  mimicbench pipeline examples/pipelines/demo.toml  every step above from one file, resumable
 
 Run `mimicbench COMMAND --help` for each command's options.
 """

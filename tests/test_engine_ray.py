@@ -20,8 +20,8 @@ ray = pytest.importorskip("ray")
 import cloudpickle  # noqa: E402  (ships with ray)
 
 from datagen.correspond.stage import correspond_dataset  # noqa: E402
-from datagen.engines import LocalEngine, TaskResources, get_engine  # noqa: E402
-from datagen.engines.ray_engine import RayEngine  # noqa: E402
+from mimicbench.engines import LocalEngine, TaskResources, get_engine  # noqa: E402
+from mimicbench.engines.ray_engine import RayEngine  # noqa: E402
 from datagen.resample.stage import resample_dataset  # noqa: E402
 from datagen.stage_runner import run_stage  # noqa: E402
 from datagen.zoo import build_zoo  # noqa: E402
@@ -168,3 +168,37 @@ def test_cli_stages_take_the_engine(ray_instance, zoos, tmp_path, capsys):
     assert main(["datagen", "resample", str(zoos / "local"), str(tmp_path / "r"), "--engine", "local",
                  "--ray-address", "auto"]) == 2
     assert "only with --engine ray" in capsys.readouterr().err
+
+
+def test_bench_run_on_ray_gives_the_local_rows(zoos, tmp_path):
+    """Results rows of `bench run --engine ray` equal the local engine's (worker processes), all but seconds."""
+    from benchmark.evaluator import run_benchmark
+    from benchmark.results import method_dir, read_result_records
+    from tests.bench_fixtures import make_bench_dataset
+
+    data = make_bench_dataset(zoos / "local", tmp_path / "data", h2h_poses=2, cct_pairs=4, cct_poses=2)
+    methods = ["identity", "name_copy", "nearest_joint"]
+    local = run_benchmark(data, methods, ["h2h", "cct"], tmp_path / "local", batch_size=3, progress=False)
+    on_ray = run_benchmark(data, methods, ["h2h", "cct"], tmp_path / "ray", batch_size=3, progress=False,
+                           engine=RayEngine())
+    assert local["computed"] == on_ray["computed"] > 0 and on_ray["failed"] == 0
+
+    from benchmark.registry import get_method
+
+    version = {m: get_method(m).metadata.version for m in methods}
+
+    def rows(root):
+        out = []
+        for m in methods:
+            for r in read_result_records(method_dir(root, m, version[m])):
+                out.append(dataclasses.replace(r, seconds=0.0))
+        return sorted(out, key=lambda r: (r.method, r.case_id))
+
+    assert rows(tmp_path / "local") == rows(tmp_path / "ray")
+    # the sampled cases' predictions for the leaderboard pictures are kept on Ray too, byte for byte
+    for m in methods:
+        v = version[m]
+        a = sorted((method_dir(tmp_path / "local", m, v) / "samples").rglob("*.npz"))
+        b = sorted((method_dir(tmp_path / "ray", m, v) / "samples").rglob("*.npz"))
+        assert [p.name for p in a] == [p.name for p in b]
+        assert all(np.array_equal(np.load(x)[k], np.load(y)[k]) for x, y in zip(a, b) for k in np.load(x).files)

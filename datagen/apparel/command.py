@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from datagen.engines import add_engine_arguments
+from mimicbench.engines import add_engine_arguments
 from mimicbench.argtypes import float_in, nonnegative_int, positive_int
 
 MIN_PHYSICS_FPS = 30.0
@@ -53,7 +53,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from datagen.apparel.params import load_params
-    from datagen.engines import engine_from_args
+    from mimicbench.engines import engine_from_args
     from datagen.apparel.stage import simulate_dataset
 
     params = load_params(args.params)

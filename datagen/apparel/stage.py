@@ -22,7 +22,7 @@ import numpy as np
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching
 from datagen.apparel.setup import SIM_SUFFIX, SIM_VERSION, character_physics, simulate_motion
-from datagen.engines import Engine
+from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage, summarize_statuses
 from mimicbench.errors import UserError
 from schemas.errors import DatasetError
@@ -117,7 +117,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         apparel_bones: glob patterns on bone names choosing the apparel bones (default: each
             character's ``apparel_bone_mask``); the apparel vertex mask then follows the weights.
         jobs: worker processes. batch: clips between two writes.
-        engine: where clips are simulated (:mod:`datagen.engines`; default the local engine with
+        engine: where clips are simulated (:mod:`mimicbench.engines`; default the local engine with
             ``jobs`` processes; the output does not depend on it).
 
     Returns:

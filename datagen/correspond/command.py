@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from datagen.engines import add_engine_arguments
+from mimicbench.engines import add_engine_arguments
 from mimicbench.argtypes import nonnegative_int, positive_float, positive_int
 
 
@@ -51,7 +51,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from datagen.correspond.stage import correspond_dataset
-    from datagen.engines import engine_from_args
+    from mimicbench.engines import engine_from_args
 
     summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder, args.temperature, args.seed,
                                  args.clip_model, args.clip_pretrained, progress=not args.quiet, method=args.method,

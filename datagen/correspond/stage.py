@@ -20,7 +20,7 @@ from datagen.correspond.methods import DEFAULT_METHOD, get_method, match_batch, 
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
 from datagen.correspond.structure import skeleton_features
-from datagen.engines import Engine, TaskResources
+from mimicbench.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage
 from schemas.errors import DatasetError
 from schemas.fingerprint import stage_config, tables_fingerprint
@@ -140,7 +140,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
             sweeps and at most 261; at 0.05 a few pairs needed thousands).
         seed: pair sampling seed.
         block: pairs a task (default ``BATCH``).
-        engine: where blocks of ``block`` pairs are matched (:mod:`datagen.engines`; default this
+        engine: where blocks of ``block`` pairs are matched (:mod:`mimicbench.engines`; default this
             process). Names are embedded once in this process; each block is one task; shards of
             ``ROWS_PER_SHARD`` pairs are written in sampled order as their blocks come in, so
             memory holds one shard however many pairs there are, and the bytes do not depend on

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from datagen.engines import add_engine_arguments
+from mimicbench.engines import add_engine_arguments
 from mimicbench.argtypes import MAX_JOBS, int_in, job_count
 
 MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
@@ -38,7 +38,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from datagen.engines import engine_from_args
+    from mimicbench.engines import engine_from_args
     from datagen.resample.stage import resample_dataset
 
     s = resample_dataset(args.in_dataset, args.out_dataset, args.faces, args.backend, args.jobs, not args.quiet,

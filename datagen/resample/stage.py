@@ -22,7 +22,7 @@ import numpy as np
 
 from datagen.resample.character import resample_character
 from datagen.resample.command import MAX_FACES, MIN_FACES
-from datagen.engines import Engine, TaskResources
+from mimicbench.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
@@ -187,7 +187,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
 
     Args:
         flush_every, flush_seconds: write finished characters after this many, or this long.
-        engine: where characters are resampled (:mod:`datagen.engines`; default the local engine
+        engine: where characters are resampled (:mod:`mimicbench.engines`; default the local engine
             with ``jobs`` processes); one character a task of 1 CPU and 2 GiB.
 
     Returns:

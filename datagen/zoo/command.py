@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from datagen.engines import add_engine_arguments
+from mimicbench.engines import add_engine_arguments
 from mimicbench.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonnegative_int
 
 MAX_CHARACTERS = 100_000
@@ -56,7 +56,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from datagen.engines import engine_from_args
+    from mimicbench.engines import engine_from_args
     from datagen.zoo import build_zoo
 
     cats = [c.strip() for arg in args.categories for c in arg.split(",") if c.strip()] if args.categories else None

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.engines import Engine
+from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage
 from datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
 from datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import argparse
 
-from datagen.engines.base import Engine, Outcome, TaskResources, call_item
-from datagen.engines.local import LocalEngine
+from mimicbench.engines.base import Engine, Outcome, TaskResources, call_item
+from mimicbench.engines.local import LocalEngine
 
 ENGINES = ("local", "ray")
 
@@ -25,7 +25,7 @@ def get_engine(name: str = "local", jobs: int = 1, address: str | None = None) -
             raise ValueError("--ray-address: only with --engine ray")
         return LocalEngine(jobs)
     if name == "ray":
-        from datagen.engines.ray_engine import RayEngine
+        from mimicbench.engines.ray_engine import RayEngine
 
         return RayEngine(address=address, num_cpus=jobs if jobs > 1 and not address else None)
     raise ValueError(f"engine: expected one of {ENGINES}, got {name!r}")

@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 from typing import Any, Callable, Iterator, Sequence
 
-from datagen.engines.base import Engine, Outcome, TaskResources, call_chunk, chunks_of
+from mimicbench.engines.base import Engine, Outcome, TaskResources, call_chunk, chunks_of
 
 DEFAULT_MAX_RETRIES = 3
 _REMOTE = None

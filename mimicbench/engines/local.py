@@ -8,7 +8,7 @@ from __future__ import annotations
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import Any, Callable, Iterator, Sequence
 
-from datagen.engines.base import Engine, Outcome, TaskResources, call_chunk, call_item, chunks_of
+from mimicbench.engines.base import Engine, Outcome, TaskResources, call_chunk, call_item, chunks_of
 
 
 class LocalEngine(Engine):
