@@ -180,7 +180,7 @@ def test_a_zoo_where_every_character_fails_leaves_the_existing_zoo_untouched(tmp
         main(["zoo", "--out", str(out), "--characters", "2", "--seed", "-1", "--quiet"])
     assert exc.value.code == 2 and "--seed: expected an integer >= 0" in capsys.readouterr().err
 
-    def broken(spec, split, clips):
+    def broken(spec, split, clips, *rest):
         raise RuntimeError(f"cannot build {spec.character_id}")
 
     monkeypatch.setattr(zoo_dataset, "build_character", broken)

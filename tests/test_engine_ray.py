@@ -202,3 +202,18 @@ def test_bench_run_on_ray_gives_the_local_rows(zoos, tmp_path):
         b = sorted((method_dir(tmp_path / "ray", m, v) / "samples").rglob("*.npz"))
         assert [p.name for p in a] == [p.name for p in b]
         assert all(np.array_equal(np.load(x)[k], np.load(y)[k]) for x, y in zip(a, b) for k in np.load(x).files)
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+def test_ingest_on_ray_is_byte_identical(ray_instance, assets_dir, tmp_path):
+    """Real glTF assets through Blender: a Ray task an asset (its worker's own Blender) gives the local shards."""
+    pytest.importorskip("bpy")
+    from datagen.ingest.runner import ingest_assets
+
+    assets = [assets_dir / "glb" / n for n in ("Fox.glb", "Quaternius_Rat.glb", "CesiumMan.glb")]
+    for name, engine in (("local", None), ("ray", RayEngine())):
+        s = ingest_assets(assets, tmp_path / name, progress=False, engine=engine)
+        assert s["failed"] == 0 and s["characters"] == 3
+    assert shard_hashes(tmp_path / "local", ("characters", "motions")) == \
+        shard_hashes(tmp_path / "ray", ("characters", "motions"))

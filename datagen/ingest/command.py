@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from mimicbench.argtypes import MAX_JOBS, comma_choices, job_count, positive_float
+from mimicbench.engines import add_engine_arguments
 
 EXPORT_FORMATS = ("obj", "bvh")  # as datagen.ingest.runner.EXPORT_FORMATS (kept here so --help stays fast)
 
@@ -69,6 +70,7 @@ def register(subparsers) -> None:
                    help="let glTF buffers and images point outside the asset's folder (refused by default)")
     p.add_argument("--motions", default=None, metavar="DIR",
                    help="folder of .vmd motions to play on every MMD model of the run (besides <stem>_<clip>.vmd)")
+    add_engine_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -79,6 +81,7 @@ def run(args) -> int:
 
     from datagen.ingest.runner import ingest_assets
     from datagen.stage_runner import summarize_statuses
+    from mimicbench.engines import engine_from_args
 
     paths = []
     for pattern in args.paths:
@@ -93,7 +96,7 @@ def run(args) -> int:
     cmap = json.loads(open(args.category_map).read()) if args.category_map else None
     s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, args.export, not args.quiet,
                       bvh_scale=args.bvh_scale, allow_external_uris=args.allow_external_uris, split=args.split,
-                      split_file=args.split_file, mmd_unit=args.mmd_unit)
+                      split_file=args.split_file, mmd_unit=args.mmd_unit, engine=engine_from_args(args))
     print(summarize_statuses([x for x in s["statuses"] if x.status != "skipped"]))
     for w in s["warnings"]:
         print(f"warning: {w}")

@@ -223,7 +223,7 @@ def _existing(out_dir: Path, table: str) -> list:
 def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, category_map: dict | None = None,
                   export=(), progress: bool = True, bvh_scale: float = DEFAULT_BVH_SCALE,
                   allow_external_uris: bool = False, split: str | None = None, split_file: str | None = None,
-                  assets_per_process: int = 50, mmd_unit: float = MMD_UNIT_METRES) -> dict:
+                  assets_per_process: int = 50, mmd_unit: float = MMD_UNIT_METRES, engine=None) -> dict:
     """Ingest assets into ``out_dir`` (keeping what earlier runs put there); returns a summary.
 
     Args:
@@ -241,6 +241,9 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         assets_per_process: assets one Blender process ingests before a fresh one starts.
         mmd_unit: metres per MMD unit for .pmx/.pmd/.vmd (default 0.08), recorded in each MMD
             character's ``meta.mmd.metres_per_unit``.
+        engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task of 1 CPU and
+            3 GiB with its worker's own Blender process (:mod:`datagen.ingest.engine_task`); None
+            or a local engine keeps ``jobs`` Blender processes here. The output is the same.
 
     Raises:
         ValueError: an option out of range (the message says what is allowed).
@@ -296,6 +299,17 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         else:
             jobs_todo.append(a)
     skipped = sum(s.status == "skipped" for s in statuses)
+    if engine is not None and engine.name != "local":
+        from datagen.ingest.engine_task import TASK_RESOURCES, ingest_task
+        from datagen.stage_runner import run_stage
+
+        items = [(str(a), str(cache / f"{plan[a][0]}.npz"), opts.child_options(a), timeout, assets_per_process)
+                 for a in jobs_todo]
+        returned, task_rows = run_stage(items, ingest_task, "ingest", name_of=lambda it: it[0], progress=progress,
+                                        engine=engine, resources=TASK_RESOURCES)
+        by_asset = {s.asset: s for s in returned}
+        statuses += [by_asset.get(t.asset, t) for t in task_rows]  # a task whose worker died for good: its row
+        jobs_todo = []
     workers: Queue = Queue()
     for _ in range(min(jobs, max(1, len(jobs_todo)))):
         workers.put(blender_pool.BlenderWorker(blender_pool.CHILD_MODULE, assets_per_process))
