@@ -22,6 +22,9 @@ def test_unknown_name_suggests_close_matches():
 
 
 def test_runtime_registration_and_entry_points(tmp_path, monkeypatch):
+    import benchmark.registry as registry
+
+    monkeypatch.setattr(registry, "_registered", dict(registry._registered))  # names registered here stay here
     register("flaky", FlakyMethod)
     assert isinstance(get_method("flaky"), FlakyMethod)
     # a third-party package declaring `mimicbench.methods` in its entry points

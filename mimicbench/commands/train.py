@@ -31,7 +31,8 @@ def register(subparsers) -> None:
     p.add_argument("dataset", help="dataset folder (e.g. the output of `mimicbench zoo`)")
     p.add_argument("--out", required=True, help="run folder for checkpoints, loss logs and config.json")
     p.add_argument("--stage", default="all",
-                   help="stage to train (mimicat: shape, prior, corr, transfer), or 'all' in order (default)")
+                   help="stage to train (mimicat: shape, prior, corr, transfer, transfer_no_prior; mmdmc: seg, body, "
+                   "apparel, refine), or 'all' in order (default)")
     p.add_argument("--config", default="small",
                    help="config preset: small (2 CPU cores, minutes) or paper (6 layers, 8 heads, width 256)")
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="where to train (default cpu)")

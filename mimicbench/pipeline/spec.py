@@ -55,7 +55,8 @@ class StepKind:
 STEP_KINDS = {
     "zoo": StepKind(("zoo",), folders=("out",), writes=(("out", ("characters", "motions")),), engine=True, jobs=True),
     "ingest": StepKind(("datagen", "ingest"), positional=("paths",), folders=("out", "paths"),
-                       reads=(("paths", None),), writes=(("out", ("characters", "motions")),), jobs=True),
+                       reads=(("paths", None),), writes=(("out", ("characters", "motions")),),
+                       engine=True, jobs=True),
     "resample": StepKind(("datagen", "resample"), positional=("in", "out"), folders=("in", "out"),
                          reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
                          engine=True, jobs=True),
