@@ -18,7 +18,7 @@ from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 
 SIM_SUFFIX = "@sim"
-SIM_VERSION = "2"  # 2: gravity 9.8 m/s^2
+SIM_VERSION = "3"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest
 
 
 @dataclass

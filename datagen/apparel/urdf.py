@@ -50,8 +50,13 @@ def _capsule_inertia(mass: float, radius: float, length: float) -> tuple[float, 
     return mass * (3 * radius ** 2 + full ** 2) / 12.0, mass * radius ** 2 / 2.0
 
 
-def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray) -> str:
-    """The URDF text of ``chain``; the anchor link's frame sits at ``anchor_head`` (rest, metres)."""
+def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray, collision_offsets=None) -> str:
+    """The URDF text of ``chain``; the anchor link's frame sits at ``anchor_head`` (rest, metres).
+
+    ``collision_offsets`` (L, 3) metres, in each link's frame: shifts of the capsules' collision
+    shapes off the bone (the inertia stays on it); None for none.
+    """
+    shifts = np.zeros((len(chain.links), 3)) if collision_offsets is None else np.asarray(collision_offsets)
     anchor_mass = max(ANCHOR_MASS_SHARE * sum(link.mass for link in chain.links), 1e-3)
     a_inertia = 0.4 * anchor_mass * max(link.length for link in chain.links) ** 2  # a sphere of a link's length
     out = [f'<robot name="{chain.kind}">',
@@ -71,7 +76,7 @@ def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray) -> str:
         out.append(
             f'<link name="l{i}"><inertial><origin xyz="{centre}"/><mass value="{_f(link.mass)}"/>'
             f'<inertia ixx="{_f(it)}" iyy="{_f(it)}" izz="{_f(ia)}" ixy="0" ixz="0" iyz="0"/></inertial>'
-            f'<collision><origin xyz="{centre}"/>'
+            f'<collision><origin xyz="{_vec(shifts[i] + [0.0, 0.0, 0.5 * link.length])}"/>'
             f'<geometry><capsule radius="{_f(link.radius)}" length="{_f(link.length)}"/></geometry></collision></link>')
         out.append(
             f'<joint name="j{i}" type="spherical"><parent link="{parent_name}"/><child link="l{i}"/>'

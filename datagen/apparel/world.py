@@ -10,7 +10,9 @@ Collision: chain links meet the body pieces and, where both chains ask for it, o
 (group and mask bits of :class:`~datagen.apparel.chain_spec.ChainSpec`); a pair that already
 overlap that is the attachment (a chain's root link in the body, any link in its anchor bone's
 piece: hair roots in the scalp, a skirt's top in the hips) is excluded, as an MMD model's
-collision masks would; see :meth:`ApparelWorld._exclude_rest_overlaps`.
+collision masks would; see :meth:`ApparelWorld._exclude_rest_overlaps`. A root link's capsule
+that overlaps another piece at rest (a skirt's top in a thigh) is first moved just clear of it
+(:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair collides.
 """
 from __future__ import annotations
 
@@ -88,6 +90,10 @@ class ApparelWorld:
             for i, chain in enumerate(chains):
                 root_head = np.asarray(chain.links[0].head, np.float64)
                 body = self._load(Path(tmp) / f"chain{i}.urdf", chain, root_head)
+                offsets = self._root_offsets_clearing_body(body, chain)
+                if offsets is not None:  # reloaded under a new name: pybullet caches a file's shapes by path
+                    pb.removeBody(body, physicsClientId=cid)
+                    body = self._load(Path(tmp) / f"chain{i}-clear.urdf", chain, root_head, offsets)
                 self._set_dynamics(body, chain)
                 constraint = pb.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
                                                  root_head.tolist(), physicsClientId=cid)
@@ -107,11 +113,40 @@ class ApparelWorld:
         self._rest_frames_inv = quat_conjugate(np.array([(q[3], q[0], q[1], q[2]) for q in rest]).reshape(-1, 4))
         self._exclude_rest_overlaps()
 
-    def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray) -> int:
-        path.write_text(chain_urdf(chain, root_head))
+    def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray, offsets=None) -> int:
+        path.write_text(chain_urdf(chain, root_head, offsets))
         return self.pb.loadURDF(str(path), basePosition=root_head.tolist(),
                                 flags=self.pb.URDF_USE_INERTIA_FROM_FILE | self.pb.URDF_MAINTAIN_LINK_ORDER,
                                 physicsClientId=self.client)
+
+    def _root_offsets_clearing_body(self, body: int, chain: ChainSpec) -> np.ndarray | None:
+        """Collision offsets (L, 3) that move each root link's capsule out of the body pieces it
+        overlaps at rest, other than its anchor bone's, along the contact normal by the overlap
+        (plus twice the touching margin); None when no root link overlaps one.
+
+        A skirt's top capsule sits half inside the thigh at rest: ignoring that pair lets the
+        thigh sweep through the skirt's top in a walk, and pushing it out flings the chain. Moved
+        just clear, it rests against the thigh and is pushed by it. The deepest overlap decides.
+        """
+        pb, cid = self.pb, self.client
+        if not chain.collision_mask & BODY_GROUP:
+            return None
+        anchor_piece = {piece.bone: b for piece, b in zip(self.pieces, self.piece_ids)}.get(chain.anchor_bone)
+        deepest: dict[int, tuple[float, np.ndarray]] = {}  # link -> (depth, world normal)
+        for piece_body in self.piece_ids:
+            if piece_body == anchor_piece:
+                continue
+            for point in pb.getClosestPoints(body, piece_body, REST_CONTACT_MARGIN, physicsClientId=cid):
+                j = point[3]
+                depth = 2 * REST_CONTACT_MARGIN - point[8]
+                if j >= 0 and chain.link_parents[j] < 0 and depth > deepest.get(j, (0.0,))[0]:
+                    deepest[j] = (depth, np.asarray(point[7], np.float64))  # normal on the piece, toward the link
+        if not deepest:
+            return None
+        offsets = np.zeros((len(chain.links), 3))
+        for j, (depth, normal) in deepest.items():
+            offsets[j] = bone_frame(chain.links[j].axis).inv().apply(normal * depth)
+        return offsets
 
     def _set_dynamics(self, body: int, chain: ChainSpec) -> None:
         pb, cid = self.pb, self.client
@@ -133,8 +168,10 @@ class ApparelWorld:
         pushing it out explodes or shoves it into the anchor's piece), every link keeps out of its
         anchor bone's piece, and links of two chains that touch at rest keep out of each other.
         Other overlaps at rest (a long hair hanging through the back) stay in and are pushed out
-        while the clip relaxes. The price: a body piece that a root link touched at rest (a thigh
-        at a skirt's top) passes through that link.
+        while the clip relaxes. A root link's capsule was first moved clear of the other pieces
+        it overlapped (:meth:`_root_offsets_clearing_body`), so a thigh at a skirt's top pushes
+        that link instead of passing through it; only a root link still touching a piece after
+        that (the scalp under a hair root) ignores it.
         """
         pb, cid = self.pb, self.client
         piece_of = {piece.bone: body for piece, body in zip(self.pieces, self.piece_ids)}
