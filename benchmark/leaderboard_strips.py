@@ -79,8 +79,11 @@ def _characters(dataset, ids) -> dict:
 
 
 def _posed(char, transforms) -> np.ndarray:
+    """``char`` posed by a case's transforms: (K, 7), or a window (F*K, 7) of which the middle frame is
+    shown, the frame a windowed protocol (apparel) keeps as its sample."""
+    window = np.asarray(transforms, np.float32).reshape(-1, len(char.parents), 7)
     return linear_blend_skinning(np.asarray(char.vertices, np.float32), np.asarray(char.keypoints, np.float32),
-                                 char.weights, np.asarray(transforms, np.float32)).astype(np.float32)
+                                 char.weights, window[len(window) // 2]).astype(np.float32)
 
 
 def _fmt(value) -> str:
@@ -139,7 +142,8 @@ def build_strips(results, agg: dict, per_protocol: int = STRIPS_PER_PROTOCOL) ->
                 else:
                     items.append(Panel(fwd, tgt.faces, f"{method}\n{head} {_fmt(value)}", "prediction",
                                        frame=f"{cid}/target") if fwd is not None else f"{method}: no prediction ({status})")
-            title = f"{protocol}: {cid}" + ("   (top: forward leg on the target; bottom: the cycle's return on "
+            windowed = len(np.asarray(case.source_transforms).reshape(-1, 7)) > len(src.parents)
+            title = f"{protocol}: {cid}" + ("   (middle frame of the window)" if windowed else "") + ("   (top: forward leg on the target; bottom: the cycle's return on "
                                             "the source)" if cycle else "")
             strips.append(Strip(protocol, cid, title, len(items), items + returned))
     return strips, None if strips else "no pictures: no stored samples (re-run `bench run` to keep some)"

@@ -128,3 +128,29 @@ def test_wrong_shapes_fail_the_case(tmp_path):
 
     rows = evaluate_batch(OneFrame(), proto, cases, EvalData.load(root))
     assert rows[0].status == "failed" and "wrong shape" in rows[0].error
+
+
+def test_leaderboard_strips_show_the_window_middle_frame(tmp_path):
+    """The leaderboard's strips for apparel cases: a window's middle frame, the frame the samples keep.
+    By hand: the truth panel is the prediction panel of lbs_kinematic with apparel vertices + SHIFT in x."""
+    from benchmark.aggregate import aggregate
+    from benchmark.cases import write_cases
+    from benchmark.evaluator import run_benchmark
+    from benchmark.leaderboard_strips import build_strips
+    from datagen.render.panel import Panel
+
+    root, c = _hand_case(tmp_path)
+    cases = get_protocol("apparel").build_cases(CasePool.load(root, "all"), None, 2, seed=0)
+    write_cases(root, {"apparel": cases}, {"protocols": ["apparel"]})
+    res = tmp_path / "res"
+    run_benchmark(root, ["lbs_kinematic"], ("apparel",), res, progress=False, in_process=True)
+    strips, note = build_strips(res, aggregate(res))
+    assert note is None and strips and all(s.protocol == "apparel" for s in strips)
+    for s in strips:
+        assert "middle frame" in s.title
+        source, truth, pred = [p for p in s.items if isinstance(p, Panel)]
+        apparel = c.apparel_vertex_mask
+        np.testing.assert_allclose(truth.vertices[~apparel], pred.vertices[~apparel], atol=1e-5)
+        np.testing.assert_allclose(truth.vertices[apparel] - pred.vertices[apparel],
+                                   np.tile([SHIFT, 0, 0], (apparel.sum(), 1)), atol=1e-5)
+        np.testing.assert_allclose(source.vertices, pred.vertices, atol=1e-5)  # kinematic source = lbs_kinematic
