@@ -86,6 +86,7 @@ def run(args) -> int:
     step("run methods", lambda: run_benchmark(data, BUNDLED, ("h2h", "cct"), results, progress=True))
     step("apparel: simulate, cases, run methods", lambda: run_apparel(data, out, args))
     paths = write_leaderboard(results)
+    apparel_paths = write_leaderboard(out / "results-apparel")
     from benchmark.aggregate import aggregate
 
     print()
@@ -93,6 +94,7 @@ def run(args) -> int:
     print(markdown_tables(aggregate(out / "results-apparel")))
     print("timings: " + ", ".join(f"{n} {s:.0f} s" for n, s in steps) + f"; total {time.perf_counter() - t0:.0f} s")
     print(f"leaderboard: {paths['html'].resolve()}")
+    print(f"apparel leaderboard: {apparel_paths['html'].resolve()}")
     return 0
 
 
