@@ -19,11 +19,9 @@ from typing import Any, Iterable, Iterator
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
-from schemas.errors import DatasetError
-from schemas.fingerprint import stale_inputs
-from schemas.integrity import entry_path, verify_shard
+from schemas.integrity import entry_path
 from schemas.manifest import load_manifest_for_write, save_manifest, sha256_of
-from schemas.shards import _reader_manifest, _unlink_stale, _write_parquet_temp, check_schema, shard_name
+from schemas.shards import _unlink_stale, _write_parquet_temp, read_checked_shard, readable_entries, shard_name
 from schemas.tables import ROW_GROUP_SIZE, record_type, schema_of
 
 
@@ -119,23 +117,6 @@ def iter_records(root, table: str, split: str | None = None, *, verify: bool | N
     """The records of ``table`` (one split, or all) one shard at a time, with the checks of
     :func:`schemas.shards.read_table` on each shard; memory holds one shard, not the table."""
     root = Path(root)
-    manifest = _reader_manifest(root, allow_incomplete)
-    stale = stale_inputs(root, manifest, table)
-    if stale:
-        raise DatasetError(stale)
-    entries = [s for s in manifest["tables"].get(table, {}).get("shards", []) if split is None or s["split"] == split]
-    if not entries:
-        raise DatasetError(f"{root}/manifest.json lists no shard of table {table!r}"
-                           + (f" split {split!r}" if split is not None else ""))
     expected, rtype = schema_of(table), record_type(table)
-    for e in entries:
-        path = entry_path(root, e["path"])
-        verify_shard(path, e, verify)
-        try:
-            t = pq.read_table(path)
-        except Exception as exc:  # pyarrow raises several types for damaged files
-            raise DatasetError(f"{path}: not a readable Parquet file ({exc})") from exc
-        check_schema(path, t.schema, expected)
-        if t.num_rows != e.get("rows"):
-            raise DatasetError(f"{path}: {t.num_rows} rows, manifest.json says {e.get('rows')}")
-        yield from table_to_records(t.replace_schema_metadata(expected.metadata), rtype)
+    for e in readable_entries(root, table, split, allow_incomplete):
+        yield from table_to_records(read_checked_shard(root, e, expected, verify=verify), rtype)

@@ -200,6 +200,16 @@ def read_table(root, table: str, split: str | None = None, columns: list[str] | 
             tables of this dataset that have changed since (e.g. pairs after a new zoo).
     """
     root = Path(root)
+    expected = schema_of(table)
+    if columns is not None:
+        expected = pa.schema([expected.field(c) for c in columns], metadata=expected.metadata)
+    return pa.concat_tables([read_checked_shard(root, e, expected, columns, verify)
+                             for e in readable_entries(root, table, split, allow_incomplete)])
+
+
+def readable_entries(root: Path, table: str, split: str | None, allow_incomplete: bool) -> list[dict]:
+    """The manifest's shard entries of ``table`` (of ``split``), after the dataset-level checks of
+    :func:`read_table` (manifest present and complete, ``table`` not stale, at least one shard)."""
     manifest = _reader_manifest(root, allow_incomplete)
     stale = stale_inputs(root, manifest, table)
     if stale:
@@ -209,22 +219,23 @@ def read_table(root, table: str, split: str | None = None, columns: list[str] | 
         what = f"table {table!r}" + (f" split {split!r}" if split is not None else "")
         raise DatasetError(f"{root}/manifest.json lists no shard of {what} (present: "
                            f"{', '.join(sorted(manifest['tables'])) or 'no tables'})")
-    expected = schema_of(table)
-    if columns is not None:
-        expected = pa.schema([expected.field(c) for c in columns], metadata=expected.metadata)
-    parts = []
-    for e in entries:
-        path = entry_path(root, e["path"])
-        verify_shard(path, e, verify)
-        try:
-            t = pq.read_table(path, columns=columns)
-        except Exception as exc:  # pyarrow raises several types for damaged files
-            raise DatasetError(f"{path}: not a readable Parquet file ({exc})") from exc
-        check_schema(path, t.schema, expected)
-        if t.num_rows != e.get("rows"):
-            raise DatasetError(f"{path}: {t.num_rows} rows, manifest.json says {e.get('rows')}")
-        parts.append(t.replace_schema_metadata(expected.metadata))
-    return pa.concat_tables(parts)
+    return entries
+
+
+def read_checked_shard(root: Path, entry: dict, expected: pa.Schema, columns: list[str] | None = None,
+                       verify: bool | None = None) -> pa.Table:
+    """One shard of a manifest ``entry`` with the per-shard checks of :func:`read_table` (path inside
+    the dataset, size/sha256, readable Parquet, schema, row count), with ``expected``'s metadata."""
+    path = entry_path(root, entry["path"])
+    verify_shard(path, entry, verify)
+    try:
+        t = pq.read_table(path, columns=columns)
+    except Exception as exc:  # pyarrow raises several types for damaged files
+        raise DatasetError(f"{path}: not a readable Parquet file ({exc})") from exc
+    check_schema(path, t.schema, expected)
+    if t.num_rows != entry.get("rows"):
+        raise DatasetError(f"{path}: {t.num_rows} rows, manifest.json says {entry.get('rows')}")
+    return t.replace_schema_metadata(expected.metadata)
 
 
 def check_schema(path, found: pa.Schema, expected: pa.Schema) -> None:
