@@ -6,12 +6,13 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from scipy.spatial import Delaunay
 
 from datagen.apparel.params import ApparelParams, load_params, params_from_json
 from datagen.apparel.selection import apparel_vertex_mask, bone_kind, bones_matching
 from datagen.apparel.setup import character_physics, simulate_motion
 from datagen.apparel.simulate import SimulationExploded
-from datagen.apparel.urdf import chain_urdf
+from datagen.apparel.urdf import chain_urdf, hull_obj
 from mimicbench.errors import UserError
 from tests.apparel_toys import LINK, LINKS, make_character, make_motion, quick_turn
 
@@ -174,6 +175,29 @@ def test_urdf_matches_the_chain():
         assert float(cap.get("length")) == pytest.approx(LINK, rel=1e-5)
         assert 0.015 < float(cap.get("radius")) < 0.05  # the toy's cylinders have radius 0.02 (skirt scale 1.5)
         np.testing.assert_allclose(np.array(col.find("origin").get("xyz").split(), float), [0, 0, LINK / 2], atol=1e-6)
+
+
+def test_links_collide_as_the_hull_of_their_vertices(tmp_path):
+    rec = make_character()
+    chain = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, ApparelParams()).chains[0]
+    owner = rec.weight_indices[:, 0]  # one-hot toy weights
+    for link in chain.links:
+        own = rec.vertices[owner == link.bone].astype(np.float64) - link.head
+        # the hull's points are the cylinder's own vertices, and every vertex of it lies inside
+        # their hull (scipy's Delaunay as the independent inside test)
+        assert all(np.min(np.linalg.norm(own - p, axis=1)) < 1e-6 for p in link.hull)
+        assert (Delaunay(link.hull).find_simplex(own, tol=1e-9) >= 0).all()
+    obj = tmp_path / "l0.obj"
+    obj.write_text(hull_obj(chain.links[0]))
+    root = ET.fromstring(chain_urdf(chain, chain.links[0].head, hull_files=["l0.obj", None, None, None]))
+    links = root.findall("link")[1:]
+    assert links[0].find("collision/geometry/mesh").get("filename") == "l0.obj"
+    assert links[1].find("collision/geometry/capsule") is not None
+    # the OBJ's points are the hull in the link frame: Z down the bone (-Y), the head at 0
+    pts = np.array([line.split()[1:] for line in obj.read_text().splitlines() if line.startswith("v ")], float)
+    frame = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])  # the link frame: a quarter turn about X, +Z onto -Y
+    np.testing.assert_allclose(pts @ frame.T, chain.links[0].hull, atol=1e-6)
+    assert pts[:, 2].min() > -1e-6 and pts[:, 2].max() == pytest.approx(LINK, abs=1e-6)
 
 
 def test_params_file_overrides_and_errors(tmp_path):

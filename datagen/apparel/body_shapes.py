@@ -34,6 +34,24 @@ class BodyPiece:
     radius: float
 
 
+def hull_points(points: np.ndarray, min_extent: float = 1e-4, max_points: int = MAX_HULL_POINTS):
+    """The convex hull of ``points`` (P, 3): (its points (H, 3) in input order, scipy's hull), or
+    None for fewer than 4 points or a set thinner than ``min_extent`` (metres) in some direction.
+    Over ``max_points`` hull points, an evenly spaced subset of them is kept (and its hull)."""
+    pts = np.asarray(points, np.float64)
+    if len(pts) < 4 or np.linalg.svd(pts - pts.mean(0), compute_uv=False)[-1] < min_extent:
+        return None
+    try:
+        hull = ConvexHull(pts)
+    except QhullError:
+        return None
+    on_hull = pts[np.sort(hull.vertices)]
+    if len(on_hull) > max_points:
+        on_hull = on_hull[np.linspace(0, len(on_hull) - 1, max_points).astype(int)]
+        hull = ConvexHull(on_hull)
+    return on_hull, hull
+
+
 def body_pieces(vertices: np.ndarray, keypoints: np.ndarray, owner: np.ndarray, body_bones: np.ndarray,
                 min_extent: float = 1e-4) -> list[BodyPiece]:
     """Convex pieces of the body bones.
@@ -48,17 +66,10 @@ def body_pieces(vertices: np.ndarray, keypoints: np.ndarray, owner: np.ndarray, 
     pieces = []
     vertices = np.asarray(vertices, np.float64)
     for k in np.nonzero(body_bones)[0]:
-        pts = vertices[owner == k] - np.asarray(keypoints[k], np.float64)
-        if len(pts) < 4 or np.linalg.svd(pts - pts.mean(0), compute_uv=False)[-1] < min_extent:
+        found = hull_points(vertices[owner == k] - np.asarray(keypoints[k], np.float64), min_extent)
+        if found is None:
             continue
-        try:
-            hull = ConvexHull(pts)
-        except QhullError:
-            continue
-        on_hull = pts[np.sort(hull.vertices)]
-        if len(on_hull) > MAX_HULL_POINTS:
-            on_hull = on_hull[np.linspace(0, len(on_hull) - 1, MAX_HULL_POINTS).astype(int)]
-            hull = ConvexHull(on_hull)
+        on_hull, hull = found
         centre = 0.5 * (on_hull.min(axis=0) + on_hull.max(axis=0))
         pieces.append(BodyPiece(int(k), on_hull, hull.equations.copy(), centre,
                                 float(np.linalg.norm(on_hull - centre, axis=1).max())))

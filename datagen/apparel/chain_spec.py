@@ -23,7 +23,10 @@ class LinkSpec:
     ``head`` (3,) rest position of the bone head (the joint to the parent link), metres;
     ``axis`` (3,) unit direction of the capsule at rest; ``length`` the capsule's cylinder length
     (head to tail), ``radius`` its radius, metres; ``mass`` kg; ``linear_damping`` and
-    ``angular_damping`` Bullet's per-link velocity damping (0..1 per second).
+    ``angular_damping`` Bullet's per-link velocity damping (0..1 per second). ``hull`` (P, 3)
+    metres relative to ``head`` at rest: the points of the link's convex collision shape (the
+    hull of the vertices the bone owns), or None for the capsule. The capsule always gives the
+    link's inertia.
     """
 
     bone: int
@@ -35,6 +38,7 @@ class LinkSpec:
     linear_damping: float = 0.04
     angular_damping: float = 0.1
     friction: float = 0.3
+    hull: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

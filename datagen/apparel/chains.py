@@ -1,18 +1,24 @@
 """Apparel chains of a character, with links sized from bone lengths and the vertices they drive.
 
 A chain is a tree of apparel bones whose root's parent is a body bone (its anchor). Each apparel
-bone is one capsule link: from its head toward its first apparel child's head (a leaf bone
+bone is one link: a capsule from its head toward its first apparel child's head (a leaf bone
 continues its parent's direction, as far as its own vertices reach), with a radius from the
-distance of its driven vertices to that segment. Joint and link physics come from the chain's
-kind (:mod:`datagen.apparel.params`).
+distance of its driven vertices to that segment, which gives the link's inertia; the link
+collides as the convex hull of the vertices the bone owns (a skirt strip is flat and wide: a
+capsule round it is far thicker than the strip and reaches into the hips and thighs), or as the
+capsule where those vertices span no volume. Joint and link physics come from the chain's kind
+(:mod:`datagen.apparel.params`).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from datagen.apparel.body_shapes import hull_points
 from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import bone_kind
+
+MAX_LINK_HULL_POINTS = 48  # a link's collision hull: fewer points than a body piece's, many more links
 
 
 def chain_roots(parents: np.ndarray, apparel: np.ndarray) -> list[int]:
@@ -34,7 +40,9 @@ def _segment_distance(points: np.ndarray, head: np.ndarray, axis: np.ndarray, le
 
 
 def _link_geometry(k: int, bones: list[int], parents, keypoints, vertices, owner, height: float):
-    """(axis, length, spread) of bone k's capsule; spread = 75th percentile vertex distance."""
+    """(axis, length, spread, hull) of bone k's link: the capsule's axis and length, spread = the
+    75th percentile distance of its vertices from the segment, and the points (P, 3) of the hull
+    of its vertices relative to its head (None when they span no volume)."""
     head = keypoints[k]
     children = [c for c in bones if parents[c] == k]
     own = vertices[owner == k]
@@ -52,7 +60,8 @@ def _link_geometry(k: int, bones: list[int], parents, keypoints, vertices, owner
         axis, length = np.array([0.0, -1.0, 0.0]), 0.02 * height
     axis = axis / np.linalg.norm(axis)
     spread = float(np.percentile(_segment_distance(own, head, axis, length), 75)) if len(own) else 0.01 * height
-    return axis, length, max(spread, 0.002 * height)
+    found = hull_points(own - head, 0.002 * height, MAX_LINK_HULL_POINTS)
+    return axis, length, max(spread, 0.002 * height), (None if found is None else found[0])
 
 
 def _gravity_torque(i: int, link_parents: list[int], heads, centres, masses, gravity: float) -> float:
@@ -90,11 +99,11 @@ def build_chains(keypoints: np.ndarray, parents: np.ndarray, bone_names: list[st
         link_parents = [index.get(int(parents[b]), -1) for b in bones]
         links = []
         for b in bones:
-            axis, length, spread = _link_geometry(b, bones, parents, keypoints, vertices, owner, height)
+            axis, length, spread, hull = _link_geometry(b, bones, parents, keypoints, vertices, owner, height)
             links.append(LinkSpec(bone=b, head=keypoints[b].copy(), axis=axis, length=length,
                                   radius=spread * cp.radius_scale, mass=cp.link_mass,
                                   linear_damping=cp.linear_damping, angular_damping=cp.angular_damping,
-                                  friction=cp.friction))
+                                  friction=cp.friction, hull=hull))
         heads = [link.head for link in links]
         centres = [link.head + 0.5 * link.length * link.axis for link in links]
         masses = [link.mass for link in links]

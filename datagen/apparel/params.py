@@ -2,7 +2,8 @@
 
 The override file (``--params FILE``) holds any subset of::
 
-    {"simulation": {"gravity": 9.8, "max_speed": 25.0, "solver_iterations": 30, "anchor_force": 2000.0},
+    {"simulation": {"gravity": 9.8, "max_speed": 25.0, "solver_iterations": 30, "anchor_force": 2000.0,
+                    "contact_erp": 0.5, "max_joint_velocity": 30.0},
      "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.8}, "default": {"link_mass": 0.1}}}
 
 A kind is the apparel kind of a chain (``skirt``, ``hair``, ``cape``, ``coat_tail``,
@@ -31,7 +32,8 @@ class ChainParams:
     the joint held horizontally (>1 holds the chain up against gravity). linear_damping,
     angular_damping: Bullet's per-link damping. swing_limit, twist_limit: radians from rest.
     radius_scale: capsule radius as a multiple of the driven vertices' 75th-percentile distance
-    from the bone. friction: contact friction. collide_body: links collide with the body pieces;
+    from the bone (the capsule gives the link's inertia; it collides only where the link's
+    vertices span no volume, else the link collides as their convex hull). friction: contact friction. collide_body: links collide with the body pieces;
     collide_chains: links collide with other chains that also ask for it.
     """
 
@@ -53,13 +55,20 @@ class ChainParams:
 class SimParams:
     """Scene-wide settings: gravity (m/s^2, along -Y; default 9.8, MMD's 9.8 x 10 units/s^2 taken in
     metres, as issue 18 reads it: "9.8 m/s^2 in the dataset's units"), the explosion bound ``max_speed`` (m/s of
-    any link), Bullet's ``solver_iterations``, and ``anchor_force`` (N), the largest force of the
-    fixed constraint that carries each chain's anchor with its body bone."""
+    any link), Bullet's ``solver_iterations``, ``anchor_force`` (N), the largest force of the
+    fixed constraint that carries each chain's anchor with its body bone, ``contact_erp``, the
+    share of a contact's penetration Bullet removes each step (0..1; the body pieces are moved
+    by placement, so a limb walking into a skirt is pushed out only by this: at Bullet's 0.2 a
+    thigh sank centimetres into a skirt strip), and ``max_joint_velocity`` (rad/s), Bullet's
+    bound on every chain joint's speed (a light strip struck by a thigh whips past the explosion
+    bound without it)."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
     solver_iterations: int = 30
     anchor_force: float = 2000.0
+    contact_erp: float = 0.5
+    max_joint_velocity: float = 30.0
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -77,7 +86,8 @@ _RANGES = {  # field: (low, high, low_open)
     "strength": (0.0, None, False), "linear_damping": (0.0, 1.0, False), "angular_damping": (0.0, 1.0, False),
     "swing_limit": (0.0, math.pi, True), "twist_limit": (0.0, math.pi, True), "radius_scale": (0.0, None, True),
     "friction": (0.0, None, False), "gravity": (0.0, None, False), "max_speed": (0.0, None, True),
-    "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True),
+    "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True), "contact_erp": (0.0, 1.0, True),
+    "max_joint_velocity": (0.0, None, True),
 }
 
 

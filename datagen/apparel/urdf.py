@@ -13,9 +13,10 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from datagen.apparel.chain_spec import ChainSpec
+from datagen.apparel.chain_spec import ChainSpec, LinkSpec
 
 ANCHOR_MASS_SHARE = 10.0  # the anchor outweighs the chain, so the moved constraint turns it with the bone
 LIMIT_IMPULSE = 1000.0  # Bullet reads a spherical joint's ``effort`` as its limit's largest impulse
@@ -50,11 +51,30 @@ def _capsule_inertia(mass: float, radius: float, length: float) -> tuple[float, 
     return mass * (3 * radius ** 2 + full ** 2) / 12.0, mass * radius ** 2 / 2.0
 
 
-def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray, collision_offsets=None) -> str:
+def hull_obj(link: LinkSpec) -> str:
+    """Wavefront OBJ text of ``link.hull`` in the link frame (head at the origin, Z along the bone):
+    its points and the triangles of their convex hull (Bullet collides with the hull of the points)."""
+    local = bone_frame(link.axis).inv().apply(np.asarray(link.hull, np.float64))
+    lines = [f"v {_vec(p)}" for p in local]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in ConvexHull(local).simplices]
+    return "\n".join(lines) + "\n"
+
+
+def _collision(link: LinkSpec, shift: np.ndarray, hull_file) -> str:
+    if hull_file is not None and link.hull is not None:
+        return (f'<collision><origin xyz="{_vec(shift)}"/><geometry><mesh filename="{hull_file}"/></geometry>'
+                f'</collision>')
+    return (f'<collision><origin xyz="{_vec(shift + [0.0, 0.0, 0.5 * link.length])}"/>'
+            f'<geometry><capsule radius="{_f(link.radius)}" length="{_f(link.length)}"/></geometry></collision>')
+
+
+def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray, collision_offsets=None, hull_files=None) -> str:
     """The URDF text of ``chain``; the anchor link's frame sits at ``anchor_head`` (rest, metres).
 
-    ``collision_offsets`` (L, 3) metres, in each link's frame: shifts of the capsules' collision
-    shapes off the bone (the inertia stays on it); None for none.
+    ``collision_offsets`` (L, 3) metres, in each link's frame: shifts of the links' collision
+    shapes off the bone (the inertia stays on it); None for none. ``hull_files`` (L,) the path of
+    each link's :func:`hull_obj` file, or None where the link collides as its capsule (a link
+    without a hull always does; no list: every link does).
     """
     shifts = np.zeros((len(chain.links), 3)) if collision_offsets is None else np.asarray(collision_offsets)
     anchor_mass = max(ANCHOR_MASS_SHARE * sum(link.mass for link in chain.links), 1e-3)
@@ -76,8 +96,7 @@ def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray, collision_offsets=None
         out.append(
             f'<link name="l{i}"><inertial><origin xyz="{centre}"/><mass value="{_f(link.mass)}"/>'
             f'<inertia ixx="{_f(it)}" iyy="{_f(it)}" izz="{_f(ia)}" ixy="0" ixz="0" iyz="0"/></inertial>'
-            f'<collision><origin xyz="{_vec(shifts[i] + [0.0, 0.0, 0.5 * link.length])}"/>'
-            f'<geometry><capsule radius="{_f(link.radius)}" length="{_f(link.length)}"/></geometry></collision></link>')
+            + _collision(link, shifts[i], None if hull_files is None else hull_files[i]) + '</link>')
         out.append(
             f'<joint name="j{i}" type="spherical"><parent link="{parent_name}"/><child link="l{i}"/>'
             f'<origin xyz="{_vec(offset)}" rpy="{_vec(rpy)}"/><axis xyz="0 0 1"/>'

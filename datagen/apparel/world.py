@@ -6,30 +6,38 @@ is carried by a fixed constraint that is moved every substep (``changeConstraint
 pivot and orientation): teleporting the base instead would move the whole chain rigidly and it
 would never swing. Joint motors (position control toward the rest pose) give the stiffness.
 
+Each link collides as the convex hull of its bone's vertices (:mod:`datagen.apparel.chains`).
+Contacts remove half of a penetration each step (``contact_erp``; Bullet's default is 0.2) and
+chain joints are bounded in speed (``max_joint_velocity``), see
+:class:`~datagen.apparel.params.SimParams`.
+
 Collision: chain links meet the body pieces and, where both chains ask for it, other chains
 (group and mask bits of :class:`~datagen.apparel.chain_spec.ChainSpec`); a pair that already
 overlap that is the attachment (a chain's root link in the body, any link in its anchor bone's
 piece: hair roots in the scalp, a skirt's top in the hips) is excluded, as an MMD model's
-collision masks would; see :meth:`ApparelWorld._exclude_rest_overlaps`. A root link's capsule
-that overlaps another piece at rest (a skirt's top in a thigh) is first moved just clear of it
-(:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair collides.
+collision masks would; see :meth:`ApparelWorld._exclude_rest_overlaps`. A root link that
+overlaps another piece at rest (a skirt's top in a thigh) first loses the hull points inside it
+(:meth:`ApparelWorld._root_hulls_clearing_body`) or, where that does not clear it, is moved just
+clear of it (:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair collides.
 """
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from datagen.apparel.body_shapes import BodyPiece
+from datagen.apparel.body_shapes import BodyPiece, hull_points
 from datagen.apparel.chain_spec import ChainSpec
 from datagen.apparel.params import SimParams
-from datagen.apparel.urdf import bone_frame, chain_urdf
+from datagen.apparel.urdf import bone_frame, chain_urdf, hull_obj
 from mimicbench.quaternion import quat_apply, quat_conjugate, quat_multiply
 
 BODY_GROUP, BODY_MASK = 0b01, 0b10
 REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
+CLEARING_MARGINS = (0.0, 0.005, 0.01, 0.02)  # metres: hull points this far outside the body are kept
 
 
 def xyzw(q_wxyz) -> list[float]:
@@ -77,7 +85,8 @@ class ApparelWorld:
         pb.resetSimulation(physicsClientId=cid)
         pb.setGravity(0.0, -sim.gravity, 0.0, physicsClientId=cid)
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(sim.solver_iterations),
-                                     deterministicOverlappingPairs=1, physicsClientId=cid)
+                                     contactERP=float(sim.contact_erp), deterministicOverlappingPairs=1,
+                                     physicsClientId=cid)
         self.piece_ids = []
         for piece in pieces:
             shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=piece.points.tolist(), physicsClientId=cid)
@@ -89,6 +98,7 @@ class ApparelWorld:
         with tempfile.TemporaryDirectory(prefix="mimicbench-apparel-") as tmp:
             for i, chain in enumerate(chains):
                 root_head = np.asarray(chain.links[0].head, np.float64)
+                chain = self._root_hulls_clearing_body(chain)
                 body = self._load(Path(tmp) / f"chain{i}.urdf", chain, root_head)
                 offsets = self._root_offsets_clearing_body(body, chain)
                 if offsets is not None:  # reloaded under a new name: pybullet caches a file's shapes by path
@@ -114,10 +124,62 @@ class ApparelWorld:
         self._exclude_rest_overlaps()
 
     def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray, offsets=None) -> int:
-        path.write_text(chain_urdf(chain, root_head, offsets))
+        hulls = []
+        for j, link in enumerate(chain.links):  # each link's hull beside the URDF (kept on a reload)
+            hulls.append(None if link.hull is None else path.with_name(f"{path.stem.split('-')[0]}-l{j}.obj"))
+            if hulls[-1] is not None and not hulls[-1].exists():
+                hulls[-1].write_text(hull_obj(link))
+        path.write_text(chain_urdf(chain, root_head, offsets, [None if h is None else h.name for h in hulls]))
         return self.pb.loadURDF(str(path), basePosition=root_head.tolist(),
                                 flags=self.pb.URDF_USE_INERTIA_FROM_FILE | self.pb.URDF_MAINTAIN_LINK_ORDER,
                                 physicsClientId=self.client)
+
+    def _touches_body(self, points: np.ndarray, pieces: list[int]) -> bool:
+        """Whether the convex hull of world ``points`` (P, 3) comes within the touching margin of
+        one of the body pieces ``pieces`` (body ids) where they are now."""
+        pb, cid = self.pb, self.client
+        shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=points.tolist(), physicsClientId=cid)
+        probe = pb.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape, physicsClientId=cid)
+        try:
+            return any(pb.getClosestPoints(probe, piece, REST_CONTACT_MARGIN, physicsClientId=cid)
+                       for piece in pieces)
+        finally:
+            pb.removeBody(probe, physicsClientId=cid)
+
+    def _root_hulls_clearing_body(self, chain: ChainSpec) -> ChainSpec:
+        """``chain`` with each root link's hull kept to its points that lie at least a margin
+        outside every body piece but its anchor's at rest, with the smallest margin of
+        :data:`CLEARING_MARGINS` whose hull touches none of those pieces.
+
+        A skirt strip reaches into the convex hull of a thigh at rest (the hull is fuller than
+        the thigh, and the strip's flare brushes it). Moving the whole shape out leaves the
+        strip's vertices centimetres inside the shape, so the thigh pushes the shape and the
+        vertices sink into the thigh; dropping the few hull points in the thigh keeps the rest
+        of the shape on the strip's vertices. A link that no margin clears keeps its hull (then
+        :meth:`_root_offsets_clearing_body` moves it clear).
+        """
+        if not chain.collision_mask & BODY_GROUP:
+            return chain
+        others = [(piece, body) for piece, body in zip(self.pieces, self.piece_ids) if piece.bone != chain.anchor_bone]
+        if not others:
+            return chain
+        links = list(chain.links)
+        for j, link in enumerate(links):
+            if chain.link_parents[j] >= 0 or link.hull is None:
+                continue
+            world = np.asarray(link.hull, np.float64) + np.asarray(link.head, np.float64)  # (P, 3) at rest
+            outside = np.min([np.max((world - self.keypoints[piece.bone]) @ piece.planes[:, :3].T + piece.planes[:, 3],
+                                     axis=1) for piece, _ in others], axis=0)  # (P,) lower bound of the distance
+            if outside.min() > CLEARING_MARGINS[-1]:
+                continue
+            for margin in CLEARING_MARGINS:
+                kept = hull_points(world[outside > margin])
+                if kept is None:
+                    break
+                if not self._touches_body(kept[0], [body for _, body in others]):
+                    links[j] = dataclasses.replace(link, hull=kept[0] - np.asarray(link.head, np.float64))
+                    break
+        return dataclasses.replace(chain, links=tuple(links))
 
     def _root_offsets_clearing_body(self, body: int, chain: ChainSpec) -> np.ndarray | None:
         """Collision offsets (L, 3) that move each root link's capsule out of the body pieces it
@@ -150,7 +212,8 @@ class ApparelWorld:
 
     def _set_dynamics(self, body: int, chain: ChainSpec) -> None:
         pb, cid = self.pb, self.client
-        pb.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=cid)
+        pb.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0,
+                          maxJointVelocity=float(self.sim.max_joint_velocity), physicsClientId=cid)
         pb.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=cid)  # the anchor has no shape anyway
         for j, (link, joint) in enumerate(zip(chain.links, chain.joints)):
             pb.changeDynamics(body, j, linearDamping=link.linear_damping, angularDamping=link.angular_damping,
