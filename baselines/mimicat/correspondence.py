@@ -74,13 +74,21 @@ class CorrespondenceTransformer(nn.Module):
         phi_s, phi_t = h[:, :ks], h[:, ks:ks + kt]
         return torch.einsum("bid,de,bje->bij", phi_s, self.affinity, phi_t) / math.sqrt(h.shape[-1])
 
-    def forward(self, kp_s, mask_s, kp_t, mask_t, shape_s, shape_t) -> list[torch.Tensor]:
-        """One doubly stochastic M (Ks_b, Kt_b) per pair of the batch (rows 1, columns Ks/Kt)."""
+    def forward(self, kp_s, mask_s, kp_t, mask_t, shape_s, shape_t, temperature: float = 1.0) -> list[torch.Tensor]:
+        """One doubly stochastic M (Ks_b, Kt_b) per pair of the batch (rows 1, columns Ks/Kt).
+
+        ``temperature`` T divides the scores before Sinkhorn: 1 in training (Eq. 6); the
+        pose-transfer stage asks for a sharper M (T < 1, see
+        :func:`baselines.mimicat.transfer.correspondences`), with proportionally more sweeps.
+        """
+        if not temperature > 0:
+            raise ValueError(f"temperature: expected > 0, got {temperature}")
         s = self.scores(kp_s, mask_s, kp_t, mask_t, shape_s, shape_t)
+        iters = int(round(self.sinkhorn_iters * max(1.0, 1.0 / temperature)))
         out = []
         for b in range(s.shape[0]):
             ks, kt = int(mask_s[b].sum()), int(mask_t[b].sum())
-            out.append(sinkhorn_log(s[b, :ks, :kt], temperature=1.0, num_iters=self.sinkhorn_iters, tol=1e-5))
+            out.append(sinkhorn_log(s[b, :ks, :kt], temperature=temperature, num_iters=iters, tol=1e-5))
         return out
 
 

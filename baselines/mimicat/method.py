@@ -2,7 +2,9 @@
 
 The cascade of MimiCAT: the source's pose is read off its posed vertices (weighted Kabsch per
 bone, :func:`baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
-the soft correspondence M; H the target's transforms from the Eq. 3-4 initialisation; LBS poses
+the soft correspondence M (at the Sinkhorn temperature ``transfer.m_temperature`` of the transfer
+checkpoint's config, 1 for checkpoints without it); H the target's transforms from the Eq. 3-4
+initialisation; LBS poses
 the target and ARAP refines it (:mod:`baselines.mimicat.arap`, ``arap=False`` switches it off).
 
 Weights: the checkpoint folder given as ``checkpoint=`` or by the environment variable
@@ -81,8 +83,9 @@ class Mimicat(PoseTransferMethod):
             mods[key] = load_module(checkpoint_path(self.checkpoint, stage),
                                     lambda cfg, s=model.stage(stage): s.build(cfg, ctx), self.device)
         mods["transfer"].average = self.average
-        self.points = int(section(_header_config(checkpoint_path(self.checkpoint, self.transfer_stage)),
-                                  "transfer")["points"])
+        transfer_config = section(_header_config(checkpoint_path(self.checkpoint, self.transfer_stage)), "transfer")
+        self.points = int(transfer_config["points"])
+        self.m_temperature = float(transfer_config["m_temperature"])
         self._modules = mods
         if self.arap:
             from baselines.mimicat.arap import ArapRefiner
@@ -121,7 +124,7 @@ class Mimicat(PoseTransferMethod):
         posed = [torch.tensor(np.asarray(r.source_posed, np.float32), device=self.device) for r in requests]
         m = self._modules
         with torch.no_grad():
-            ms = correspondences(m["shape"], m["corr"], src, tgt, self._m_cache)
+            ms = correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)
             result, _, _ = transfer_batch(m["shape"], m["corr"], m["transfer"], src, q_s, t_s, posed, tgt, ms)
             verts = [pose_mesh(t, q, p).cpu().numpy().astype(np.float32) for t, (q, p) in zip(tgt, result)]
         if self._refiner is not None:

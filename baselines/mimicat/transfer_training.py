@@ -10,7 +10,11 @@
   frozen pose prior F (matrix-Fisher per keypoint); ``L_feat``: squared difference between the
   residual features of the two legs (E(posed target) - E(target) should move like
   E(posed source) - E(source)). ``total = rec_weight L_rec + reg_weight L_reg + feat_weight L_feat``.
-- ``transfer_no_prior`` (needs ``shape``, ``corr``): the same without ``L_reg`` (ablation A2).
+  Both legs use G's M at the Sinkhorn temperature ``m_temperature`` (see
+  :func:`baselines.mimicat.transfer.correspondences`), as the method does at test time.
+- ``transfer_no_prior`` (needs ``shape``, ``corr``): the same without ``L_reg`` (ablation A2):
+  the very training of ``--stage transfer --set transfer.reg_weight=0`` (same seed, initial
+  weights, batches and settings), kept as its own stage so that one run folder holds both.
 
 Config sections ``corr`` and ``transfer`` (defaults in :data:`CORR_DEFAULTS`,
 :data:`TRANSFER_DEFAULTS`; ``--set transfer.reg_weight=0.05`` overrides one).
@@ -29,7 +33,7 @@ CORR_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size":
                  "sinkhorn_iters": 50}
 TRANSFER_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size": 4, "points": 512, "split": "all",
                      "examples_per_epoch": 64, "same_skeleton_share": 0.3, "rec_weight": 1.0,
-                     "reg_weight": 0.01, "feat_weight": 0.1}
+                     "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0}
 
 
 def section(config: dict, name: str) -> dict:
@@ -165,7 +169,8 @@ def cycle_losses(h: PoseTransferTransformer, batch: dict, ctx, reg_weight: float
         t_s.append(pose[:, 4:])
         posed.append(pose_mesh(tensors[s_id], pose[:, :4], pose[:, 4:]))
     cache = _CACHE.setdefault(("m", str(ctx.dataset), str(ctx.device)), {})
-    m_fwd, m_back = correspondences(encoder, g, src, tgt, cache), correspondences(encoder, g, tgt, src, cache)
+    temp = float(c["m_temperature"])
+    m_fwd, m_back = correspondences(encoder, g, src, tgt, cache, temp), correspondences(encoder, g, tgt, src, cache, temp)
     forward, _, f_fwd = transfer_batch(encoder, g, h, src, q_s, t_s, posed, tgt, m_fwd)
     pred = [pose_mesh(t, q, p) for t, (q, p) in zip(tgt, forward)]
     back, _, f_back = transfer_batch(encoder, g, h, tgt, [q for q, _ in forward], [p for _, p in forward], pred, src,
