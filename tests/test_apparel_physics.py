@@ -101,21 +101,25 @@ def _joint_rotvecs(q_parent, q_child, frame):
     return np.array(out)
 
 
-def test_swing_limit_holds_within_tolerance_on_a_fast_turn():
-    # a quarter turn in 4 frames (11.8 rad/s) swings the hanging chain against a 0.4 rad limit;
-    # Bullet's spherical limit acts once a joint is past it, so a joint overshoots by about its
-    # speed times one physics step: the stated tolerance is 0.07 rad at 240 Hz
+@pytest.mark.parametrize("turn_frames", [4, 2])
+def test_limits_hold_within_tolerance_on_a_fast_turn(turn_frames):
+    # a quarter turn in 4 or 2 frames (11.8 or 23.6 rad/s) swings the hanging chain against a
+    # 0.4 rad swing limit and twists it against a 0.15 rad twist limit; every joint's rotation
+    # (measured by hand from the stored bone rotations, the first one relative to the body bone,
+    # so the anchor's lag behind it counts too) stays within 0.01 rad of its limits on every frame
     rec = make_character()
     params = params_from_json({"kinds": {"skirt": {"swing_limit": 0.4, "twist_limit": 0.15}}})
     physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
-    sim, quality = simulate_motion(rec, physics, make_motion(rec, quick_turn(40, 4)), params, 240.0, 10)
+    sim, quality = simulate_motion(rec, physics, make_motion(rec, quick_turn(40, turn_frames)), params, 240.0, 10)
     q = sim.transforms[:, :, :4].astype(np.float64)
     frame = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])  # joint frame: a quarter turn about X, +Z down the bone
-    worst = np.zeros(3)
+    swing, twist = 0.0, 0.0
     for k in range(1, LINKS + 1):
-        worst = np.maximum(worst, np.abs(_joint_rotvecs(q[:, k - 1], q[:, k], frame)).max(axis=0))
-    assert worst[0] < 0.4 + 0.07 and worst[1] < 0.4 + 0.07 and worst[2] < 0.15 + 0.07, worst
-    assert max(worst[0], worst[1]) > 0.3  # the turn did swing the chain up to the limit
+        r = _joint_rotvecs(q[:, k - 1], q[:, k], frame)  # (F, 3)
+        swing = max(swing, float(np.linalg.norm(r[:, :2], axis=1).max()))
+        twist = max(twist, float(np.abs(r[:, 2]).max()))
+    assert swing < 0.4 + 0.01 and twist < 0.15 + 0.01, (swing, twist)
+    assert swing > 0.3  # the turn did swing the chain up to the limit
     assert quality["secondary_motion_max_pct"] > 5.0
 
 

@@ -18,8 +18,9 @@ from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 
 SIM_SUFFIX = "@sim"
-SIM_VERSION = "4"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
-# 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound
+SIM_VERSION = "5"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
+# 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
+# projected every step, constraint ERP 0.8
 
 
 @dataclass

@@ -4,11 +4,14 @@ Each body piece is a mass-0 convex hull placed at its bone's pose every substep.
 multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass and
 is carried by a fixed constraint that is moved every substep (``changeConstraint`` with the new
 pivot and orientation): teleporting the base instead would move the whole chain rigidly and it
-would never swing. Joint motors (position control toward the rest pose) give the stiffness.
+would never swing. Joint motors (position control toward the rest pose) give the stiffness;
+after every step each joint past its swing cone or twist limit is put back onto it and
+stopped there (:meth:`ApparelWorld._enforce_limits`).
 
 Each link collides as the convex hull of its bone's vertices (:mod:`datagen.apparel.chains`).
-Contacts remove half of a penetration each step (``contact_erp``; Bullet's default is 0.2) and
-chain joints are bounded in speed (``max_joint_velocity``), see
+Contacts remove half of a penetration each step (``contact_erp``; Bullet's default is 0.2), the
+anchors' constraints 0.8 of their error (``constraint_erp``), and chain joints are bounded in
+speed (``max_joint_velocity``), see
 :class:`~datagen.apparel.params.SimParams`.
 
 Collision: chain links meet the body pieces and, where both chains ask for it, other chains
@@ -28,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from datagen.apparel.body_shapes import BodyPiece, hull_points
 from datagen.apparel.chain_spec import ChainSpec
@@ -85,8 +89,8 @@ class ApparelWorld:
         pb.resetSimulation(physicsClientId=cid)
         pb.setGravity(0.0, -sim.gravity, 0.0, physicsClientId=cid)
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(sim.solver_iterations),
-                                     contactERP=float(sim.contact_erp), deterministicOverlappingPairs=1,
-                                     physicsClientId=cid)
+                                     contactERP=float(sim.contact_erp), erp=float(sim.constraint_erp),
+                                     deterministicOverlappingPairs=1, physicsClientId=cid)
         self.piece_ids = []
         for piece in pieces:
             shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=piece.points.tolist(), physicsClientId=cid)
@@ -122,6 +126,18 @@ class ApparelWorld:
         rest = [bone_frame(link.axis).as_quat() for c in self.chains for link in c.spec.links]  # (x, y, z, w)
         self._rest_frames_inv = quat_conjugate(np.array([(q[3], q[0], q[1], q[2]) for q in rest]).reshape(-1, 4))
         self._exclude_rest_overlaps()
+        self._joint_lists = [(c.body, list(range(len(c.spec.joints)))) for c in self.chains]
+        self._joint_owners = [(c.body, j) for c in self.chains for j in range(len(c.spec.joints))]
+        self._child_joints = []  # per joint: (child joint's index, its link frame in this link's frame at rest)
+        start = 0
+        for c in self.chains:
+            frames = [bone_frame(link.axis) for link in c.spec.links]
+            for j in range(len(c.spec.links)):
+                self._child_joints.append([(start + k, (frames[j].inv() * frames[k]).as_matrix())
+                                           for k, p in enumerate(c.spec.link_parents) if p == j])
+            start += len(c.spec.links)
+        self._swing_limits = np.array([j.swing_limit for c in self.chains for j in c.spec.joints], np.float64)
+        self._twist_limits = np.array([j.twist_limit for c in self.chains for j in c.spec.joints], np.float64)
 
     def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray, offsets=None) -> int:
         hulls = []
@@ -288,6 +304,63 @@ class ApparelWorld:
                        physicsClientId=cid)
             if step:
                 stepper(physicsClientId=cid)
+                self._enforce_limits()
+
+    def _enforce_limits(self) -> None:
+        """Put every joint that is past its limits back onto them and stop it there (inelastic).
+
+        A joint's rotation from rest as a rotation vector r in its frame (Z along the bone): the
+        swing (r_x, r_y) is held in the cone |(r_x, r_y)| <= swing limit and the twist to |r_z| <=
+        twist limit. Bullet's spherical limit removes only a few percent of the angle past it a
+        step, so a chain struck by a fast turn stayed far past it; this removes that angle after
+        every step, and the joint's speed further out. A spherical joint's velocity is the child
+        link's angular velocity relative to its parent, in the child's frame; the speed taken
+        from a joint is given to its child joints (in their frames), so the links below keep
+        turning as they did instead of turning back. One read of joint states per chain.
+        """
+        pb, cid = self.pb, self.client
+        states = [s for body, joints in self._joint_lists for s in
+                  pb.getJointStatesMultiDof(body, joints, physicsClientId=cid)]
+        if not states:
+            return
+        q = np.array([s[0] for s in states], np.float64)  # (J, 4) x, y, z, w
+        q *= np.where(q[:, 3:] < 0, -1.0, 1.0)
+        sin_half = np.linalg.norm(q[:, :3], axis=1)
+        r = q[:, :3] * (2.0 * np.arctan2(sin_half, q[:, 3]) / np.maximum(sin_half, 1e-12))[:, None]  # (J, 3)
+        bend = np.linalg.norm(r[:, :2], axis=1)
+        over = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
+        if not len(over):
+            return
+        velocity = np.array([s[1] for s in states], np.float64)  # (J, 3) in each child link's frame
+        turned = Rotation.from_quat(q).as_matrix()  # (J, 3, 3) joint frame -> link frame
+        reset = set()
+        for j in over.tolist():  # parents before children
+            swing, twist = self._swing_limits[j], self._twist_limits[j]
+            out = []
+            if bend[j] > swing:
+                out.append(np.array([r[j, 0], r[j, 1], 0.0]) / bend[j])
+                r[j, :2] *= swing / bend[j]
+            if abs(r[j, 2]) > twist:
+                out.append(np.array([0.0, 0.0, np.sign(r[j, 2])]))
+                r[j, 2] = np.sign(r[j, 2]) * twist
+            taken = np.zeros(3)
+            for direction in out:
+                d = turned[j].T @ direction  # in the link's frame
+                taken += max(0.0, float(velocity[j] @ d)) * d
+            velocity[j] -= taken
+            for c, rest_turn in self._child_joints[j]:
+                velocity[c] += (rest_turn @ turned[c]).T @ taken
+                reset.add(c)
+            reset.add(j)
+        angle = np.linalg.norm(r, axis=1, keepdims=True)
+        quats = np.concatenate([r / np.maximum(angle, 1e-12) * np.sin(angle / 2), np.cos(angle / 2)], axis=1)
+        quats[angle[:, 0] <= 1e-12] = [0.0, 0.0, 0.0, 1.0]
+        projected = set(over.tolist())
+        for j in sorted(reset):
+            body, joint = self._joint_owners[j]
+            target = quats[j].tolist() if j in projected else list(states[j][0])
+            pb.resetJointStateMultiDof(body, joint, targetValue=target, targetVelocity=velocity[j].tolist(),
+                                       physicsClientId=cid)
 
     def place_chains_at(self, pose: np.ndarray) -> None:
         """Teleport every chain rigidly with its anchor bone (used once, before the first step)."""
