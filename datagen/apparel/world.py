@@ -198,13 +198,15 @@ class ApparelWorld:
         return dataclasses.replace(chain, links=tuple(links))
 
     def _root_offsets_clearing_body(self, body: int, chain: ChainSpec) -> np.ndarray | None:
-        """Collision offsets (L, 3) that move each root link's capsule out of the body pieces it
-        overlaps at rest, other than its anchor bone's, along the contact normal by the overlap
-        (plus twice the touching margin); None when no root link overlaps one.
+        """Collision offsets (L, 3) that move each root link's collision shape out of the body
+        pieces it still overlaps at rest (after :meth:`_root_hulls_clearing_body`), other than its
+        anchor bone's, along the contact normal by the overlap (plus twice the touching margin);
+        None when no root link overlaps one.
 
-        A skirt's top capsule sits half inside the thigh at rest: ignoring that pair lets the
-        thigh sweep through the skirt's top in a walk, and pushing it out flings the chain. Moved
-        just clear, it rests against the thigh and is pushed by it. The deepest overlap decides.
+        A flared skirt's side strip reaches deep into the thigh's convex piece at rest: ignoring
+        that pair lets the thigh sweep through it in a walk, and pushing it out flings the chain.
+        Moved just clear, it rests against the thigh and is pushed by it. The deepest overlap
+        decides.
         """
         pb, cid = self.pb, self.client
         if not chain.collision_mask & BODY_GROUP:
