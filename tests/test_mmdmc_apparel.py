@@ -26,6 +26,15 @@ def inputs(v, frames=1, seed=0):
     return history, body, rest, joints
 
 
+def untrained_but_moving(model: ApparelDynamics) -> ApparelDynamics:
+    """The model with a random (non-zero) last decoder layer: an untrained f_d outputs exactly zero,
+    which would hide what a step reads."""
+    g = torch.Generator().manual_seed(1)
+    with torch.no_grad():
+        model.decode[-1].weight.copy_(torch.randn(model.decode[-1].weight.shape, generator=g) * 0.5)
+    return model
+
+
 def test_components_and_neighbours_stay_within_a_component():
     v, f = two_patches()
     labels = apparel_components(f, np.ones(10, bool))
@@ -44,7 +53,7 @@ def test_a_change_in_one_component_leaves_the_other_unchanged():
     torch.manual_seed(0)
     v, f = two_patches()
     nb = torch.as_tensor(component_neighbours(v, apparel_components(f, np.ones(10, bool)), k=4))
-    model = ApparelDynamics(hidden=16, code=8).eval()
+    model = untrained_but_moving(ApparelDynamics(hidden=16, code=8).eval())
     history, body, rest, joints = inputs(v)
     x, _ = model.step(history, body, rest, joints[:, :4], nb)
     moved = history.clone()
@@ -58,7 +67,7 @@ def test_rollout_reads_exactly_three_states():
     torch.manual_seed(0)
     v, f = two_patches()
     nb = torch.as_tensor(component_neighbours(v, apparel_components(f, np.ones(10, bool)), k=4))
-    model = ApparelDynamics(hidden=16, code=8).eval()
+    model = untrained_but_moving(ApparelDynamics(hidden=16, code=8).eval())
     history, body, rest, joints = inputs(v, frames=4)
     seen = []
     step = model.step
@@ -88,10 +97,22 @@ def test_rollout_reads_exactly_three_states():
 def test_zero_displacement_keeps_the_offset_from_the_body():
     v, f = two_patches()
     nb = torch.as_tensor(component_neighbours(v, apparel_components(f, np.ones(10, bool)), k=4))
-    model = ApparelDynamics(hidden=16, code=8)
-    for p in model.decode[-1].parameters():
-        torch.nn.init.zeros_(p)
+    model = ApparelDynamics(hidden=16, code=8)  # untrained: its decoder starts at zero
     history, body, rest, joints = inputs(v)
     x, d = model.step(history, body, rest, joints[:, :4], nb)
     assert torch.all(d == 0)
     torch.testing.assert_close(x, body[:, 1] + history[:, -1] - body[:, 0])
+
+
+def test_untrained_rollout_from_rest_is_the_body_pose():
+    """From a start at rest on the body (history = the first body state, as at inference), an
+    untrained f_d returns the body states frame by frame: x_t = s_t + (x_{t-1} - s_{t-1}) + 0."""
+    v, f = two_patches()
+    nb = torch.as_tensor(component_neighbours(v, apparel_components(f, np.ones(10, bool)), k=4))
+    model = ApparelDynamics(hidden=16, code=8)
+    _, body, rest, joints = inputs(v, frames=5)
+    body = torch.cat([body[:, :1], body[:, 1:]], 1)
+    body[:, 0] = body[:, 1]  # frame -1 is frame 0, as at inference
+    history = body[:, :1].repeat(1, HISTORY, 1, 1)
+    states, _ = model.rollout(history, body, rest, joints, nb)
+    torch.testing.assert_close(states, body[:, 1:])

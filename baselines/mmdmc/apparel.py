@@ -82,6 +82,10 @@ class ApparelDynamics(nn.Module):
         self.conv1 = EdgeConv(hidden, hidden)
         self.conv2 = EdgeConv(hidden, hidden)
         self.decode = mlp([3 * hidden, hidden, 3], last_act=False)
+        # the decoder starts at zero: an untrained f_d keeps the apparel's offset from the body, so
+        # from a rest start it returns f_s's LBS pose, and training only adds dynamics to it
+        nn.init.zeros_(self.decode[-1].weight)
+        nn.init.zeros_(self.decode[-1].bias)
 
     def motion_code(self, joints: torch.Tensor) -> torch.Tensor:
         """(B, code) from body joints (B, 4, J, 3) at t-3..t (unit-height frame)."""

@@ -14,18 +14,20 @@ COMMON = {
     "w_edge": 100.0,
     "w_smooth": 0.01,
     "w_reg": 0.01,
+    "w_weights": 1.0,        # ours, not the paper's: L1 of f_s's weights against the body target's (see training.py)
     "bridge_neighbours": 4,  # geodesic graph: nearest vertices looked at for bridges between mesh pieces
     "knn": 8,                # EdgeConv neighbours, within one connected apparel component
     "neighbours_loss": 6,    # rest-pose neighbours standing in for mesh edges on a vertex subsample
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
+    "rest_start": 0.5,       # ours: share of apparel windows started at rest on the body, as at inference
 }
 
 SMALL = {**COMMON, "lr": 1e-3, "weight_decay": 1e-4, "points": 1024, "batch_size": 4, "batches_per_epoch": 40,
          "seg_hidden": 64, "body_hidden": 32, "apparel_hidden": 48, "refine_hidden": 32, "code": 16,
          "apparel_points": 1024,
          # per-stage settings (the trainer reads config[stage][key] before config[key])
-         "seg": {"epochs": 12}, "body": {"epochs": 3, "batches_per_epoch": 30, "points": 512},
-         "apparel": {"epochs": 1, "batches_per_epoch": 12}, "refine": {"epochs": 1, "batches_per_epoch": 5}}
+         "seg": {"epochs": 12}, "body": {"epochs": 6, "batches_per_epoch": 100, "points": 512},
+         "apparel": {"epochs": 2, "batches_per_epoch": 12}, "refine": {"epochs": 1, "batches_per_epoch": 6}}
 
 PAPER = {**COMMON, "lr": 1e-4, "weight_decay": 1e-4, "points": 4096, "batch_size": 8, "batches_per_epoch": 500,
          "seg_hidden": 128, "body_hidden": 64, "apparel_hidden": 128, "refine_hidden": 64, "code": 64,

@@ -52,7 +52,8 @@ def skinning_weights(body: torch.nn.Module, prep: Prepared) -> torch.Tensor:
         dev = device_of(body)
         prep.cache[key] = body(torch.as_tensor(prep.rest_norm, device=dev)[None],
                                torch.as_tensor(prep.joints_norm, device=dev)[None],
-                               torch.as_tensor(prep.geo, device=dev)[None])[0]
+                               torch.as_tensor(prep.geo, device=dev)[None],
+                               torch.as_tensor(prep.bone, device=dev)[None])[0]
     return prep.cache[key]
 
 

@@ -18,6 +18,9 @@ class JointRefiner(nn.Module):
     def __init__(self, hidden: int = 32):
         super().__init__()
         self.mlp = mlp([13, hidden, hidden, 3], last_act=False)
+        # the last layer starts at zero: an untrained f_j corrects nothing (y' = y)
+        nn.init.zeros_(self.mlp[-1].weight)
+        nn.init.zeros_(self.mlp[-1].bias)
 
     def forward(self, body: torch.Tensor, combined: torch.Tensor, prob: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
         x = torch.cat([body, combined, (combined - body) * 10.0, prob[..., None], rest.expand_as(body)], dim=-1)

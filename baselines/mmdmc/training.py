@@ -5,10 +5,15 @@ end to end on their outputs):
 
 - ``seg``: f_c, binary cross entropy against the dataset's apparel vertex mask.
 - ``body``: f_s, L1 vertex (Eq. 8), edge length (Eq. 9) and weight smoothness (Eq. 10) against the
-  body target (:mod:`baselines.mmdmc.data`).
+  body target (:mod:`baselines.mmdmc.data`), plus (ours, ``w_weights``) the L1 distance of f_s's
+  weights to the body target's weights, a denser signal than the posed vertices (which say
+  nothing of a bone that did not move).
 - ``apparel`` (needs seg, body): f_d rolled out over windows of T frames from K = 3 ground-truth
   states (Eq. 11), on the apparel vertices f_c finds, from f_s's body states; L1 vertex, edge
-  length (Eq. 14-15) and an L2 regulariser on the displacements.
+  length (Eq. 14-15) and an L2 regulariser on the displacements. A share ``rest_start`` of the
+  windows (ours; the paper starts every window from ground truth) starts as inference does, from
+  the body state at rest (no apparel history is known when a request starts), so f_d learns to
+  roll out from there too.
 - ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference; L1 vertex,
   edge length, L2 on the corrections.
 
@@ -111,9 +116,10 @@ def _body_item(c: Prepared, transforms: np.ndarray, config: dict, r: np.random.G
     t_body = transforms[c.body]
     target = skin(torch.as_tensor(c.rest[rows]), torch.as_tensor(c.keypoints[c.body]), torch.as_tensor(bw),
                   torch.as_tensor(t_body)).numpy()
-    return {"points": c.rest_norm[rows], "joints": c.joints_norm, "geo": c.geo[rows], "rest": c.rest[rows],
+    return {"points": c.rest_norm[rows], "joints": c.joints_norm, "geo": c.geo[rows], "bone": c.bone[rows], "rest": c.rest[rows],
             "rest_joints": c.keypoints[c.body], "transforms": t_body, "target": c.norm(target),
-            "centre": c.centre.astype(np.float32), "height": np.float32(c.height),
+            "centre": c.centre.astype(np.float32), "height": np.float32(c.height), "target_weights": bw,
+            "apparel": c.apparel[rows],
             "edges": _knn_edges(c.rest[rows], config["neighbours_loss"])}
 
 
@@ -135,9 +141,11 @@ def batches_body(config: dict, context: StageContext, rng: np.random.Generator):
             ident = np.tile(np.array([1, 0, 0, 0, 0, 0, 0], np.float32), (pad, 1))
             out["joint_mask"].append(np.r_[np.ones(len(it["joints"]), bool), np.zeros(pad, bool)])
             for k, v in it.items():
-                if k in ("joints", "rest_joints"):
+                if k == "target_weights":
+                    v = np.concatenate([v, np.zeros((len(v), pad), np.float32)], 1)
+                elif k in ("joints", "rest_joints"):
                     v = np.concatenate([v, np.zeros((pad, 3), np.float32)])
-                elif k == "geo":
+                elif k in ("geo", "bone"):
                     v = np.concatenate([v, np.ones((len(v), pad), np.float32)], 1)
                 elif k == "transforms":
                     v = np.concatenate([v, ident])
@@ -146,8 +154,9 @@ def batches_body(config: dict, context: StageContext, rng: np.random.Generator):
 
 
 def loss_body(module, batch, context) -> dict:
-    w = module(batch["points"], batch["joints"], batch["geo"], batch["joint_mask"])
-    terms = {"vertex": 0.0, "edge": 0.0, "smooth": 0.0}
+    w = module(batch["points"], batch["joints"], batch["geo"], batch["bone"], batch["joint_mask"])
+    terms = {"vertex": 0.0, "edge": 0.0, "smooth": 0.0,
+             "weights": (w - batch["target_weights"]).abs().sum(-1).mean()}
     b = len(w)
     for i in range(b):
         pred = (skin(batch["rest"][i], batch["rest_joints"][i], w[i], batch["transforms"][i]) - batch["centre"][i]) \
@@ -202,7 +211,8 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
             mask = _predicted_mask(c, context, config)
             if not mask.any():
                 continue
-            idx = _pick_components(c, mask, config["apparel_points"], np.random.default_rng(seed))
+            r = np.random.default_rng(seed)
+            idx = _pick_components(c, mask, config["apparel_points"], r)
             nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
                                       config["knn"])
             w = skinning_weights(context.frozen["body"], c).cpu()
@@ -211,8 +221,13 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
             s = to_unit(c, skin(torch.as_tensor(c.rest[idx]), torch.as_tensor(c.keypoints[c.body]), w[idx],
                                 torch.as_tensor(kin[:, c.body]))).numpy()  # frames t0-3..t0+T-1
             truth = c.norm(posed(c, clip.simulated[frames], idx))
-            yield {"history": truth[None, :HISTORY], "body": s[None, HISTORY - 1:], "rest": c.rest_norm[idx][None],
-                   "joints": c.norm(kin[:, c.body, 4:])[None], "neighbours": nb, "truth": truth[None, HISTORY:],
+            history, body, joints = truth[:HISTORY], s[HISTORY - 1:], c.norm(kin[:, c.body, 4:])
+            if r.random() < config["rest_start"]:  # started as at inference: at rest on the body, not moving
+                history = np.repeat(s[HISTORY:HISTORY + 1], HISTORY, 0)
+                body = np.concatenate([s[HISTORY:HISTORY + 1], s[HISTORY:]])
+                joints = np.concatenate([np.repeat(joints[HISTORY:HISTORY + 1], HISTORY, 0), joints[HISTORY:]])
+            yield {"history": history[None], "body": body[None], "rest": c.rest_norm[idx][None],
+                   "joints": joints[None], "neighbours": nb, "truth": truth[None, HISTORY:],
                    "edges": np.stack([np.repeat(np.arange(len(idx)), nb.shape[1] - 1), nb[:, 1:].reshape(-1)], 1)}
 
 

@@ -1,0 +1,82 @@
+"""f_s of the MMDMC reference: vertex-bone distances, the body target's weights, and an untrained
+f_s equal to its bone-distance prior; checked against hand-computed values and naive loops."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from baselines.mmdmc.body import PRIOR_TAU, BodySkinning
+from baselines.mmdmc.bone_distance import bone_distances
+from baselines.mmdmc.data import attachment_bones, body_target_weights, prepare
+from mimicbench.weights import SparseWeights
+
+# joints: 0 root (0,0,0) -> 1 (1,0,0) -> 2 leaf (1,1,0); 3 apparel child of 1 at (1,0,1) -> 4 apparel (1,0,2)
+KEYPOINTS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [1, 0, 1], [1, 0, 2]], np.float64)
+PARENTS = np.array([-1, 0, 1, 1, 3])
+BODY = np.array([True, True, True, False, False])
+
+
+def test_bone_distances_by_hand():
+    v = np.array([[0.5, 0.2, 0.0], [1.0, 0.5, 0.3], [2.0, 2.0, 0.0]])
+    d = bone_distances(v, KEYPOINTS, PARENTS, BODY)
+    assert d.shape == (3, 3) and d.dtype == np.float32
+    # bone 0: segment (0,0,0)-(1,0,0); bone 1: (1,0,0)-(1,1,0) (its apparel child 3 is no segment end);
+    # bone 2: a leaf, its joint's point
+    expected = [[0.2, 0.5, np.hypot(0.5, 0.8)],
+                [np.hypot(0.5, 0.3), 0.3, np.hypot(0.5, 0.3)],
+                [np.hypot(1.0, 2.0), np.sqrt(2.0), np.sqrt(2.0)]]
+    np.testing.assert_allclose(d, expected, rtol=1e-6)
+
+
+def test_bone_distances_take_the_nearest_of_several_children():
+    kp = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)  # root with two children
+    d = bone_distances(np.array([[0.5, 0.5, 0.0], [0.0, 0.5, 0.1]]), kp, np.array([-1, 0, 0]), np.ones(3, bool))
+    np.testing.assert_allclose(d[:, 0], [0.5, 0.1], rtol=1e-6)
+
+
+def test_bone_distances_say_what_was_expected():
+    with pytest.raises(ValueError, match="expected"):
+        bone_distances(np.zeros((2, 3)), KEYPOINTS, PARENTS[:3], BODY)
+
+
+def test_attachment_bones():
+    assert attachment_bones(PARENTS, BODY).tolist() == [0, 1, 2, 1, 1]
+    # an apparel chain hanging from no body bone has no attachment
+    assert attachment_bones(np.array([-1, 0, -1]), np.array([True, True, False])).tolist() == [0, 1, -1]
+    with pytest.raises(ValueError, match="one entry per bone"):
+        attachment_bones(PARENTS, BODY[:2])
+
+
+def tiny_character():
+    """A strip of 4 vertices along x; vertex 3 weighted mostly to the apparel bone 4."""
+    v = np.array([[0.1, 0, 0], [0.6, 0, 0], [1.0, 0.4, 0], [1.0, 0.0, 1.5]], np.float32)
+    faces = np.array([[0, 1, 2], [1, 2, 3]], np.int32)
+    dense = np.zeros((4, 5), np.float32)
+    dense[0, 0] = 1.0
+    dense[1, [0, 1]] = [0.5, 0.5]
+    dense[2, [1, 2]] = [0.25, 0.75]
+    dense[3, [0, 3, 4]] = [0.2, 0.3, 0.5]
+    return prepare("toy", v, faces, KEYPOINTS, PARENTS, BODY, weights=SparseWeights.from_dense(dense),
+                   apparel=np.array([False, False, False, True])), dense
+
+
+def test_body_target_moves_apparel_weight_to_the_attachment_bone():
+    c, dense = tiny_character()
+    t = body_target_weights(c)
+    assert t.shape == (4, 3)
+    np.testing.assert_allclose(t[:3], dense[:3, :3], atol=1e-6)  # body vertices keep their weights
+    np.testing.assert_allclose(t[3], [0.2, 0.8, 0.0], atol=1e-6)  # bones 3 and 4 hang from bone 1
+    np.testing.assert_allclose(t.sum(1), 1.0, atol=1e-6)
+
+
+def test_untrained_body_module_is_the_bone_distance_prior():
+    c, _ = tiny_character()
+    torch.manual_seed(0)
+    f_s = BodySkinning(hidden=8)
+    w = f_s(torch.as_tensor(c.rest_norm)[None], torch.as_tensor(c.joints_norm)[None], torch.as_tensor(c.geo)[None],
+            torch.as_tensor(c.bone)[None])[0].detach().numpy()
+    b = bone_distances(c.rest, KEYPOINTS, PARENTS, BODY) / c.height
+    expected = np.exp(-(b - b.min(1, keepdims=True)) / PRIOR_TAU)
+    expected /= expected.sum(1, keepdims=True)
+    np.testing.assert_allclose(w, expected, atol=1e-5)
