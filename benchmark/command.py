@@ -86,8 +86,8 @@ def register(subparsers) -> None:
     r.add_argument("--retry-failed", action="store_true", help="also re-run cases whose stored row failed")
     r.add_argument("--engine", choices=("local", "ray"), default="local",
                    help="local (default: a worker process a method, or torchrun ranks) or ray: each batch of cases a "
-                        "Ray task, for CPU-bound methods and many small cases (same results rows; no per-case "
-                        "timeout)")
+                        "Ray task, for CPU-bound methods and many small cases (same results rows, same "
+                        "--case-timeout)")
     r.add_argument("--ray-address", default=None, metavar="ADDRESS",
                    help="with --engine ray: a running cluster (e.g. ray://head:10001); default: a local Ray instance")
     r.add_argument("--quiet", action="store_true", help="no progress bars")

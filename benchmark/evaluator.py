@@ -220,7 +220,8 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
                     todo = [c for c in plist if c.case_id not in done]
                     counts["skipped"] += len(plist) - len(todo)
                     evaluate_on_engine(engine, method, ray_path(method), name, todo, dataset, device, batch_size,
-                                       samples, lambda rows: tally(folder, rows), progress and bool(todo))
+                                       samples, lambda rows: tally(folder, rows), progress and bool(todo),
+                                       case_timeout, in_process)
                 continue
             runner = open_runner(method, device, ctx.rank, ctx.world_size, case_timeout, in_process)
             try:

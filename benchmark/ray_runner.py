@@ -3,14 +3,18 @@
 GPU methods keep ``torchrun`` (one rank a GPU, :mod:`benchmark.evaluator`). With the Ray engine,
 each batch of ``--batch-size`` cases of one protocol is one task (1 CPU, retried by Ray when its
 worker dies). A Ray worker process builds the method once from its import path (``module:Class``,
-as :mod:`benchmark.worker` does) and calls ``setup(device)`` once, loads the dataset once, and
-scores its batches exactly as the in-process runner does, keeping the sampled cases' predictions
-for the leaderboard's pictures. The driver appends the rows in case order, so the results rows
-are those of a local run (only ``seconds`` differ, as between any two runs).
+as :mod:`benchmark.worker` does), loads the dataset once, and scores its batches through the
+same runner as the local engine: a :class:`benchmark.worker.WorkerRunner` (a child process of
+the Ray worker that runs ``setup(device)`` once) with the per-case timeout, or with
+``in_process`` the method itself in the Ray worker (no timeout, no crash isolation). The sampled
+cases' predictions are kept for the leaderboard's pictures. The driver appends the rows in case
+order, so the results rows are those of a local run (only ``seconds`` differ, as between any two
+runs).
 
-What the worker-process runner gives and Ray does not: a per-case timeout (a hanging method
-holds its task; cancel the run and use the local engine to find it). A method raising, returning
-NaN or a wrong shape fails its case as usual; a task whose worker dies on every retry fails the
+A case over its time (a batch of B gets ``B x case_timeout``, then its cases are retried one at
+a time), a method raising, returning NaN or a wrong shape, or a crash of the method's process
+fails its case with the same reason the local engine writes ("timed out after 600 s"); the Ray
+task goes on with a fresh method process. A task whose Ray worker dies on every retry fails the
 cases of its batch with Ray's error.
 """
 from __future__ import annotations
@@ -21,22 +25,24 @@ from typing import Sequence
 
 from benchmark.protocols import get_protocol
 
-_METHODS: dict = {}  # per Ray worker process: import path -> method after setup
+_RUNNERS: dict = {}  # per Ray worker process: (import path, device, timeout, in process) -> runner
 _DATA: dict = {}  # per Ray worker process: dataset folder -> EvalData
 
 
-def _method(path: str, device: str):
-    key = (path, device)
-    if key not in _METHODS:
+def _runner(path: str, device: str, case_timeout: float, in_process: bool):
+    """This Ray worker's runner of the method at ``path``, built on first use and kept for later batches."""
+    from benchmark.worker import InProcessRunner, WorkerRunner
+
+    key = (path, device, case_timeout, in_process)
+    if key not in _RUNNERS:
         module, qualname = path.split(":", 1)
         obj = importlib.import_module(module)
         for part in qualname.split("."):
             obj = getattr(obj, part)
         method = obj()
-        method.setup(device)
-        method.on_distributed_init(0, 1)
-        _METHODS[key] = method
-    return _METHODS[key]
+        _RUNNERS[key] = (InProcessRunner(method, device) if in_process
+                         else WorkerRunner(method, path, device, case_timeout=case_timeout))
+    return _RUNNERS[key]
 
 
 def _data(dataset: str):
@@ -59,16 +65,22 @@ def ray_path(method) -> str:
     return path
 
 
-def score_batch(cases: Sequence, method_path: str, device: str, dataset: str, protocol: str, samples=None) -> list:
+def score_batch(cases: Sequence, method_path: str, device: str, dataset: str, protocol: str, samples=None,
+                case_timeout: float = 600.0, in_process: bool = False) -> list:
     """ResultRecords of one batch of cases of one protocol (the Ray task's body)."""
     from benchmark.evaluator import evaluate_batch
 
-    return evaluate_batch(_method(method_path, device), get_protocol(protocol), list(cases), _data(dataset), samples)
+    runner = _runner(method_path, device, float(case_timeout), in_process)
+    return evaluate_batch(runner, get_protocol(protocol), list(cases), _data(dataset), samples)
 
 
 def evaluate_on_engine(engine, method, method_path: str, protocol: str, todo: Sequence, dataset, device: str,
-                       batch_size: int, samples, on_rows, progress: bool = True) -> None:
+                       batch_size: int, samples, on_rows, progress: bool = True, case_timeout: float = 600.0,
+                       in_process: bool = False) -> None:
     """Score ``todo`` cases of ``protocol`` in batches on ``engine``; ``on_rows(rows)`` in case order.
+
+    ``case_timeout`` (seconds a case may take) and ``in_process`` mean what they mean for the
+    local engine (:func:`benchmark.evaluator.run_benchmark`).
 
     A batch whose task failed for good (its worker died on every retry) gives ``failed`` rows
     with the engine's reason.
@@ -79,7 +91,7 @@ def evaluate_on_engine(engine, method, method_path: str, protocol: str, todo: Se
 
     batches = [list(todo[i:i + batch_size]) for i in range(0, len(todo), batch_size)]
     fn = partial(score_batch, method_path=method_path, device=device, dataset=str(dataset), protocol=protocol,
-                 samples=samples)
+                 samples=samples, case_timeout=case_timeout, in_process=in_process)
     _, statuses = run_stage(batches, fn, f"{method.metadata.name}/{protocol}", name_of=lambda b: b[0].case_id,
                             progress=progress, on_done=lambda k, ok, rows: ok and on_rows(rows), engine=engine,
                             ordered=True, keep_results=False, resources=TaskResources(num_cpus=1))

@@ -217,3 +217,38 @@ def test_ingest_on_ray_is_byte_identical(ray_instance, assets_dir, tmp_path):
         assert s["failed"] == 0 and s["characters"] == 3
     assert shard_hashes(tmp_path / "local", ("characters", "motions")) == \
         shard_hashes(tmp_path / "ray", ("characters", "motions"))
+
+
+def test_bench_run_on_ray_has_the_local_per_case_timeout(zoos, tmp_path):
+    """A method hanging on one case, exiting on another and raising on a third: `bench run --engine ray`
+    writes the local engine's rows for them ("timed out after 2 s", ...) and scores their batch-mates."""
+    from benchmark.evaluator import run_benchmark
+    from benchmark.registry import register
+    from benchmark.results import method_dir, read_result_records
+    from tests.bench_fixtures import make_bench_dataset
+    from tests.hostile_methods import ENV, HostileMethod, hostile_env
+
+    data = make_bench_dataset(zoos / "local", tmp_path / "data", h2h_poses=1, cct_pairs=3, cct_poses=2)
+    cct = [c.case_id for c in read_records(data, "cases", "cct")]
+    assert len(cct) >= 5
+    acts = {cct[0]: "hang", cct[2]: "exit", cct[4]: "raise"}
+    register("hostile", HostileMethod)
+    os.environ[ENV] = hostile_env(acts)  # the local engine's worker reads it from this process
+    try:
+        local = run_benchmark(data, ["hostile"], ["cct"], tmp_path / "local", batch_size=2, progress=False,
+                              case_timeout=2)
+        on_ray = run_benchmark(data, ["hostile"], ["cct"], tmp_path / "ray", batch_size=2, progress=False,
+                               case_timeout=2, engine=RayEngine(runtime_env={"env_vars": {ENV: os.environ[ENV]}}))
+    finally:
+        del os.environ[ENV]
+    assert local["failed"] == on_ray["failed"] == len(acts)
+
+    def rows(root):
+        return {r.case_id: dataclasses.replace(r, seconds=0.0) for r in read_result_records(method_dir(root, "hostile", "1"))}
+
+    ray_rows = rows(tmp_path / "ray")
+    assert ray_rows == rows(tmp_path / "local") and set(ray_rows) == set(cct)
+    assert ray_rows[cct[0]].status == "failed" and "timed out after 2 s" in ray_rows[cct[0]].error
+    assert "method called sys.exit(3)" in ray_rows[cct[2]].error
+    assert "method raised: RuntimeError: hostile failure" in ray_rows[cct[4]].error
+    assert all(ray_rows[c].status == "ok" for c in cct if c not in acts)

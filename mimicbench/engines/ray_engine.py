@@ -53,18 +53,24 @@ def ensure_ray(address: str | None = None, num_cpus: int | None = None) -> None:
 
 
 class RayEngine(Engine):
-    """Ray tasks. ``address`` None starts (or reuses) a local Ray instance of ``num_cpus`` CPUs."""
+    """Ray tasks. ``address`` None starts (or reuses) a local Ray instance of ``num_cpus`` CPUs.
+
+    ``runtime_env``: Ray's per-task runtime environment (e.g. ``{"env_vars": {...}}`` for variables
+    the workers need that were not set when Ray started), or None for the cluster's own.
+    """
 
     name = "ray"
 
     def __init__(self, address: str | None = None, num_cpus: int | None = None,
-                 max_retries: int = DEFAULT_MAX_RETRIES, max_in_flight: int | None = None):
+                 max_retries: int = DEFAULT_MAX_RETRIES, max_in_flight: int | None = None,
+                 runtime_env: dict | None = None):
         if max_retries < 0:
             raise ValueError(f"max_retries: expected >= 0, got {max_retries}")
         if max_in_flight is not None and max_in_flight < 1:
             raise ValueError(f"max_in_flight: expected >= 1 or None, got {max_in_flight}")
         self.address, self.num_cpus = address, num_cpus
         self.max_retries, self.max_in_flight = max_retries, max_in_flight
+        self.runtime_env = runtime_env
 
     def describe(self) -> str:
         return f"ray ({self.address or 'local instance'})"
@@ -77,7 +83,8 @@ class RayEngine(Engine):
         if not items:
             return
         remote = _remote_chunk().options(num_cpus=resources.num_cpus, memory=resources.memory,
-                                         max_retries=self.max_retries)
+                                         max_retries=self.max_retries,
+                                         **({"runtime_env": self.runtime_env} if self.runtime_env else {}))
         window = self.max_in_flight or max(2, 2 * int(ray.cluster_resources().get("CPU", 1)))
         fn_ref = ray.put(fn)
         pending = list(reversed(chunks_of(len(items), chunk)))
