@@ -22,7 +22,7 @@ from schemas.columns import records_to_table, table_to_records
 from schemas.integrity import entry_path
 from schemas.manifest import load_manifest_for_write, save_manifest, sha256_of
 from schemas.shards import _unlink_stale, _write_parquet_temp, read_checked_shard, readable_entries, shard_name
-from schemas.tables import ROW_GROUP_SIZE, record_type, schema_of
+from schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
 
 
 class ShardStream:
@@ -62,7 +62,7 @@ class ShardStream:
         self.folder.mkdir(parents=True, exist_ok=True)
         arrow = records_to_table(self.buffer, self.rtype, self.table).replace_schema_metadata(self.schema.metadata)
         final = self.folder / f"{self.split}-stream-{len(self.temps):05d}"
-        tmp = _write_parquet_temp(arrow, final, ROW_GROUP_SIZE.get(self.table, 1024))
+        tmp = _write_parquet_temp(arrow, final, ROW_GROUP_SIZE.get(self.table, 1024), COLUMN_ENCODING.get(self.table))
         hidden = self.folder / f".{self.split}-stream-{len(self.temps):05d}.tmp"
         os.replace(tmp, hidden)
         self.temps.append(str(hidden))

@@ -29,7 +29,7 @@ from schemas.fingerprint import stale_inputs
 from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (chmod_like_open, fsync_file, incomplete_reason, is_complete, load_manifest,
                               load_manifest_for_write, save_manifest, sha256_of)
-from schemas.tables import ROW_GROUP_SIZE, record_type, schema_of
+from schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
 from schemas.version import METADATA_KEY, SCHEMA_VERSION, is_compatible
 
 SHARD_RE = re.compile(r"^(?P<split>[A-Za-z0-9_]+)-(?P<i>\d{5})-of-(?P<n>\d{5})\.parquet$")
@@ -92,7 +92,8 @@ def write_table(root, table: str, arrow: pa.Table, split: str, rows_per_shard: i
         for i in range(n):
             part = arrow.slice(i * rows_per_shard, rows_per_shard)
             final = folder / shard_name(split, i, n)
-            temps.append((_write_parquet_temp(part, final, ROW_GROUP_SIZE.get(table, 1024)), final))
+            temps.append((_write_parquet_temp(part, final, ROW_GROUP_SIZE.get(table, 1024),
+                                              COLUMN_ENCODING.get(table)), final))
     except BaseException:
         for tmp, _ in temps:
             if os.path.exists(tmp):
@@ -144,12 +145,33 @@ def remove_split(root, table: str, split: str) -> None:
     _unlink_stale(root, gone)
 
 
-def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int) -> str:
-    """Write ``table`` to a temporary file beside ``final``; return its path (removed on error)."""
+def _leaf_paths(schema: pa.Schema) -> list[str]:
+    """Parquet leaf column paths of an Arrow schema (``s_cos.list.element`` for a list column)."""
+    def walk(name: str, t: pa.DataType) -> list[str]:
+        if pa.types.is_list(t) or pa.types.is_large_list(t):
+            return walk(f"{name}.list.element", t.value_type)
+        if pa.types.is_struct(t):
+            return [p for f in t for p in walk(f"{name}.{f.name}", f.type)]
+        return [name]
+    return [p for f in schema for p in walk(f.name, f.type)]
+
+
+def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int,
+                        column_encoding: dict | None = None) -> str:
+    """Write ``table`` to a temporary file beside ``final``; return its path (removed on error).
+
+    ``column_encoding``: {leaf column path: Parquet encoding} for columns that do better without
+    the dictionary encoding (``schemas.tables.COLUMN_ENCODING``); the others keep it.
+    """
     fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent)
     os.close(fd)
+    encoding = {}
+    if column_encoding:
+        leaves = _leaf_paths(table.schema)
+        encoding = {"use_dictionary": [p for p in leaves if p not in column_encoding],
+                    "column_encoding": column_encoding}
     try:
-        pq.write_table(table, tmp, row_group_size=row_group_size, compression="zstd")
+        pq.write_table(table, tmp, row_group_size=row_group_size, compression="zstd", **encoding)
         fsync_file(tmp)
         chmod_like_open(tmp)
     except BaseException:

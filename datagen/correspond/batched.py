@@ -13,6 +13,12 @@ then each column's maximum is subtracted from S / T: a diagonal rescaling that t
 ``exp`` neither overflows nor leaves a row or column all zero. At small T (below about 0.05 on
 real bone names) the balancing may need more sweeps than allowed; the marginals are then checked
 and a clear error asks for a higher temperature.
+
+The batches run on one torch thread: with torch's default (one thread a core) the large chunks'
+element-wise sweeps and products split over threads, which changed the last bits of a few M_sink
+entries with the machine's core count and, on a busy 2-core machine, spent about 5x more CPU time
+in threads waiting for each other. Parallelism comes from running blocks in several processes
+(``--jobs``) or Ray tasks instead.
 """
 from __future__ import annotations
 
@@ -32,7 +38,7 @@ CHUNK = 256
 
 def sinkhorn_padded(scores: torch.Tensor, k1: torch.Tensor, k2: torch.Tensor, temperature: float,
                     tol: float = 2e-5, max_iters: int = 20000, omega: float = 1.5, chunk: int = 256,
-                    dustbin: float | None = None) -> torch.Tensor:
+                    dustbin: float | None = None, classic: bool = False) -> torch.Tensor:
     """Batched Sinkhorn on padded scores, in the scaling domain with over-relaxation.
 
     Each sweep updates ``u <- u^(1-w) (a / K v)^w`` and ``v <- v^(1-w) (b / K^T u)^w``
@@ -56,6 +62,9 @@ def sinkhorn_padded(scores: torch.Tensor, k1: torch.Tensor, k2: torch.Tensor, te
         k1, k2: (B,) long valid sizes.
         temperature: T >= 0.01.
         dustbin: score of the no-match row and column, or None for the plain balanced problem.
+        classic: every sweep with w = 1 (no over-relaxation): slower, but its scalings cannot
+            overflow; :func:`correspondence_batch` redoes with it the few pairs whose over-relaxed
+            sweeps overflowed.
 
     Returns:
         (B, P1, P2) of the dtype of ``scores``: the valid block balanced to rows 1 and columns
@@ -66,7 +75,7 @@ def sinkhorn_padded(scores: torch.Tensor, k1: torch.Tensor, k2: torch.Tensor, te
     if not 1.0 <= omega < 2.0:
         raise ValueError(f"omega: expected 1 <= omega < 2, got {omega}")
     return torch.cat([_sinkhorn_chunk(scores[i:i + chunk], k1[i:i + chunk], k2[i:i + chunk], temperature, tol,
-                                      max_iters, omega, dustbin) for i in range(0, scores.shape[0], chunk)])
+                                      max_iters, omega, dustbin, classic) for i in range(0, scores.shape[0], chunk)])
 
 
 def _matvec(kernel_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
@@ -78,7 +87,7 @@ def _matvec(kernel_t: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return torch.bmm(x[:, None, :], kernel_t)[:, 0]
 
 
-def _sinkhorn_chunk(scores, k1, k2, temperature, tol, max_iters, omega, dustbin=None):
+def _sinkhorn_chunk(scores, k1, k2, temperature, tol, max_iters, omega, dustbin=None, classic=False):
     bsz, p1, p2 = scores.shape
     rows = torch.arange(p1)[None, :] < k1[:, None]
     cols = torch.arange(p2)[None, :] < k2[:, None]
@@ -90,11 +99,11 @@ def _sinkhorn_chunk(scores, k1, k2, temperature, tol, max_iters, omega, dustbin=
         f1, f2 = k1.to(scores.dtype), k2.to(scores.dtype)
         a = torch.cat([rows[:, :p1].to(scores.dtype), torch.maximum(f1, f2)[:, None]], 1)
         b = torch.cat([cols[:, :p2].to(scores.dtype) * torch.clamp(f1 / f2, min=1.0)[:, None], f1[:, None]], 1)
-        out = _balance(full, rows, cols, a, b, temperature, tol, max_iters, max(omega, DUSTBIN_OMEGA))
+        out = _balance(full, rows, cols, a, b, temperature, tol, max_iters, 1.0 if classic else max(omega, DUSTBIN_OMEGA))
         return out[:, :p1, :p2]
     a = rows.to(scores.dtype)
     b = cols.to(scores.dtype) * (k1.to(scores.dtype) / k2.to(scores.dtype))[:, None]
-    return _balance(scores, rows, cols, a, b, temperature, tol, max_iters, omega)
+    return _balance(scores, rows, cols, a, b, temperature, tol, max_iters, 1.0 if classic else omega)
 
 
 def _balance(scores, rows, cols, a, b, temperature, tol, max_iters, omega):
@@ -110,7 +119,7 @@ def _balance(scores, rows, cols, a, b, temperature, tol, max_iters, omega):
     u, v = a.clone(), b.clone()
     active = torch.arange(bsz)
     k_act, kt_act = kernel, kernel.transpose(1, 2).contiguous()
-    a_act, b_act, u_act, v_act = a, b, u, v
+    a_act, b_act, u_act, v_act = a, b, u.clone(), v.clone()
     for it in range(max_iters):
         w = omega if it < max_iters // 2 else 1.0
         kv = _matvec(kt_act, v_act)  # K v
@@ -129,14 +138,26 @@ def _balance(scores, rows, cols, a, b, temperature, tol, max_iters, omega):
                     break
                 active, k_act, kt_act, a_act, b_act = active[keep], k_act[keep], kt_act[keep], a_act[keep], b_act[keep]
                 u_act, v_act, kv = u_act[keep], v_act[keep], kv[keep]
-        un = torch.where(a_act > 0, a_act / kv.clamp_min(1e-30), zero)
-        u_act = un if w == 1.0 else torch.where(a_act > 0, u_act.clamp_min(1e-30) ** (1 - w) * un ** w, zero)
-        ktu = _matvec(k_act, u_act)  # K^T u
-        vn = torch.where(b_act > 0, b_act / ktu.clamp_min(1e-30), zero)
-        v_act = vn if w == 1.0 else torch.where(b_act > 0, v_act.clamp_min(1e-30) ** (1 - w) * vn ** w, zero)
+        u_act = _scaling_update(u_act, a_act, kv, w)
+        v_act = _scaling_update(v_act, b_act, _matvec(k_act, u_act), w)  # K^T u
     if len(active):
         u[active], v[active] = u_act, v_act
     return u[:, :, None] * kernel * v[:, None, :]
+
+
+def _scaling_update(x: torch.Tensor, marginal: torch.Tensor, product: torch.Tensor, w: float) -> torch.Tensor:
+    """One over-relaxed Sinkhorn half-sweep: ``x^(1-w) (marginal / product)^w`` (B, P), in place.
+
+    ``x`` is the scaling (u or v) of the last sweep, ``product`` the kernel applied to the other
+    scaling (both are overwritten). Where the marginal is 0 (padding) the result is exactly +0 with
+    no mask: ``0 / p`` is +0 for the clamped p, ``0^w`` is +0, and ``x^(1-w)`` of the clamped x
+    is finite, so the mask of the textbook form (``where(marginal > 0, ..., 0)``) changes no bit.
+    The operations and their order are otherwise the textbook form's, so the bits are too.
+    """
+    fresh = torch.div(marginal, product.clamp_min_(1e-30), out=product)  # marginal / product
+    if w == 1.0:
+        return fresh
+    return x.clamp_min_(1e-30).pow_(1 - w).mul_(fresh.pow_(w))
 
 
 def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray],
@@ -169,11 +190,16 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
     if (feat_a is None) != (feat_b is None) or (feat_a is not None and feature_weights is None):
         raise ValueError("feat_a, feat_b, feature_weights: expected all three or none")
     out = []
-    for i in range(0, len(emb_a), chunk):
-        fa = None if feat_a is None else feat_a[i:i + chunk]
-        fb = None if feat_b is None else feat_b[i:i + chunk]
-        out.extend(_correspondence_chunk(emb_a[i:i + chunk], emb_b[i:i + chunk], temperature, fa, fb,
-                                         feature_weights, text_weight, no_match))
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # the same bits on every machine (see the module docstring)
+    try:
+        for i in range(0, len(emb_a), chunk):
+            fa = None if feat_a is None else feat_a[i:i + chunk]
+            fb = None if feat_b is None else feat_b[i:i + chunk]
+            out.extend(_correspondence_chunk(emb_a[i:i + chunk], emb_b[i:i + chunk], temperature, fa, fb,
+                                             feature_weights, text_weight, no_match))
+    finally:
+        torch.set_num_threads(threads)
     return out
 
 
@@ -221,18 +247,27 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
             raise ValueError("feat_a, feat_b: expected finite features, got NaN or inf")
         scores = text_weight * cosines - feature_penalty(fa, fb, weights)
     sink = sinkhorn_padded(scores, k1, k2, temperature, chunk=n, dustbin=no_match)
-    want_rows = (torch.arange(sink.shape[1])[None, :] < k1[:, None]).to(sink.dtype)
-    row_sums = sink.sum(dim=2)
-    row_error = ((row_sums - want_rows) if no_match is None else (row_sums - want_rows).clamp(min=0)).abs().max().item()
-    if not row_error <= 1e-4:  # also catches NaN
-        raise RuntimeError(f"Sinkhorn did not converge (row marginal error {row_error:.1e}); "
-                           f"use a higher temperature than {temperature}")
+    bad = ~(_row_errors(sink, k1, no_match) <= 1e-4)  # also catches NaN
+    if bad.any():  # over-relaxed sweeps that overflowed (seen with a dustbin on 81 x 241 bones): classic sweeps
+        sink[bad] = sinkhorn_padded(scores[bad], k1[bad], k2[bad], temperature, chunk=n, dustbin=no_match,
+                                    classic=True)
+        row_error = _row_errors(sink, k1, no_match).max().item()
+        if not row_error <= 1e-4:
+            raise RuntimeError(f"Sinkhorn did not converge (row marginal error {row_error:.1e}); "
+                               f"use a higher temperature than {temperature}")
     sink, cosines, scores = sink.numpy(), cosines.numpy(), scores.numpy()
     out = []
     for i in range(n):
         c = cosines[i, : k1[i], : k2[i]]
         out.append((c.copy(), hungarian_pairs(scores[i, : k1[i], : k2[i]], no_match), sink[i, : k1[i], : k2[i]].copy()))
     return out
+
+
+def _row_errors(sink: torch.Tensor, k1: torch.Tensor, no_match: float | None) -> torch.Tensor:
+    """(B,) largest row-sum error of each pair's M_sink: rows should sum to 1 (to at most 1 with a dustbin)."""
+    want_rows = (torch.arange(sink.shape[1])[None, :] < k1[:, None]).to(sink.dtype)
+    excess = sink.sum(dim=2) - want_rows
+    return (excess if no_match is None else excess.clamp(min=0)).abs().amax(dim=1)
 
 
 def hungarian_pairs(scores: np.ndarray, no_match: float | None = None) -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from mimicbench.engines import add_engine_arguments
-from mimicbench.argtypes import nonnegative_int, positive_float, positive_int
+from mimicbench.argtypes import MAX_JOBS, job_count, nonnegative_int, positive_float, positive_int
 
 
 def register(subparsers) -> None:
@@ -24,7 +24,8 @@ def register(subparsers) -> None:
         "to rows 1.\n"
         "Each pair records its method and weights. On the zoo, prints how often matched bones share their "
         "hidden role\n(per category pair; report in DATASET/correspond_report.json). Examples:\n"
-        "  mimicbench datagen correspond data/zoo --all-pairs\n"
+        "  mimicbench datagen correspond data/zoo --all-pairs --jobs 2\n"
+        "  mimicbench datagen correspond data/zoo --all-pairs --unordered   (one direction a pair)\n"
         "  mimicbench datagen correspond data/zoo --pairs 20000 --method text\n"
         "  mimicbench datagen correspond data/zoo --pairs 20000 --encoder clip --clip-pretrained ~/ckpt/clip.pt",
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -33,6 +34,11 @@ def register(subparsers) -> None:
     g.add_argument("--pairs", type=positive_int, default=None,
                    help="ordered pairs to sample per split, >= 1 (default: all)")
     g.add_argument("--all-pairs", action="store_true", help="every ordered pair within each split")
+    p.add_argument("--unordered", action="store_true",
+                   help="each pair of characters once (a->b, a's ID first): n(n-1)/2 pairs of a split of n instead of "
+                        "n(n-1); PokeAnimDB's 384k pairs are C(877, 2), the unordered pairs of 90%% of 975 characters")
+    p.add_argument("--jobs", type=job_count, default=1,
+                   help=f"worker processes matching blocks of pairs, 1 to {MAX_JOBS} (default 1; each on one thread)")
     p.add_argument("--method", choices=("structure", "text"), default="structure",
                    help="structure (default: text and skeleton) or text (the paper's S_cos-only method)")
     p.add_argument("--no-match", type=float, default=None,
@@ -55,7 +61,7 @@ def run(args) -> int:
 
     summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder, args.temperature, args.seed,
                                  args.clip_model, args.clip_pretrained, progress=not args.quiet, method=args.method,
-                                 no_match=args.no_match, engine=engine_from_args(args))
+                                 no_match=args.no_match, engine=engine_from_args(args), unordered=args.unordered)
     for failure in summary["failed_blocks"]:
         print(f"  FAILED {failure}")
     print(f"pairs written: {summary['pairs']} with {summary['encoder']}, method {summary['method']}, in "

@@ -36,22 +36,42 @@ def pair_role_agreement(source_roles, target_roles, hungarian) -> float | None:
     return float(sum(same) / len(same))
 
 
-def pair_scores(source, target, hungarian) -> dict | None:
-    """The fields of the module docstring for one pair of records with roles; None without roles."""
-    ra, rb = source.bone_roles, target.bone_roles
-    if ra is None or rb is None or not len(ra) or not len(rb):
+def pair_scores(source, target, hungarian, cache: dict | None = None) -> dict | None:
+    """The fields of the module docstring for one pair of records with roles; None without roles.
+
+    ``cache`` (a dict kept across calls) holds each character's roles, role classes and their
+    counts by character ID, so a report over many pairs works them out once a character.
+    """
+    ra, ca, count_ra, count_ca = _roles_of(source, cache)
+    rb, cb, count_rb, count_cb = _roles_of(target, cache)
+    if ra is None or rb is None:
         return None
-    ca, cb = role_classes(list(ra), source.category), role_classes(list(rb), target.category)
     h = np.asarray(hungarian, dtype=np.int64).reshape(-1, 2)
-    exact = [ra[i] == rb[j] for i, j in h]
-    mapped = [ca[i] == cb[j] for i, j in h]
+    exact = ra[h[:, 0]] == rb[h[:, 1]]
+    mapped = ca[h[:, 0]] == cb[h[:, 1]]
     same_category = source.category == target.category
-    keys_a, keys_b, right = (ra, rb, exact) if same_category else (ca, cb, mapped)
-    count_b = Counter(keys_b)
-    possible = sum(min(n, count_b[key]) for key, n in Counter(keys_a).items())
+    (count_a, count_b), right = ((count_ra, count_rb), exact) if same_category else ((count_ca, count_cb), mapped)
+    possible = sum(min(n, count_b[key]) for key, n in count_a.items())
     share = (lambda xs: float(np.mean(xs)) if len(xs) else None)  # no match: nothing to agree on
     return {"agreement": share(right), "exact": share(exact), "role_map": share(mapped),
-            "matched": len(h) / min(len(ra), len(rb)), "recall": (sum(right) / possible) if possible else 1.0}
+            "matched": len(h) / min(len(ra), len(rb)), "recall": (int(right.sum()) / possible) if possible else 1.0}
+
+
+def _roles_of(record, cache: dict | None) -> tuple:
+    """(roles (K,) object array, role classes (K,), Counter of roles, Counter of classes), or Nones."""
+    key = record.character_id
+    if cache is not None and key in cache:
+        return cache[key]
+    roles = record.bone_roles
+    if roles is None or not len(roles):
+        out = (None, None, None, None)
+    else:
+        roles = list(roles)
+        classes = role_classes(roles, record.category)
+        out = (np.array(roles, dtype=object), np.array(classes, dtype=object), Counter(roles), Counter(classes))
+    if cache is not None:
+        cache[key] = out
+    return out
 
 
 def _style(record) -> str:
@@ -70,10 +90,10 @@ def _summary(groups: dict) -> dict:
 def role_agreement_report(records_by_id: dict, pairs: list, method: dict | None = None) -> dict:
     """``{"by_category": {"humanoid->bird": {"pairs": n, "agreement": x, ...}}, "humanoid_styles": {...},
     "humanoid_cross_style_agreement": x, "cross_category_agreement": x, "method": {...}}``."""
-    by_cat, by_style, cross = defaultdict(list), defaultdict(list), []
+    by_cat, by_style, cross, cache = defaultdict(list), defaultdict(list), [], {}
     for p in pairs:
         a, b = records_by_id[p.source_id], records_by_id[p.target_id]
-        scores = pair_scores(a, b, p.hungarian)
+        scores = pair_scores(a, b, p.hungarian, cache)
         if scores is None:
             continue
         by_cat[f"{a.category}->{b.category}"].append(scores)

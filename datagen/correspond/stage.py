@@ -122,13 +122,16 @@ def pair_blocks(chosen: list[tuple], rows_per_shard: int = ROWS_PER_SHARD,
 def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = False, encoder: str = "minilm",
                        temperature: float | None = None, seed: int = 0, clip_model: str = "ViT-B-32",
                        clip_pretrained: str | None = None, progress: bool = True, method: str = DEFAULT_METHOD,
-                       no_match: float | None = None, engine: Engine | None = None, block: int = BATCH) -> dict:
+                       no_match: float | None = None, engine: Engine | None = None, block: int = BATCH,
+                       unordered: bool = False) -> dict:
     """Write ``pairs/`` shards (one group per split) and ``correspond_report.json``; return a summary.
 
     Args:
         dataset_dir: dataset folder with a ``characters`` table.
         pairs: ordered pairs per split to sample (ignored with ``all_pairs``); None means all.
         all_pairs: every ordered pair within each split.
+        unordered: each pair of characters once, a->b with a's ID first (C(n, 2) a split of n with
+            ``all_pairs``; see :mod:`.sampling`).
         encoder: ``minilm`` (offline default) or ``clip``.
         method: ``structure`` (default: text and skeleton, no-match threshold) or ``text`` (the
             paper's S_cos, Hungarian, Sinkhorn); see :mod:`datagen.correspond.methods`.
@@ -159,11 +162,12 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     params = json.loads(m.params_json())
     written, matched, statuses = {}, [], []
     config = stage_config({"stage": "correspond", "encoder": enc.name, "temperature": m.temperature, "seed": seed,
-                           "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION, "method": params},
+                           "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION, "method": params,
+                           **({"unordered": True} if unordered else {})},
                           tables_fingerprint(dataset_dir, ["characters"]))
     fn = partial(_match_block, method=m, emb=emb, feats=feats)
     for split in splits_of(dataset_dir, "characters"):
-        chosen = sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed)
+        chosen = sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed, unordered)
         blocks, ends = pair_blocks(chosen, ROWS_PER_SHARD, block)
         stream = ShardStream(dataset_dir, "pairs", split, ROWS_PER_SHARD, config)
         run: dict[int, PairRecord] = {}
