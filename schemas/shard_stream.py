@@ -19,9 +19,11 @@ from typing import Any, Iterable, Iterator
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
-from schemas.integrity import entry_path
+from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import load_manifest_for_write, save_manifest, sha256_of
-from schemas.shards import _unlink_stale, _write_parquet_temp, read_checked_shard, readable_entries, shard_name
+from schemas.errors import DatasetError
+from schemas.shards import (_unlink_stale, _write_parquet_temp, check_schema, read_checked_shard, readable_entries,
+                            shard_name)
 from schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
 
 
@@ -120,3 +122,37 @@ def iter_records(root, table: str, split: str | None = None, *, verify: bool | N
     expected, rtype = schema_of(table), record_type(table)
     for e in readable_entries(root, table, split, allow_incomplete):
         yield from table_to_records(read_checked_shard(root, e, expected, verify=verify), rtype)
+
+
+def checked_parquet_file(root, entry: dict, table: str, verify: bool | None = None) -> pq.ParquetFile:
+    """The Parquet file of a manifest ``entry`` of ``table``, after :func:`read_checked_shard`'s
+    per-shard checks (path inside the dataset, size/sha256, readable, schema, row count), opened
+    for reading row group by row group."""
+    root = Path(root)
+    path = entry_path(root, entry["path"])
+    verify_shard(path, entry, verify)
+    try:
+        pf = pq.ParquetFile(path)
+    except Exception as exc:  # pyarrow raises several types for damaged files
+        raise DatasetError(f"{path}: not a readable Parquet file ({exc})") from exc
+    check_schema(path, pf.schema_arrow, schema_of(table))
+    if pf.metadata.num_rows != entry.get("rows"):
+        raise DatasetError(f"{path}: {pf.metadata.num_rows} rows, manifest.json says {entry.get('rows')}")
+    return pf
+
+
+def read_row_group(pf: pq.ParquetFile, i: int, table: str, columns: list[str] | None = None) -> list[Any]:
+    """The records of row group ``i`` of a checked file (:func:`checked_parquet_file`)."""
+    t = pf.read_row_group(i, columns=columns).replace_schema_metadata(schema_of(table).metadata)
+    return table_to_records(t, record_type(table))
+
+
+def iter_row_groups(root, table: str, split: str | None = None, *, verify: bool | None = None,
+                    allow_incomplete: bool = False) -> Iterator[tuple[dict, int, list[Any]]]:
+    """``(manifest entry, row group number, its records)`` of ``table`` (one split, or all), in
+    stored order, with the checks of :func:`iter_records`. Memory holds one row group (8 rows of
+    ``characters``), not a shard: a characters shard of 500 rows of full meshes is gigabytes."""
+    for e in readable_entries(Path(root), table, split, allow_incomplete):
+        pf = checked_parquet_file(root, e, table, verify)
+        for i in range(pf.num_row_groups):
+            yield e, i, read_row_group(pf, i, table)

@@ -6,12 +6,19 @@ manifest says ``"complete": false``. At the end the parts become the final per-s
 motions and pairs are copied, and the manifest is marked complete. A killed run keeps its parts;
 a re-run reuses them, and the rows of a finished run, only when the fingerprints of the input
 tables and of the parameters (faces, backend) match; otherwise it redoes every character.
+
+Memory stays bounded however many characters there are: input characters are read a row group
+(8 characters) at a time and resampled ``BATCH`` at a time, the frames each is measured on are
+spilled to a temporary folder, finished characters go to part shards as they come, and the final
+shards are streamed (:class:`schemas.shard_stream.ShardStream`) from the parts, a row group at a
+time. What grows with the count is only a list of character IDs.
 """
 from __future__ import annotations
 
 import dataclasses
 import json
 import os
+import pickle
 import shutil
 import tempfile
 import time
@@ -29,8 +36,9 @@ from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_finge
 from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_incomplete,
                               save_manifest)
-from schemas.shard_stream import iter_records
-from schemas.shards import has_table, read_records, remove_split, splits_of, write_records
+from schemas.shard_stream import ShardStream, checked_parquet_file, iter_records, iter_row_groups, read_row_group
+from schemas.shards import has_table, readable_entries, remove_split, splits_of, write_records
+from schemas.tables import ROW_GROUP_SIZE
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
 
@@ -38,6 +46,7 @@ BACKENDS = ("fast", "pymeshlab")
 PART = "part_"  # split-name prefix of the shards written while the stage runs
 COPIED_TABLES = ("motions", "pairs")  # copied unchanged from the input
 TASK_RESOURCES = TaskResources(num_cpus=1, memory=2 << 30)  # one character: mesh, KD-tree, weights
+BATCH = 64  # input characters in memory (and handed to the engine) at a time
 
 
 def _one(item, faces, backend):
@@ -113,8 +122,9 @@ def _check_arguments(in_dir: Path, out_dir: Path, faces: int, backend: str, jobs
 
 
 def _reusable_rows(out_dir: Path, config: dict) -> tuple[dict, list[str]]:
-    """Rows of ``out_dir`` made with the same fingerprints as ``config`` (by character ID), and
-    notes on the rows that cannot be reused and why.
+    """Where the rows of ``out_dir`` made with the same fingerprints as ``config`` are
+    (``{character_id: (manifest entry, row group)}``), and notes on the rows that cannot be reused
+    and why.
 
     Drops part shards of an interrupted run with other fingerprints. Refuses an ``out_dir``
     holding a dataset that resample did not make.
@@ -153,26 +163,73 @@ def _reusable_rows(out_dir: Path, config: dict) -> tuple[dict, list[str]]:
 
 
 def _rows_or_note(out_dir: Path, split: str, notes: list[str]) -> dict:
-    """``{character_id: record}`` of one split of ``out_dir``; a split that fails its checks (e.g. a
-    shard replaced by a run killed before it updated the manifest) is redone, with a note."""
+    """``{character_id: (manifest entry, row group)}`` of one split of ``out_dir`` (only the IDs are
+    read, after each shard's checks); a split that fails its checks (e.g. a shard replaced by a run
+    killed before it updated the manifest) is redone, with a note."""
     try:
-        return {r.character_id: r for r in read_records(out_dir, "characters", split, allow_incomplete=True)}
+        where = {}
+        for e in readable_entries(out_dir, "characters", split, allow_incomplete=True):
+            pf = checked_parquet_file(out_dir, e, "characters")
+            for g in range(pf.num_row_groups):
+                ids = pf.read_row_group(g, columns=["character_id"]).column(0).to_pylist()
+                where.update((cid, (e, g)) for cid in ids)
+        return where
     except DatasetError as exc:
         notes.append(f"the rows of split {split!r} cannot be reused and are redone ({exc})")
         return {}
 
 
-def sampled_motions(in_dir: Path) -> dict[str, list]:
-    """Per character ID its motions cut to the 3 frames :func:`sample_frames` takes of each clip
-    (first, middle, last), read one shard at a time: a 4.5-million-frame motions table never sits
-    in memory, and the frames a character is measured on are exactly those of its full clips."""
-    out: dict[str, list] = {}
-    for m in iter_records(in_dir, "motions"):
-        idx = np.linspace(0, m.num_frames - 1, 3).astype(int)
-        out.setdefault(m.character_id, []).append(
-            dataclasses.replace(m, transforms=np.ascontiguousarray(m.transforms[idx]), num_frames=3,
-                                scale=None if m.scale is None else np.ascontiguousarray(m.scale[idx])))
-    return out
+class _RowReader:
+    """Records of ``out_dir``'s characters by (manifest entry, row group), the last few groups kept."""
+
+    def __init__(self, out_dir: Path, keep: int = 4):
+        self.out_dir, self.keep = out_dir, keep
+        self.groups: dict = {}
+
+    def get(self, cid: str, where: tuple) -> object:
+        entry, group = where
+        key = (entry["path"], group)
+        if key not in self.groups:
+            if len(self.groups) >= self.keep:
+                self.groups.pop(next(iter(self.groups)))
+            pf = checked_parquet_file(self.out_dir, entry, "characters")
+            self.groups[key] = {r.character_id: r for r in read_row_group(pf, group, "characters")}
+        return self.groups[key][cid]
+
+
+class _FrameSpill:
+    """Each character's sampled motions (:func:`_sampled`) in a temporary folder, one file a
+    character, so they are read once from the motions table and held one batch at a time."""
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.files: dict[str, Path] = {}
+
+    def fill(self, in_dir: Path) -> None:
+        per_character: dict[str, list] = {}
+        for m in iter_records(in_dir, "motions"):  # one shard in memory
+            per_character.setdefault(m.character_id, []).append(_sampled(m))
+            if sum(len(v) for v in per_character.values()) >= 4096:
+                self._write(per_character)
+        self._write(per_character)
+
+    def _write(self, per_character: dict) -> None:
+        for cid, motions in per_character.items():
+            path = self.files.setdefault(cid, self.folder / f"{len(self.files):08d}.pkl")
+            old = pickle.loads(path.read_bytes()) if path.exists() else []
+            path.write_bytes(pickle.dumps(old + motions, protocol=pickle.HIGHEST_PROTOCOL))
+        per_character.clear()
+
+    def motions(self, cid: str) -> list:
+        path = self.files.get(cid)
+        return pickle.loads(path.read_bytes()) if path is not None else []
+
+
+def _sampled(m):
+    """A motion cut to the 3 frames :func:`sample_frames` takes of each clip (first, middle, last)."""
+    idx = np.linspace(0, m.num_frames - 1, 3).astype(int)
+    return dataclasses.replace(m, transforms=np.ascontiguousarray(m.transforms[idx]), num_frames=3,
+                               scale=None if m.scale is None else np.ascontiguousarray(m.scale[idx]))
 
 
 def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
@@ -203,29 +260,51 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
     _check_arguments(in_dir, out_dir, faces, backend, jobs, flush_every)
-    records = read_records(in_dir, "characters")  # DatasetError when IN is not a dataset
-    if not records:
+    order, meshless = [], {}  # (character ID, split) in input order; skeleton-only records (copied as they are)
+    for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
+        for r in group:
+            order.append((r.character_id, r.split, len(r.faces) > 0))
+            if len(r.faces) == 0:
+                meshless[r.character_id] = r
+    if not order:
         raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
     inputs = [t for t in ("characters", "motions") if has_table(in_dir, t)]
-    motions = sampled_motions(in_dir) if "motions" in inputs else {}
     config = stage_config({"stage": "resample", "faces": int(faces), "backend": backend},
                           tables_fingerprint(in_dir, inputs), inputs_from=str(in_dir.resolve()),
                           info={"source": str(in_dir)})
+    spill = tempfile.TemporaryDirectory(prefix="mimicbench-resample-frames-")  # the system's temporary folder
+    try:
+        frames = _FrameSpill(Path(spill.name))
+        if "motions" in inputs:
+            frames.fill(in_dir)  # a damaged motions shard stops the stage here, before OUT is touched
+        return _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flush_seconds, engine,
+                         order, meshless, inputs, config, frames, start)
+    finally:
+        spill.cleanup()
+
+
+def _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flush_seconds, engine, order, meshless,
+              inputs, config, frames, start) -> dict:
+    """:func:`resample_dataset` once the input is read and the sampled frames are spilled."""
     existed = (out_dir / MANIFEST).exists()
     done, notes = _reusable_rows(out_dir, config)
     before = load_manifest_for_write(out_dir) if existed else None
     mark_incomplete(out_dir, "resample", config)
 
-    todo = [r for r in records if r.character_id not in done and len(r.faces) > 0]
+    where = dict(done)  # character ID -> (shard entry, row group) of its resampled row
     parts = sorted({s["split"] for s in load_manifest_for_write(out_dir)["tables"].get("characters", {})
                     .get("shards", []) if s["split"].startswith(PART)})
     next_part = [int(parts[-1][len(PART):]) + 1 if parts else 0]
     buffer: list = []
     last_flush = [time.monotonic()]
+    group_rows = ROW_GROUP_SIZE["characters"]
 
     def flush() -> None:
         if buffer:
-            write_records(out_dir, "characters", buffer, split=f"{PART}{next_part[0]:05d}", rows_per_shard=500)
+            entries = write_records(out_dir, "characters", buffer, split=f"{PART}{next_part[0]:05d}",
+                                    rows_per_shard=500)
+            for k, r in enumerate(buffer):
+                where[r.character_id] = (entries[k // 500], (k % 500) // group_rows)
             next_part[0] += 1
             buffer.clear()
         last_flush[0] = time.monotonic()
@@ -236,26 +315,59 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
         if len(buffer) >= flush_every or time.monotonic() - last_flush[0] >= flush_seconds:
             flush()
 
-    results, statuses = run_stage([(r, motions.get(r.character_id, [])) for r in todo],
-                                  partial(_one, faces=faces, backend=backend), "resample",
-                                  name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress,
-                                  on_done=on_done, engine=engine, resources=TASK_RESOURCES)
+    statuses: list[StatusRecord] = []
+    todo = sum(has_mesh and cid not in done for cid, _, has_mesh in order)
+    fn = partial(_one, faces=faces, backend=backend)
+    batch: list = []
+    batches = 0
+
+    def run_batch() -> None:
+        nonlocal batches
+        items = [(r, frames.motions(r.character_id)) for r in batch]
+        batches += 1
+        _, st = run_stage(items, fn, "resample" if todo <= len(batch) else
+                          f"resample {min(batches * BATCH, todo)}/{todo}",
+                          name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress,
+                          on_done=on_done, engine=engine, resources=TASK_RESOURCES, keep_results=False)
+        statuses.extend(st)
+        batch.clear()
+
+    for _, _, group in iter_row_groups(in_dir, "characters"):
+        batch.extend(r for r in group if len(r.faces) > 0 and r.character_id not in done)
+        if len(batch) >= BATCH:
+            run_batch()
+    if batch:
+        run_batch()
     flush()
-    by_id = dict(done)
-    by_id.update({r.character_id: r for r in results})
-    meshless = {r.character_id: r for r in records if len(r.faces) == 0}
-    meshed = {r.character_id for r in records} - set(meshless)
-    if meshed and not any(cid in by_id for cid in meshed):
+    meshed = [cid for cid, _, has_mesh in order if has_mesh]
+    if meshed and not any(cid in where for cid in meshed):
         _restore(out_dir, before)
         reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
         raise DatasetError(f"resample: every character failed ({reasons}{'; ...' if len(statuses) > 3 else ''}); "
                            f"{out_dir} left as it was" + ("" if existed else " (nothing written)"))
-    by_id.update(meshless)
 
-    for split in splits_of(in_dir, "characters"):
-        rows = [by_id[r.character_id] for r in records if r.split == split and r.character_id in by_id]
-        write_records(out_dir, "characters", rows, split=split, rows_per_shard=500)
-    wanted = set(splits_of(in_dir, "characters"))
+    reader, quality, count = _RowReader(out_dir), [], 0
+    splits = splits_of(in_dir, "characters")
+    streams = {split: ShardStream(out_dir, "characters", split, rows_per_shard=500) for split in splits}
+    try:
+        for cid, split, has_mesh in order:
+            if not has_mesh:
+                row = meshless[cid]
+            elif cid in where:
+                row = reader.get(cid, where[cid])
+            else:
+                continue  # failed: its status row says why
+            streams[split].add([row])
+            count += 1
+            if (row.meta or {}).get("resample"):
+                quality.append((row.meta["resample"]["hausdorff_pct"], row.meta["resample"]["transfer_error_pct"]))
+    except BaseException:
+        for stream in streams.values():
+            stream.abort()
+        raise
+    for stream in streams.values():
+        stream.close()
+    wanted = set(splits)
     for split in splits_of(out_dir, "characters", allow_incomplete=True):
         if split not in wanted:  # parts, and splits of an earlier run the input no longer has
             remove_split(out_dir, "characters", split)
@@ -272,12 +384,12 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     problems = validate_dataset(out_dir)
     if problems:
         raise RuntimeError("resample wrote an invalid dataset:\n" + "\n".join(problems))
-    q = [r.meta["resample"] for r in by_id.values() if (r.meta or {}).get("resample")]
+    q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
     summary = {
-        "characters": len(by_id), "resampled": len(results), "already_done": len(done),
+        "characters": count, "resampled": sum(s.status == "ok" for s in statuses), "already_done": len(done),
         "failed": sum(s.status == "failed" for s in statuses),
-        "hausdorff_pct_mean": float(np.mean([x["hausdorff_pct"] for x in q])) if q else None,
-        "transfer_error_pct_mean": float(np.mean([x["transfer_error_pct"] for x in q])) if q else None,
+        "hausdorff_pct_mean": float(np.mean(q[:, 0])) if len(q) else None,
+        "transfer_error_pct_mean": float(np.mean(q[:, 1])) if len(q) else None,
         "seconds": time.perf_counter() - start, "statuses": statuses, "notes": notes,
     }
     if progress:
