@@ -46,7 +46,7 @@ def steps(size: dict, work: Path, engine: list[str], jobs: list[str]) -> list[tu
                  "--frames-per-clip", str(size["frames"]), "--no-contact-sheet", "--quiet"] + engine + jobs, zoo),
         ("resample", ["datagen", "resample", str(zoo), str(data), "--faces", str(size["faces"]), "--quiet"]
          + engine + jobs, data),
-        ("correspond", ["datagen", "correspond", str(data), "--all-pairs", "--quiet"] + engine, data),
+        ("correspond", ["datagen", "correspond", str(data), "--all-pairs", "--quiet"] + engine + jobs, data),
         ("cases", ["bench", "cases", str(data), "--split", "all", "--h2h-pairs", str(c["h2h_pairs"]),
                    "--h2h-poses", str(c["h2h_poses"]), "--cct-pairs", str(c["cct_pairs"]),
                    "--cct-poses", str(c["cct_poses"])], data),
