@@ -8,15 +8,6 @@ keypoint j is ``phi_i^T A phi_j / sqrt(d)`` with a learnable matrix A (Eq. 2); S
 normalisation (:func:`mimicbench.sinkhorn.sinkhorn_log`, per pair on its unpadded block) makes
 it a doubly stochastic soft correspondence M (Ks, Kt): rows sum to 1, columns to Ks/Kt.
 
-Our choice, not the paper's: the learnable affinity may also have a geometric term,
-``-w ||p_i - p_j||^2`` between the source's and the target's rest keypoints p (K, 3) in the
-normalised frame G already reads (:func:`baselines.mimicat.corr_data.keypoint_features`'
-first three columns: centred at the rest mesh's bounding box, divided by its largest side),
-with a learnable ``w = w0 * softplus(r) / log 2 > 0`` (``r`` starts at 0, so ``w`` starts at
-``w0`` = ``geometry_weight``). At ``w0`` large against the untrained semantic term, G starts
-from nearest-joint-like matches and learns the semantic term on top. ``geometry_weight=0``
-(the default, and what checkpoints without the setting were trained with) leaves the term out.
-
 Training (Eq. 6) matches M to the dataset's ``pairs/`` table: cross-entropy of M's rows against
 M_sink's (renormalised) rows plus the negative log-likelihood of the Hungarian pairs M_hung.
 """
@@ -50,12 +41,10 @@ class CorrespondenceTransformer(nn.Module):
         shape_width: width d of the shape encoder's tokens.
         width, layers, heads, mlp_width: transformer sizes.
         sinkhorn_iters: Sinkhorn sweeps.
-        geometry_weight: w0, the starting weight of the geometric term (per squared normalised
-            distance); 0 leaves the term (and its parameter) out.
     """
 
     def __init__(self, shape_width: int, width: int = 64, layers: int = 2, heads: int = 4, mlp_width: int = 128,
-                 sinkhorn_iters: int = 50, geometry_weight: float = 0.0):
+                 sinkhorn_iters: int = 50):
         super().__init__()
         self.keypoint_encoder = mlp(KEYPOINT_FEATURES, width, width)
         self.shape_projector = nn.Linear(shape_width, width)
@@ -64,17 +53,6 @@ class CorrespondenceTransformer(nn.Module):
         self.norm = nn.LayerNorm(width)
         self.affinity = nn.Parameter(torch.eye(width))
         self.sinkhorn_iters = sinkhorn_iters
-        if not geometry_weight >= 0:
-            raise ValueError(f"geometry_weight: expected >= 0, got {geometry_weight}")
-        self.geometry_weight = float(geometry_weight)
-        if self.geometry_weight > 0:
-            self.geometry_raw = nn.Parameter(torch.zeros(()))
-
-    def geometric_weight(self) -> torch.Tensor | None:
-        """w > 0, the current weight of the geometric term (scalar), or None without the term."""
-        if self.geometry_weight == 0:
-            return None
-        return self.geometry_weight * nn.functional.softplus(self.geometry_raw) / math.log(2.0)
 
     def scores(self, kp_s, mask_s, kp_t, mask_t, shape_s, shape_t) -> torch.Tensor:
         """Affinity scores (B, Ks, Kt) of padded inputs.
@@ -84,9 +62,6 @@ class CorrespondenceTransformer(nn.Module):
                 where a keypoint exists.
             kp_t, mask_t: the same for the target.
             shape_s, shape_t: (B, l, d) shape tokens of the rest meshes.
-
-        The semantic term ``phi_i^T A phi_j / sqrt(d)`` minus ``w ||p_i - p_j||^2`` when G has
-        the geometric term.
         """
         b, ks, _ = kp_s.shape
         kt = kp_t.shape[1]
@@ -97,11 +72,7 @@ class CorrespondenceTransformer(nn.Module):
                                                       device=kp_s.device)], dim=1)
         h = self.norm(self.blocks(tokens, src_key_padding_mask=~valid))
         phi_s, phi_t = h[:, :ks], h[:, ks:ks + kt]
-        semantic = torch.einsum("bid,de,bje->bij", phi_s, self.affinity, phi_t) / math.sqrt(h.shape[-1])
-        w = self.geometric_weight()
-        if w is None:
-            return semantic
-        return semantic - w * geometric_distances(kp_s, kp_t)
+        return torch.einsum("bid,de,bje->bij", phi_s, self.affinity, phi_t) / math.sqrt(h.shape[-1])
 
     def forward(self, kp_s, mask_s, kp_t, mask_t, shape_s, shape_t, temperature: float = 1.0) -> list[torch.Tensor]:
         """One doubly stochastic M (Ks_b, Kt_b) per pair of the batch (rows 1, columns Ks/Kt).
@@ -119,12 +90,6 @@ class CorrespondenceTransformer(nn.Module):
             ks, kt = int(mask_s[b].sum()), int(mask_t[b].sum())
             out.append(sinkhorn_log(s[b, :ks, :kt], temperature=temperature, num_iters=iters, tol=1e-5))
         return out
-
-
-def geometric_distances(kp_s: torch.Tensor, kp_t: torch.Tensor) -> torch.Tensor:
-    """Squared distances (B, Ks, Kt) between the rest keypoints (the features' first three
-    columns, normalised frame) of the source and the target."""
-    return (kp_s[..., None, :3] - kp_t[..., None, :, :3]).pow(2).sum(dim=-1)
 
 
 def correspondence_loss(m_pred: list[torch.Tensor], m_sink: list[torch.Tensor], hungarian: list[torch.Tensor]) -> dict:

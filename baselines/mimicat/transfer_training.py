@@ -70,7 +70,7 @@ def _characters(dataset, device, points: int, split: str = "all") -> tuple[dict,
 def build_corr(config: dict, ctx) -> CorrespondenceTransformer:
     c = section(config, "corr")
     return CorrespondenceTransformer(shape_width(config), c["width"], c["layers"], c["heads"], c["mlp"],
-                                     c["sinkhorn_iters"], float(c.get("geometry_weight", 0.0)))
+                                     c["sinkhorn_iters"])
 
 
 def _pairs(dataset):
