@@ -1,0 +1,41 @@
+"""The shipped checkpoints are tied to their methods' versions.
+
+Results are stored per method version (``RESULTS/<method>/<version>/``) and a re-run resumes into
+that folder, so new weights under an old version would mix two models' rows in one leaderboard
+line. Whoever retrains a shipped checkpoint must bump the versions of the methods that read it and
+record the new digest here.
+"""
+import hashlib
+from pathlib import Path
+
+import pytest
+
+from baselines.mimicat.method import BUNDLED, Mimicat, MimicatNaiveAvg, MimicatNoPrior
+from baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMask, MmdmcNoRefine
+
+# version of every method reading the folder -> sha256 over its .safetensors files (sorted by name,
+# each as name + NUL + bytes)
+SHIPPED = {
+    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior), "2",
+                "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
+    "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "2",
+              "a09a576bc77842500f3468ea1b93ca225d02425672de0d1ae8a310bc5e60450c"),
+}
+
+
+def folder_digest(folder: Path) -> str:
+    h = hashlib.sha256()
+    for path in sorted(Path(folder).glob("*.safetensors")):
+        h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
+@pytest.mark.parametrize("family", sorted(SHIPPED))
+def test_shipped_weights_match_the_recorded_digest_of_their_version(family):
+    folder, methods, version, digest = SHIPPED[family]
+    assert any(Path(folder).glob("*.safetensors")), f"{folder}: no shipped weights"
+    assert [m.metadata.version for m in methods] == [version] * len(methods), (
+        f"every {family} method should be version {version}")
+    assert folder_digest(folder) == digest, (
+        f"{folder}: the shipped weights changed; bump the version of {[m.metadata.name for m in methods]} "
+        f"and record the new digest {folder_digest(folder)} here")
