@@ -94,7 +94,6 @@ def add_contact_sheet(dataset, characters=None, timeout: float | None = None) ->
 
     from datagen.render.contact_sheet import DEFAULT_PATH, write_contact_sheet
     from datagen.render.render import RenderError
-    from schemas.manifest import atomic_write_bytes
 
     root = Path(dataset)
     try:
@@ -104,12 +103,24 @@ def add_contact_sheet(dataset, characters=None, timeout: float | None = None) ->
     except (RenderError, ValueError) as exc:
         path, error = None, str(exc)
         section = contact_sheet_section(None, error)
-    card = root / "CARD.md"
+    put_card_section(root / "CARD.md", SHEET_BEGIN, SHEET_END, section)
+    return {"path": path, "error": error}
+
+
+def put_card_section(card, begin: str, end: str, section: str) -> None:
+    """Write ``section`` (which starts with ``begin`` and ends with ``end``) into the Markdown file
+    ``card``: it replaces the text between an earlier ``begin``/``end`` pair, or is appended (the file
+    is created when missing), so a card's generated sections can be rewritten any number of times."""
+    from pathlib import Path
+
+    from schemas.manifest import atomic_write_bytes
+
+    card = Path(card)
     text = card.read_text() if card.exists() else ""
-    if SHEET_BEGIN in text and SHEET_END in text:
-        head, rest = text.split(SHEET_BEGIN, 1)
-        text = head + section + rest.split(SHEET_END, 1)[1].lstrip("\n")
+    if begin in text and end in text:
+        head, rest = text.split(begin, 1)
+        # the old end marker's own line break goes; the blank line before the next section stays
+        text = head + section + rest.split(end, 1)[1].removeprefix("\n")
     else:
         text = text.rstrip("\n") + ("\n\n" if text else "") + section
     atomic_write_bytes(card, text.encode())
-    return {"path": path, "error": error}

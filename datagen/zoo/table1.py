@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.compute as pc
 
-from schemas.manifest import atomic_write_bytes
+from datagen.zoo.card import put_card_section
 from schemas.shards import has_table, read_table
 
 PAPER = {"characters": 975, "motions": 28_809, "frames": 4_470_000, "joints_min": 11, "joints_max": 241,
@@ -128,12 +128,5 @@ def add_table1(dataset) -> dict:
     root = Path(dataset)
     t = table1(root)
     section = render_table1(t, plot_distributions(t, root / "card"))
-    card = root / "CARD.md"
-    text = card.read_text() if card.exists() else ""
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + section + rest.split(END, 1)[1].lstrip("\n")
-    else:
-        text = text.rstrip("\n") + ("\n\n" if text else "") + section
-    atomic_write_bytes(card, text.encode())
+    put_card_section(root / "CARD.md", BEGIN, END, section)
     return t
