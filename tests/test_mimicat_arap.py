@@ -39,6 +39,18 @@ def test_handles_hold_and_every_component_gets_one():
         ArapRefiner(rigid=0)
 
 
+def test_default_holds_every_vertex_one_bone_dominates():
+    """The default holds exactly the vertices whose largest skin weight is at least one half (a
+    bone carries the majority: every two-bone blend, no even three-bone one), by a naive loop
+    over hand-made weight rows on the tube (one connected component with plenty held)."""
+    rig = tube_rig("t", 4)
+    kinds = np.array([[1.0, 0, 0], [0.6, 0.4, 0], [0.5, 0.5, 0], [0.4, 0.3, 0.3], [1 / 3, 1 / 3, 1 / 3]])
+    values = kinds[np.arange(len(rig.vertices)) % len(kinds)]
+    expected = [i for i in range(len(values)) if max(values[i]) >= 0.5]
+    assert 0 < len(expected) < len(values)
+    assert ArapRefiner().handles(rig.faces, values, len(values)).tolist() == expected
+
+
 def _faces(ref, prims):
     out, offset = [], 0
     for p in prims:

@@ -115,3 +115,62 @@ def test_temperature_sharpens_m_and_keeps_it_doubly_stochastic(rigs):
         assert float(m2.max(dim=1).values.mean()) > float(m1.max(dim=1).values.mean()) + 0.05
     with pytest.raises(ValueError, match="temperature"):
         g(*inputs, temperature=0.0)
+
+
+def test_geometric_term_alone_matches_nearest_joints():
+    """With the learned (semantic) term zeroed, G's affinity is -w ||p_i - p_j||^2 on the
+    unit-height positions and M's row argmax is the nearest-joint match: a target made of the
+    source's joints, shuffled and jittered, gives back the shuffle (checked against a naive
+    nearest-neighbour loop over the positions). The features' own positions (the box frame) are
+    made to disagree, so the test fails if G reads them instead."""
+    torch.manual_seed(0)
+    rng = np.random.default_rng(3)
+    k = 7
+    grid = np.stack(np.meshgrid([-0.3, 0.0, 0.3], [-0.3, 0.0, 0.3], [0.0], indexing="ij"), -1).reshape(-1, 3)
+    p_s = grid[rng.choice(len(grid), k, replace=False)]  # joints at least 0.3 apart
+    shuffle = rng.permutation(k)
+    p_t = p_s[shuffle] + rng.uniform(-0.03, 0.03, (k, 3))  # target joint j sits at source joint shuffle[j]
+    feats_s = rng.normal(size=(1, k, KEYPOINT_FEATURES))
+    feats_t = rng.normal(size=(1, k, KEYPOINT_FEATURES))
+    nearest = [min(range(k), key=lambda j: sum((p_s[i][c] - p_t[j][c]) ** 2 for c in range(3))) for i in range(k)]
+    assert nearest == list(np.argsort(shuffle))  # the toy's answer, by hand: the inverse shuffle
+    g = CorrespondenceTransformer(16, width=16, layers=1, heads=2, mlp_width=32, geometry_weight=50.0)
+    f32 = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
+    with torch.no_grad():
+        g.affinity.zero_()
+        ones = torch.ones(1, k, dtype=torch.bool)
+        tok = torch.randn(2, 4, 16)
+        args = (f32(feats_s), ones, f32(feats_t), ones, tok[:1], tok[1:])
+        pos = {"pos_s": f32(p_s)[None], "pos_t": f32(p_t)[None]}
+        scores = g.scores(*args, **pos)[0].double().numpy()
+        m = g(*args, **pos)[0]
+        with pytest.raises(ValueError, match="unit-height"):
+            g(*args)
+    d2 = ((p_s[:, None, :] - p_t[None, :, :]) ** 2).sum(-1)
+    np.testing.assert_allclose(scores, -50.0 * d2, rtol=1e-4, atol=1e-4)  # w starts at w0
+    assert m.argmax(dim=1).tolist() == nearest
+
+
+def test_geometric_weight_stays_positive_and_is_optional():
+    """w = w0 softplus(r) / log 2 stays > 0 however far training pushes r; geometry_weight=0 (what
+    checkpoints without the setting were trained with) builds G without the term's parameter."""
+    g = CorrespondenceTransformer(16, width=16, layers=1, heads=2, mlp_width=32, geometry_weight=10.0)
+    assert abs(float(g.geometric_weight()) - 10.0) < 1e-5
+    with torch.no_grad():
+        g.geometry_raw.fill_(-30.0)
+    assert float(g.geometric_weight()) > 0
+    plain = CorrespondenceTransformer(16, width=16, layers=1, heads=2, mlp_width=32)
+    assert plain.geometric_weight() is None and "geometry_raw" not in plain.state_dict()
+    with pytest.raises(ValueError, match="geometry_weight"):
+        CorrespondenceTransformer(16, width=16, layers=1, heads=2, mlp_width=32, geometry_weight=-1.0)
+
+
+def test_unit_keypoints_are_in_nearest_joints_frame(rigs):
+    """G's geometric positions: rest keypoints centred at the rest mesh's bounding-box centre and
+    divided by its height (Y extent), as ``nearest_joint`` matches them; by hand from the rig."""
+    for rig in rigs:
+        c = CharacterTensors.of_rig(rig, 16)
+        v = np.asarray(rig.vertices, np.float64)
+        centre = (v.min(0) + v.max(0)) / 2
+        expected = (np.asarray(rig.keypoints, np.float64) - centre) / (v[:, 1].max() - v[:, 1].min())
+        np.testing.assert_allclose(c.unit_keypoints.numpy(), expected, rtol=1e-5, atol=1e-6)

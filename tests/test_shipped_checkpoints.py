@@ -16,7 +16,7 @@ from baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMas
 # version of every method reading the folder -> sha256 over its .safetensors files (sorted by name,
 # each as name + NUL + bytes)
 SHIPPED = {
-    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior), "2",
+    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior), "3",
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "2",
               "a09a576bc77842500f3468ea1b93ca225d02425672de0d1ae8a310bc5e60450c"),

@@ -149,9 +149,9 @@ def transfer_batch(encoder: nn.Module, g: nn.Module, h: PoseTransferTransformer,
     """
     f_s, f_sp, f_t, delta_f = encode_pair_shapes(encoder, src, src_posed, tgt)
     if m is None:
-        kp_s, mask_s = pad([s.features for s in src])
-        kp_t, mask_t = pad([t.features for t in tgt])
-        m = g(kp_s, mask_s, kp_t, mask_t, f_s, f_t)
+        from baselines.mimicat.transfer_data import correspondence_inputs
+
+        m = g(shape_s=f_s, shape_t=f_t, **correspondence_inputs(src, tgt))
     return h(src, q_src, t_src, tgt, m, delta_f, f_t), m, (f_s, f_sp, f_t, delta_f)
 
 
@@ -174,14 +174,13 @@ def correspondences(encoder: nn.Module, g: nn.Module, src: list[CharacterTensors
     keys = [(s.character_id, t.character_id, float(temperature)) for s, t in zip(src, tgt)]
     todo = [i for i, k in enumerate(keys) if k not in cache]
     if todo:
-        from baselines.mimicat.transfer_data import shape_tokens
+        from baselines.mimicat.transfer_data import correspondence_inputs, shape_tokens
 
         with torch.no_grad():
             tok = shape_tokens(encoder, torch.stack([src[i].normalised(src[i].vertices) for i in todo]
                                                     + [tgt[i].normalised(tgt[i].vertices) for i in todo]))
-            kp_s, mask_s = pad([src[i].features for i in todo])
-            kp_t, mask_t = pad([tgt[i].features for i in todo])
-            ms = g(kp_s, mask_s, kp_t, mask_t, tok[:len(todo)], tok[len(todo):], temperature=temperature)
+            ms = g(shape_s=tok[:len(todo)], shape_t=tok[len(todo):], temperature=temperature,
+                   **correspondence_inputs([src[i] for i in todo], [tgt[i] for i in todo]))
         for i, m in zip(todo, ms):
             cache[keys[i]] = m.detach()
     return [cache[k] for k in keys]

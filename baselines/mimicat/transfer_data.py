@@ -28,6 +28,8 @@ class CharacterTensors:
         features: (K, KEYPOINT_FEATURES) skeleton features.
         points: (P,) long vertex indices read by E.
         centre: (3,) rest bounding-box centre; size: its largest side (metres).
+        unit_keypoints: (K, 3) rest keypoints in the unit-height frame
+            (:func:`mimicbench.mesh.normalize_unit_height`), for G's geometric term.
     """
 
     character_id: str
@@ -40,11 +42,14 @@ class CharacterTensors:
     points: torch.Tensor
     centre: torch.Tensor
     size: float
+    unit_keypoints: torch.Tensor
 
     @classmethod
     def build(cls, character_id: str, vertices, keypoints, parents, weight_indices, weight_values, num_points: int,
               device="cpu") -> "CharacterTensors":
         """From arrays: (N, 3) vertices, (K, 3) keypoints, (K,) parents, (N, J) skin weights."""
+        from mimicbench.mesh import normalize_unit_height
+
         v = np.asarray(vertices, np.float64)
         centre, size = rest_frame(v)
         dev = torch.device(device)
@@ -55,7 +60,8 @@ class CharacterTensors:
                    torch.tensor(np.asarray(weight_values, np.float32), device=dev),
                    torch.as_tensor(keypoint_features(keypoints, parents, v), device=dev),
                    torch.as_tensor(point_indices(len(v), num_points, character_id), device=dev),
-                   torch.as_tensor(centre, dtype=torch.float32, device=dev), size)
+                   torch.as_tensor(centre, dtype=torch.float32, device=dev), size,
+                   torch.as_tensor(normalize_unit_height(keypoints, v), dtype=torch.float32, device=dev))
 
     @classmethod
     def of_rig(cls, rig, num_points: int, device="cpu") -> "CharacterTensors":
@@ -81,6 +87,15 @@ class CharacterTensors:
 def shape_tokens(encoder: torch.nn.Module, points: torch.Tensor) -> torch.Tensor:
     """Shape tokens (B, l_E, d) of normalised point clouds (B, P, 3) from the frozen encoder E."""
     return encoder(points)
+
+
+def correspondence_inputs(src: list["CharacterTensors"], tgt: list["CharacterTensors"]) -> dict:
+    """G's padded keypoint inputs for pairs of characters: ``kp_s``, ``mask_s``, ``kp_t``,
+    ``mask_t`` (features and masks) and ``pos_s``, ``pos_t`` (unit-height rest keypoints)."""
+    kp_s, mask_s = pad([s.features for s in src])
+    kp_t, mask_t = pad([t.features for t in tgt])
+    return {"kp_s": kp_s, "mask_s": mask_s, "kp_t": kp_t, "mask_t": mask_t,
+            "pos_s": pad([s.unit_keypoints for s in src])[0], "pos_t": pad([t.unit_keypoints for t in tgt])[0]}
 
 
 def pad(rows: list[torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:

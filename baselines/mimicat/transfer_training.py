@@ -27,7 +27,8 @@ import torch
 from baselines.mimicat.corr_data import read_pairs
 from baselines.mimicat.correspondence import CorrespondenceTransformer, correspondence_loss
 from baselines.mimicat.transfer import PoseTransferTransformer, correspondences, pose_mesh, transfer_batch
-from baselines.mimicat.transfer_data import CharacterTensors, pad, read_transfer_pool, shape_tokens
+from baselines.mimicat.transfer_data import (CharacterTensors, correspondence_inputs, read_transfer_pool,
+                                             shape_tokens)
 
 CORR_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size": 8, "points": 512, "split": "all",
                  "sinkhorn_iters": 50}
@@ -70,7 +71,7 @@ def _characters(dataset, device, points: int, split: str = "all") -> tuple[dict,
 def build_corr(config: dict, ctx) -> CorrespondenceTransformer:
     c = section(config, "corr")
     return CorrespondenceTransformer(shape_width(config), c["width"], c["layers"], c["heads"], c["mlp"],
-                                     c["sinkhorn_iters"])
+                                     c["sinkhorn_iters"], float(c.get("geometry_weight", 0.0)))
 
 
 def _pairs(dataset):
@@ -100,10 +101,8 @@ def corr_loss(module: CorrespondenceTransformer, batch: dict, ctx) -> dict:
     tgt = [tensors[p.target_id] for p in rows]
     with torch.no_grad():
         tok = shape_tokens(ctx.frozen["shape"], torch.stack([s.normalised(s.vertices) for s in src + tgt]))
-    kp_s, mask_s = pad([s.features for s in src])
-    kp_t, mask_t = pad([t.features for t in tgt])
-    m = module(kp_s, mask_s, kp_t, mask_t, tok[:len(src)], tok[len(src):])
-    dev = kp_s.device
+    m = module(shape_s=tok[:len(src)], shape_t=tok[len(src):], **correspondence_inputs(src, tgt))
+    dev = tok.device
     return correspondence_loss(m, [torch.as_tensor(p.m_sink, device=dev) for p in rows],
                                [torch.as_tensor(p.hungarian, device=dev) for p in rows])
 
