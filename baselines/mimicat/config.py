@@ -19,7 +19,9 @@ Sections:
   ``sampling_weight`` and ``samples`` of the sampling term (A3; 0 turns it off);
   ``max_keypoints`` scored per character (more are subsampled each step).
 - ``corr`` (G) and ``transfer`` (H): sizes and loss weights (see
-  :mod:`baselines.mimicat.transfer_training`); ``transfer_no_prior`` (H without L_reg, ablation
+  :mod:`baselines.mimicat.transfer_training`); ``corr.geometry_weight`` w0 of G's optional
+  geometric affinity term on unit-height rest keypoints (0: off; see
+  :mod:`baselines.mimicat.correspondence`); ``transfer_no_prior`` (H without L_reg, ablation
   A2) takes every setting from ``transfer`` except ``epochs``, which the loop reads per stage.
   Two values are our choices, measured on the training zoo (seed 11), not the paper's:
   ``transfer.m_temperature`` 0.1, the Sinkhorn temperature of the M that H's initialisation
