@@ -4,12 +4,15 @@
 
 IN holds the scene of benchmarks/apparel.py in the dataset frame (Y up): ``torso_box`` (2, 3)
 corners, ``torso_head`` (3,), ``torso_yaw`` (F,) and ``torso_shift`` (F, 3) per frame, ``heads``
-(L, 3) and ``parents`` (L,) of the links (-1: on the torso), ``length``, ``radius``, ``mass``,
-``swing``, ``twist``, ``stiffness``, ``damping``, ``fps``, ``substeps``, ``iterations``. The route
-is MMDMC's: one active rigid body (capsule) per link, a Generic Spring constraint per joint (angle
-limits and angular springs, as mmd_tools builds from a PMX), the torso a kinematic passive body
-keyed every frame, and the rigid-body cache baked over the clip. OUT holds ``bake_seconds`` and
-``build_seconds``.
+(L, 3), ``parents`` (L,) (-1: on the torso) and ``chain_of`` (L,) of the links, ``length`` (a
+capsule's cylinder, head to tail), ``radius``, ``mass``, ``linear_damping``, ``angular_damping``,
+``swing``, ``twist``, ``stiffness`` and ``damping`` (L, 3) per joint axis (swing x, y, twist z),
+``gravity``, ``fps``, ``substeps``, ``iterations``. The route is MMDMC's: one active rigid body
+(capsule) per link, a Generic Spring constraint per joint (angle limits and angular springs, as
+mmd_tools builds from a PMX), the torso a kinematic passive body keyed every frame, and the
+rigid-body cache baked over the clip. As in the stage, links collide with the torso but not with
+other chains: the torso is in all 20 collision collections, chain c in collection c mod 20 only,
+so neighbouring chains never share one. OUT holds ``bake_seconds`` and ``build_seconds``.
 """
 import math
 import sys
@@ -43,6 +46,7 @@ def main(inp, out):
     world = scene.rigidbody_world
     world.substeps_per_frame = int(d["substeps"])
     world.solver_iterations = int(d["iterations"])
+    scene.gravity = (0.0, 0.0, -float(d["gravity"]))
     world.point_cache.frame_start, world.point_cache.frame_end = 1, frames
     lo, hi = d["torso_box"]
     bpy.ops.mesh.primitive_cube_add(size=1.0)
@@ -52,6 +56,7 @@ def main(inp, out):
     head = d["torso_head"]
     bpy.ops.rigidbody.object_add(type="PASSIVE")
     torso.rigid_body.kinematic = True
+    torso.rigid_body.collision_collections = [True] * 20
     centre = 0.5 * (lo + hi)
     for f in range(frames):
         yaw = float(d["torso_yaw"][f])
@@ -64,14 +69,16 @@ def main(inp, out):
         torso.keyframe_insert("rotation_euler", frame=f + 1)
     links = []
     length, radius = float(d["length"]), float(d["radius"])
-    for i, h in enumerate(d["heads"]):
-        bpy.ops.mesh.primitive_cylinder_add(vertices=8, radius=radius, depth=length)
+    for i, h in enumerate(d["heads"]):  # the capsule's full length is its cylinder plus two caps
+        bpy.ops.mesh.primitive_cylinder_add(vertices=8, radius=radius, depth=length + 2 * radius)
         link = bpy.context.active_object
         link.location = to_blender(h + np.array([0.0, -length / 2, 0.0]))  # links hang down (-Y)
         bpy.ops.rigidbody.object_add(type="ACTIVE")
         link.rigid_body.collision_shape = "CAPSULE"
         link.rigid_body.mass = float(d["mass"])
-        link.rigid_body.linear_damping, link.rigid_body.angular_damping = 0.1, 0.3
+        link.rigid_body.linear_damping = float(d["linear_damping"])
+        link.rigid_body.angular_damping = float(d["angular_damping"])
+        link.rigid_body.collision_collections = [c == int(d["chain_of"][i]) % 20 for c in range(20)]
         links.append(link)
     swing, twist = float(d["swing"]), float(d["twist"])
     for i, (h, p) in enumerate(zip(d["heads"], d["parents"])):
@@ -82,13 +89,14 @@ def main(inp, out):
         con.object1 = torso if p < 0 else links[p]
         con.object2 = links[i]
         con.disable_collisions = True
-        for axis, lim in (("x", swing), ("y", swing), ("z", twist)):
+        con.spring_type = "SPRING2"  # stiffness in N m/rad, damping in N m s/rad
+        for n, (axis, lim) in enumerate((("x", swing), ("y", swing), ("z", twist))):
             setattr(con, f"use_limit_ang_{axis}", True)
             setattr(con, f"limit_ang_{axis}_lower", -lim)
             setattr(con, f"limit_ang_{axis}_upper", lim)
             setattr(con, f"use_spring_ang_{axis}", True)
-            setattr(con, f"spring_stiffness_ang_{axis}", float(d["stiffness"]))
-            setattr(con, f"spring_damping_ang_{axis}", float(d["damping"]))
+            setattr(con, f"spring_stiffness_ang_{axis}", float(d["stiffness"][i, n]))
+            setattr(con, f"spring_damping_ang_{axis}", float(d["damping"][i, n]))
         for axis in "xyz":
             setattr(con, f"use_limit_lin_{axis}", True)
             setattr(con, f"limit_lin_{axis}_lower", 0.0)

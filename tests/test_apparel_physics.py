@@ -12,7 +12,9 @@ from datagen.apparel.params import ApparelParams, load_params, params_from_json
 from datagen.apparel.selection import apparel_vertex_mask, bone_kind, bones_matching
 from datagen.apparel.setup import character_physics, simulate_motion
 from datagen.apparel.simulate import SimulationExploded
+from datagen.apparel.springs import chain_mass_matrix
 from datagen.apparel.urdf import chain_urdf, hull_obj
+from datagen.apparel.world import ApparelWorld
 from mimicbench.errors import UserError
 from tests.apparel_toys import LINK, LINKS, make_character, make_motion, quick_turn
 
@@ -141,6 +143,47 @@ def test_gravity_is_a_parameter():
     drop = {g: 1.0 - tip for g, tip in tips.items()}
     assert drop[9.8][0] > 0.003 and drop[29.4][0] / drop[9.8][0] == pytest.approx(3.0, rel=0.15)
     assert np.all(np.diff(drop[9.8]) > 0)  # and keeps falling
+
+
+def test_a_reset_world_simulates_a_clip_as_a_new_one_does():
+    # one world per character is reused across its clips; after reset() a clip gives the same
+    # bytes as in a new world, whatever was simulated before it (here a clip that hit the limits)
+    rec = make_character()
+    params = ApparelParams()
+    physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+    turn, sway = make_motion(rec, quick_turn(30, 2), "turn"), make_motion(rec, np.sin(np.arange(30) / 4.0), "sway")
+    new = {m.name: simulate_motion(rec, physics, m, params, 240.0, 8)[0].transforms for m in (turn, sway)}
+    with ApparelWorld(rec.keypoints, physics.pieces, physics.chains, params.simulation, 1 / 240) as world:
+        for m in (turn, sway, turn):
+            world.reset()
+            again = simulate_motion(rec, physics, m, params, 240.0, 8, world)[0].transforms
+            assert again.tobytes() == new[m.name].tobytes(), m.name
+
+
+def test_chain_mass_matrix_predicts_bullets_response_to_joint_torques():
+    # the springs' implicit step rests on the chain's joint-space mass matrix: a torque tau on the
+    # joints of a still chain (no gravity, springs off) changes their speeds by dt M^-1 tau in one
+    # Bullet step (M from the link geometry in numpy; the anchor, ten times heavier, barely moves)
+    rec = make_character()
+    params = params_from_json({"simulation": {"gravity": 0.0}})
+    physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+    chain = physics.chains[0]
+    mass_matrix = chain_mass_matrix(chain)
+    np.testing.assert_allclose(mass_matrix, mass_matrix.T, atol=1e-15)
+    assert np.linalg.eigvalsh(mass_matrix).min() > 0
+    rng = np.random.default_rng(0)
+    with ApparelWorld(rec.keypoints, physics.pieces, physics.chains, params.simulation, 1 / 240) as world:
+        pb, body, joints = world.pb, world.chains[0].body, list(range(LINKS))
+        for _ in range(3):
+            world.reset()
+            tau = rng.normal(size=3 * LINKS) * 1e-3
+            pb.setJointMotorControlMultiDofArray(body, joints, pb.TORQUE_CONTROL, forces=tau.reshape(-1, 3).tolist(),
+                                                 physicsClientId=world.client)
+            world.step()
+            speeds = np.concatenate([s[1] for s in pb.getJointStatesMultiDof(body, joints,
+                                                                              physicsClientId=world.client)])
+            expected = np.linalg.solve(mass_matrix, tau) / 240
+            np.testing.assert_allclose(speeds, expected, rtol=0.02, atol=0.02 * np.abs(expected).max())
 
 
 def test_exploding_parameters_raise():

@@ -12,7 +12,9 @@ simulated mesh. Modules, one concept each:
 - ``body_shapes``: kinematic convex collision pieces per body bone, from the vertices it owns.
 - ``chains``: apparel chains (links sized from bone lengths and driven vertices) from a character.
 - ``urdf``: a chain as a small URDF (spherical joints with swing/twist limits, capsules).
-- ``world``: the pybullet world of one character (body pieces, chains, motors, moved anchors).
+- ``springs``: the joints' springs toward rest (implicit torques from numpy, one batch a step).
+- ``world``: the pybullet world of one character (body pieces, chains, springs, limits, moved anchors).
+- ``world_cache``: one world per character, reset between its clips.
 - ``relax``: the blend-in frames from rest into the clip's first pose.
 - ``simulate``: one clip through the world, frame by frame, with the explosion check.
 - ``quality``: per-clip quality (penetration, stretch, jitter, secondary motion).

@@ -45,9 +45,10 @@ class LinkSpec:
 class JointSpec:
     """The spherical joint between a link and its parent (the anchor for the chain's first link).
 
-    ``swing_limit`` and ``twist_limit`` (radians) bound the rotation from rest; the position
-    motor pulls toward rest with ``stiffness`` (Bullet's position gain, 0..1 of the error a step),
-    ``damping`` (velocity gain) and at most ``max_torque`` N m per axis.
+    ``swing_limit`` and ``twist_limit`` (radians) bound the rotation from rest; a spring pulls
+    toward rest with ``stiffness`` (0..1, the share of the angle error it takes out in a step),
+    ``damping`` (0.., the share of the joint's speed) and at most ``max_torque`` N m per axis
+    (:mod:`datagen.apparel.springs`).
     """
 
     swing_limit: float

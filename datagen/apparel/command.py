@@ -18,7 +18,7 @@ def register(subparsers) -> None:
         "kinematic one (apparel bones from the simulation, body bones untouched; LBS of the stored transforms "
         "gives the simulated mesh). The body is one kinematic convex piece per body bone; each chain is a "
         "multibody of links (colliding as the convex hulls of the vertices their bones own) on spherical joints "
-        "with limits, a motor toward the rest pose, damping, and its "
+        "with limits, a spring toward the rest pose, damping, and its "
         "root carried by a constraint moved every step. Each clip first relaxes: --relax-frames frames blending "
         "from rest into the first pose, simulated and dropped. Per-clip quality (apparel inside the body, edge "
         "stretch, jitter, secondary motion in % of height) goes in the character's meta['apparel']; a clip "

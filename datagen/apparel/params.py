@@ -26,10 +26,11 @@ from mimicbench.errors import UserError
 class ChainParams:
     """Physics of the chains of one apparel kind.
 
-    link_mass: kg per link. stiffness: the joint motor's position gain toward the rest pose
-    (0..1, the share of the angle error corrected a step). damping: the motor's velocity gain.
-    strength: the motor's torque limit as a multiple of the gravity torque of the links below
-    the joint held horizontally (>1 holds the chain up against gravity). linear_damping,
+    link_mass: kg per link. stiffness: the joint spring's pull toward the rest pose (0..1, the
+    share of the angle error it takes out in one step; :mod:`datagen.apparel.springs`). damping:
+    the spring's damping (the share of the joint's speed it takes out in one step). strength:
+    the spring's torque limit as a multiple of the gravity torque of the links below the joint
+    held horizontally (>1 holds the chain up against gravity). linear_damping,
     angular_damping: Bullet's per-link damping. swing_limit, twist_limit: radians from rest.
     radius_scale: capsule radius as a multiple of the driven vertices' 75th-percentile distance
     from the bone (the capsule gives the link's inertia; it collides only where the link's

@@ -18,9 +18,10 @@ from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 
 SIM_SUFFIX = "@sim"
-SIM_VERSION = "5"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
+SIM_VERSION = "6"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
-# projected every step, constraint ERP 0.8
+# projected every step, constraint ERP 0.8; 6: springs as implicit torques from numpy instead of
+# Bullet's joint motors
 
 
 @dataclass
@@ -49,16 +50,27 @@ def substeps_for(physics_fps: float, clip_fps: float) -> int:
     return max(1, math.ceil(physics_fps / clip_fps - 1e-9))
 
 
+def physics_step(physics_fps: float, clip_fps: float) -> float:
+    """The physics step (s) of a clip at ``clip_fps``: a frame split into :func:`substeps_for` steps."""
+    return 1.0 / (clip_fps * substeps_for(physics_fps, clip_fps))
+
+
 def simulate_motion(record: CharacterRecord, physics: CharacterPhysics, motion: MotionRecord, params: ApparelParams,
-                    physics_fps: float, relax: int) -> tuple[MotionRecord, dict]:
+                    physics_fps: float, relax: int, world: ApparelWorld | None = None) -> tuple[MotionRecord, dict]:
     """The simulated clip of ``motion`` as a new motion ``<clip>@sim``, and its quality.
+
+    ``world``: a world of ``physics`` with step :func:`physics_step`, as built or reset
+    (:mod:`datagen.apparel.world_cache`); None builds one for this clip.
 
     Raises:
         datagen.apparel.simulate.SimulationExploded: the simulation blew up.
     """
     steps = substeps_for(physics_fps, motion.fps)
-    with ApparelWorld(record.keypoints, physics.pieces, physics.chains, params.simulation,
-                      1.0 / (motion.fps * steps)) as world:
+    if world is None:
+        with ApparelWorld(record.keypoints, physics.pieces, physics.chains, params.simulation,
+                          physics_step(physics_fps, motion.fps)) as world:
+            simulated = simulate_clip(world, motion.transforms, steps, relax)
+    else:
         simulated = simulate_clip(world, motion.transforms, steps, relax)
     height = float(record.height or np.ptp(np.asarray(record.vertices)[:, 1]))
     quality = clip_quality(record.vertices, record.faces, record.keypoints, record.weights, physics.apparel_vertices,

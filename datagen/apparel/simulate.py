@@ -23,7 +23,7 @@ def simulate_clip(world: ApparelWorld, transforms: np.ndarray, substeps: int, re
     """The clip with apparel bones simulated.
 
     Args:
-        world: a fresh world of the clip's character (chains at rest).
+        world: a new or reset world of the clip's character (chains at rest).
         transforms: (F, K, 7) kinematic clip.
         substeps: physics steps per clip frame (>= 1).
         relax: relaxation frames before frame 0 (simulated, dropped).
@@ -42,6 +42,7 @@ def simulate_clip(world: ApparelWorld, transforms: np.ndarray, substeps: int, re
     previous = rest_transforms(world.keypoints).astype(np.float64) if len(lead) else clip[0]
     if not len(lead):
         world.place_chains_at(clip[0])
+    world.start()
     def where(f: int) -> str:
         return f"relaxation frame {f + 1} of {len(lead)}" if f < len(lead) else f"frame {f - len(lead)}"
 

@@ -21,7 +21,8 @@ import numpy as np
 
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching
-from datagen.apparel.setup import SIM_SUFFIX, SIM_VERSION, character_physics, simulate_motion
+from datagen.apparel.setup import SIM_SUFFIX, SIM_VERSION, physics_step, simulate_motion
+from datagen.apparel.world_cache import character_world, close_cached_world
 from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage, summarize_statuses
 from mimicbench.errors import UserError
@@ -47,8 +48,8 @@ def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
         from datagen.apparel.file_physics import simulate_file_motion
 
         return simulate_file_motion(record, *file_rows, motion, bones, vertices, physics_fps, relax, params.simulation)
-    physics = character_physics(record, bones, vertices, params)
-    return simulate_motion(record, physics, motion, params, physics_fps, relax)
+    physics, world = character_world(record, bones, vertices, params, physics_step(physics_fps, motion.fps))
+    return simulate_motion(record, physics, motion, params, physics_fps, relax, world)
 
 
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -165,6 +166,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
             quality[sim.motion_id] = q
         statuses += chunk_statuses
         _write(in_dir, out_dir, records, kinematic, masks, sims, quality, statuses, config, apparel_bones)
+    close_cached_world()
     for table in file_tables:  # the physics tables travel with their characters
         for split in splits_of(in_dir, table):
             write_records(out_dir, table, read_records(in_dir, table, split), split=split, rows_per_shard=4096,

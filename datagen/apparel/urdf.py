@@ -45,7 +45,7 @@ def bone_frame(axis: np.ndarray) -> Rotation:
     return Rotation.from_rotvec(cross / s * np.arctan2(s, c))
 
 
-def _capsule_inertia(mass: float, radius: float, length: float) -> tuple[float, float]:
+def capsule_inertia(mass: float, radius: float, length: float) -> tuple[float, float]:
     """(transverse, axial) principal moments of a solid cylinder of the capsule's full length."""
     full = length + 2 * radius
     return mass * (3 * radius ** 2 + full ** 2) / 12.0, mass * radius ** 2 / 2.0
@@ -85,7 +85,7 @@ def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray, collision_offsets=None
            f'</inertial></link>']
     frames = [bone_frame(link.axis) for link in chain.links]
     for i, (link, joint, parent) in enumerate(zip(chain.links, chain.joints, chain.link_parents)):
-        it, ia = _capsule_inertia(link.mass, link.radius, link.length)
+        it, ia = capsule_inertia(link.mass, link.radius, link.length)
         centre = _vec([0.0, 0.0, 0.5 * link.length])
         parent_name, parent_head, parent_frame = (("anchor", anchor_head, Rotation.identity()) if parent < 0 else
                                                   (f"l{parent}", chain.links[parent].head, frames[parent]))

@@ -4,9 +4,13 @@ Each body piece is a mass-0 convex hull placed at its bone's pose every substep.
 multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass and
 is carried by a fixed constraint that is moved every substep (``changeConstraint`` with the new
 pivot and orientation): teleporting the base instead would move the whole chain rigidly and it
-would never swing. Joint motors (position control toward the rest pose) give the stiffness;
-after every step each joint past its swing cone or twist limit is put back onto it and
-stopped there (:meth:`ApparelWorld._enforce_limits`).
+would never swing. Springs toward the rest pose give the stiffness: torques computed in numpy
+for every joint at once (:mod:`datagen.apparel.springs`) and applied in one call per chain
+(Bullet's spherical joint motors cost half of every step); after every step each joint past
+its swing cone or twist limit is put back onto it and stopped there
+(:meth:`ApparelWorld._after_step`). Chains that hang from the same body bone share one
+multibody (:func:`merged_by_anchor`), and a world is reused across a character's clips
+(:meth:`ApparelWorld.reset`).
 
 Each link collides as the convex hull of its bone's vertices (:mod:`datagen.apparel.chains`).
 Contacts remove half of a penetration each step (``contact_erp``; Bullet's default is 0.2), the
@@ -36,11 +40,13 @@ from scipy.spatial.transform import Rotation
 from datagen.apparel.body_shapes import BodyPiece, hull_points
 from datagen.apparel.chain_spec import ChainSpec
 from datagen.apparel.params import SimParams
+from datagen.apparel.springs import Springs
 from datagen.apparel.urdf import bone_frame, chain_urdf, hull_obj
 from mimicbench.quaternion import quat_apply, quat_conjugate, quat_multiply
 
 BODY_GROUP, BODY_MASK = 0b01, 0b10
 REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
+MAX_MERGED_LINKS = 24  # links of chains joined into one multibody (see merged_by_anchor)
 CLEARING_MARGINS = (0.0, 0.005, 0.01, 0.02)  # metres: hull points this far outside the body are kept
 
 
@@ -54,6 +60,37 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     w, u = q[:, :1], q[:, 1:]
     uv = np.cross(u, v)
     return v + 2.0 * (w * uv + np.cross(u, uv))
+
+
+def merged_by_anchor(chains: list[ChainSpec]) -> list[ChainSpec]:
+    """``chains`` with those that hang from the same body bone, share collision bits and do not
+    collide with one another joined into one chain (one multibody on one anchor, its links in
+    the given order), at the place of the first of them.
+
+    Each multibody costs a few pybullet calls every step (its anchor's constraint, a read of its
+    joints, its spring torques), so a skirt of eight strips on the hips is one multibody, not
+    eight. Links of one multibody never collide, so chains that collide with one another (their
+    mask holds their own group) stay apart, as do chains hung from the world. A joined chain
+    has at most :data:`MAX_MERGED_LINKS` links (pybullet returns no joint state past about the
+    31st spherical joint of a multibody).
+    """
+    out: list[ChainSpec] = []
+    at: dict[tuple, int] = {}
+    for chain in chains:
+        key = (chain.anchor_bone, chain.collision_group, chain.collision_mask)
+        if (chain.anchor_bone < 0 or chain.collision_mask & chain.collision_group or key not in at
+                or len(out[at[key]].links) + len(chain.links) > MAX_MERGED_LINKS):
+            if chain.anchor_bone >= 0 and not chain.collision_mask & chain.collision_group:
+                at[key] = len(out)
+            out.append(chain)
+            continue
+        first = out[at[key]]
+        n = len(first.links)
+        out[at[key]] = dataclasses.replace(
+            first, name=f"{first.name}+{chain.name}", links=first.links + chain.links,
+            joints=first.joints + chain.joints,
+            link_parents=first.link_parents + tuple(p + n if p >= 0 else -1 for p in chain.link_parents))
+    return out
 
 
 @dataclass
@@ -100,7 +137,7 @@ class ApparelWorld:
             self.piece_ids.append(body)
         self.chains: list[ChainBody] = []
         with tempfile.TemporaryDirectory(prefix="mimicbench-apparel-") as tmp:
-            for i, chain in enumerate(chains):
+            for i, chain in enumerate(merged_by_anchor(chains)):
                 root_head = np.asarray(chain.links[0].head, np.float64)
                 chain = self._root_hulls_clearing_body(chain)
                 body = self._load(Path(tmp) / f"chain{i}.urdf", chain, root_head)
@@ -126,6 +163,8 @@ class ApparelWorld:
         rest = [bone_frame(link.axis).as_quat() for c in self.chains for link in c.spec.links]  # (x, y, z, w)
         self._rest_frames_inv = quat_conjugate(np.array([(q[3], q[0], q[1], q[2]) for q in rest]).reshape(-1, 4))
         self._exclude_rest_overlaps()
+        self._built_state = None  # pybullet state id, saved by the first reset()
+        self._pending = None  # (J, 3) the torques set for the next step, not yet stepped
         self._joint_lists = [(c.body, list(range(len(c.spec.joints)))) for c in self.chains]
         self._joint_owners = [(c.body, j) for c in self.chains for j in range(len(c.spec.joints))]
         self._child_joints = []  # per joint: (child joint's index, its link frame in this link's frame at rest)
@@ -136,6 +175,12 @@ class ApparelWorld:
                 self._child_joints.append([(start + k, (frames[j].inv() * frames[k]).as_matrix())
                                            for k, p in enumerate(c.spec.link_parents) if p == j])
             start += len(c.spec.links)
+        self.dt = float(dt)
+        self.springs = Springs([c.spec for c in self.chains], self.dt)
+        self._joint_slices = []  # per chain: its joints' rows in the (J, ...) arrays
+        for c in self.chains:
+            start = self._joint_slices[-1].stop if self._joint_slices else 0
+            self._joint_slices.append(slice(start, start + len(c.spec.joints)))
         self._swing_limits = np.array([j.swing_limit for c in self.chains for j in c.spec.joints], np.float64)
         self._twist_limits = np.array([j.twist_limit for c in self.chains for j in c.spec.joints], np.float64)
 
@@ -238,9 +283,8 @@ class ApparelWorld:
                               lateralFriction=link.friction, physicsClientId=cid)
             pb.setCollisionFilterGroupMask(body, j, chain.collision_group, chain.collision_mask, physicsClientId=cid)
             pb.setJointMotorControlMultiDof(body, j, pb.POSITION_CONTROL, targetPosition=[0.0, 0.0, 0.0, 1.0],
-                                            targetVelocity=[0.0, 0.0, 0.0], positionGain=joint.stiffness,
-                                            velocityGain=joint.damping, force=[joint.max_torque] * 3,
-                                            physicsClientId=cid)
+                                            targetVelocity=[0.0, 0.0, 0.0], positionGain=0.0, velocityGain=0.0,
+                                            force=[0.0, 0.0, 0.0], physicsClientId=cid)  # springs: _after_step
 
     def _exclude_rest_overlaps(self) -> None:
         """Disable collision for pairs that touch in the rest pose where the overlap is the attachment.
@@ -295,45 +339,96 @@ class ApparelWorld:
         anchor_moved = np.any(anchor != np.concatenate([self._placed_anchors[None], anchor[:-1]]), axis=-1)
         self._placed_pieces, self._placed_anchors = piece[-1], anchor[-1]
         piece_l, anchor_l = piece.tolist(), anchor.tolist()
+        pieces_moved = [[] for _ in range(len(poses))]  # per step: the pieces to re-place
+        for s, i in zip(*(a.tolist() for a in np.nonzero(piece_moved))):
+            pieces_moved[s].append(i)
+        anchors_moved = [[] for _ in range(len(poses))]
+        for s, i in zip(*(a.tolist() for a in np.nonzero(anchor_moved))):
+            anchors_moved[s].append(i)
         reset, change, stepper = pb.resetBasePositionAndOrientation, pb.changeConstraint, pb.stepSimulation
         for s in range(len(poses)):
-            for i in np.flatnonzero(piece_moved[s]).tolist():
+            for i in pieces_moved[s]:
                 p = piece_l[s][i]
                 reset(self.piece_ids[i], p[:3], p[3:], physicsClientId=cid)
-            for i in np.flatnonzero(anchor_moved[s]).tolist():
+            for i in anchors_moved[s]:
                 a = anchor_l[s][i]
                 change(self._anchor_constraints[i], jointChildPivot=a[:3], jointChildFrameOrientation=a[3:],
                        physicsClientId=cid)
             if step:
                 stepper(physicsClientId=cid)
-                self._enforce_limits()
+                self._after_step()
 
-    def _enforce_limits(self) -> None:
-        """Put every joint that is past its limits back onto them and stop it there (inelastic).
+    def reset(self) -> None:
+        """Put the world back as it was built (bodies, joints, contacts), ready for another clip.
 
-        A joint's rotation from rest as a rotation vector r in its frame (Z along the bone): the
-        swing (r_x, r_y) is held in the cone |(r_x, r_y)| <= swing limit and the twist to |r_z| <=
+        pybullet's saveState / restoreState; the spring torques set after the last step are taken
+        back (adding their negatives leaves exact zeros), so a clip simulated after a reset gives
+        the same bytes as one simulated in a new world (tests/test_apparel_physics.py checks it).
+        """
+        if self._pending is not None:
+            self._apply_torques(-self._pending)
+            self._pending = None
+        if self._built_state is None:
+            self._built_state = self.pb.saveState(physicsClientId=self.client)
+        else:
+            self.pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
+        self._placed_pieces[:] = np.nan
+        self._placed_anchors[:] = np.nan
+
+    def start(self) -> None:
+        """Set the springs' torques for the first step from the joints' present state."""
+        self._after_step()
+
+    def _after_step(self) -> None:
+        """Hold every joint within its limits, then set the springs' torques for the next step.
+
+        Limits: a joint past them is put back onto them and stopped there (inelastic). A joint's
+        rotation from rest as a rotation vector r in its frame (Z along the bone): the swing
+        (r_x, r_y) is held in the cone |(r_x, r_y)| <= swing limit and the twist to |r_z| <=
         twist limit. Bullet's spherical limit removes only a few percent of the angle past it a
         step, so a chain struck by a fast turn stayed far past it; this removes that angle after
         every step, and the joint's speed further out. A spherical joint's velocity is the child
         link's angular velocity relative to its parent, in the child's frame; the speed taken
         from a joint is given to its child joints (in their frames), so the links below keep
-        turning as they did instead of turning back. One read of joint states per chain.
+        turning as they did instead of turning back.
+
+        Springs: each joint gets its torque toward rest from :class:`~datagen.apparel.springs.Springs`
+        (r, the rotation vector, is the same in the parent's and the child's frame; the velocity is
+        in the child's). One read of joint states and one torque call per chain.
         """
         pb, cid = self.pb, self.client
         states = [s for body, joints in self._joint_lists for s in
                   pb.getJointStatesMultiDof(body, joints, physicsClientId=cid)]
         if not states:
             return
-        q = np.array([s[0] for s in states], np.float64)  # (J, 4) x, y, z, w
-        q *= np.where(q[:, 3:] < 0, -1.0, 1.0)
-        sin_half = np.linalg.norm(q[:, :3], axis=1)
+        try:
+            both = np.array([s[0] + s[1] for s in states], np.float64)  # (J, 7)
+        except ValueError:  # a joint without a state
+            raise RuntimeError(f"pybullet returned no state for some chain joints; expected (4 + 3) "
+                               f"numbers for each of {len(states)} spherical joints") from None
+        q = both[:, :4] * np.where(both[:, 3:4] < 0, -1.0, 1.0)  # (J, 4) x, y, z, w with w >= 0
+        velocity = both[:, 4:]  # (J, 3) in each child link's frame
+        sin_half = np.sqrt(np.einsum("ij,ij->i", q[:, :3], q[:, :3]))
         r = q[:, :3] * (2.0 * np.arctan2(sin_half, q[:, 3]) / np.maximum(sin_half, 1e-12))[:, None]  # (J, 3)
-        bend = np.linalg.norm(r[:, :2], axis=1)
+        bend = np.sqrt(np.einsum("ij,ij->i", r[:, :2], r[:, :2]))
         over = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
-        if not len(over):
-            return
-        velocity = np.array([s[1] for s in states], np.float64)  # (J, 3) in each child link's frame
+        if len(over):
+            self._project_limits(states, q, r, bend, velocity, over)
+        self._apply_torques(self.springs.torques(r, velocity))
+
+    def _apply_torques(self, torques: np.ndarray) -> None:
+        """Add ``torques`` (J, 3) N m to the joints for the next step (Bullet sums torques until a step)."""
+        pb, cid = self.pb, self.client
+        self._pending = torques
+        listed = torques.tolist()
+        for (body, joints), rows in zip(self._joint_lists, self._joint_slices):
+            pb.setJointMotorControlMultiDofArray(body, joints, pb.TORQUE_CONTROL, forces=listed[rows],
+                                                 physicsClientId=cid)
+
+    def _project_limits(self, states, q, r, bend, velocity, over) -> None:
+        """Put joints ``over`` (indices, parents first) back onto their limits; ``r`` and
+        ``velocity`` (J, 3) are updated in place to what the joints are set to."""
+        pb, cid = self.pb, self.client
         turned = Rotation.from_quat(q).as_matrix()  # (J, 3, 3) joint frame -> link frame
         reset = set()
         for j in over.tolist():  # parents before children
@@ -375,7 +470,9 @@ class ApparelWorld:
                                                physicsClientId=cid)
 
     def step(self) -> None:
+        """One physics step without the limits and springs (Bullet's own dynamics only)."""
         self.pb.stepSimulation(physicsClientId=self.client)
+        self._pending = None
 
     def read_links(self) -> tuple[np.ndarray, np.ndarray, float]:
         """Bones' rest-relative rotations and heads, and the fastest link speed.

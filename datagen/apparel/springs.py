@@ -1,0 +1,135 @@
+"""The chains' joint springs: torques toward the rest pose, computed in numpy for all joints at once.
+
+Each spherical joint is pulled toward rest by a spring with damping. Stiff springs on light links
+blow up when their torque is taken from the present state alone (explicit: the chain's fast
+zig-zag mode has a far smaller inertia than any one joint), so the torque is the implicit one of
+"stable PD" control (Tan, Liu and Turk, 2011), with the joint-space mass matrix M of each chain at
+rest: the torque that, after one step of length dt, meets the spring and damper at the new speed,
+
+    tau = -(K q + D w+),  w+ = w + dt M^-1 tau,  D = K dt + C
+    =>  tau = -(1 + dt D M^-1)^-1 (K q + D w)
+
+with q a joint's rotation vector from rest and w its velocity (each 3 per joint, in the child
+link's frame). Where a joint's torque passes its ``max_torque`` on an axis, that axis's K and
+D are scaled down by the overshoot and the chain's implicit step is solved again with them, so
+the torque comes back to about the bound (clipping the torque alone would undo the implicit
+step: its neighbours overcorrect and the chain zig-zags; any K, D >= 0 keep the step stable);
+with ``max_torque`` 0 the joint is free. The gains follow a joint's
+``stiffness`` s (the share of an angle error taken out in one step) and ``damping`` v (the share
+of a speed) on the joint's own diagonal of M: K = s diag(M) / dt^2, C = v diag(M) / dt.
+
+M treats the chain's anchor as fixed (it outweighs the chain ten times and its constraint holds
+it on its bone); links are the URDF's inertias (:func:`datagen.apparel.urdf.capsule_inertia`, at
+each capsule's centre). Units: N m, rad, s, kg m^2.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from datagen.apparel.chain_spec import ChainSpec
+from datagen.apparel.urdf import bone_frame, capsule_inertia
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """(3, 3) cross-product matrix of v (3,): _skew(v) @ u = v x u."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def chain_mass_matrix(chain: ChainSpec) -> np.ndarray:
+    """(3L, 3L) joint-space mass matrix of ``chain`` at rest with its anchor fixed.
+
+    Joint j's three speeds are the angular velocity of link j relative to its parent, in link j's
+    rest frame R_j (Z along the bone). Link i moves with the joints on its path to the anchor:
+    angular velocity sum_j R_j w_j, centre velocity sum_j (R_j w_j) x (c_i - h_j); M = sum over
+    links of J_v^T m J_v + J_w^T I_world J_w.
+    """
+    n = len(chain.links)
+    frames = [bone_frame(link.axis).as_matrix() for link in chain.links]
+    heads = [np.asarray(link.head, np.float64) for link in chain.links]
+    mass_matrix = np.zeros((3 * n, 3 * n))
+    for i, link in enumerate(chain.links):
+        axis = np.asarray(link.axis, np.float64) / np.linalg.norm(link.axis)
+        centre = heads[i] + 0.5 * link.length * axis
+        transverse, axial = capsule_inertia(link.mass, link.radius, link.length)
+        inertia = frames[i] @ np.diag([transverse, transverse, axial]) @ frames[i].T
+        jv, jw = np.zeros((3, 3 * n)), np.zeros((3, 3 * n))
+        j = i
+        while j >= 0:
+            jw[:, 3 * j:3 * j + 3] = frames[j]
+            jv[:, 3 * j:3 * j + 3] = -_skew(centre - heads[j]) @ frames[j]
+            j = chain.link_parents[j]
+        mass_matrix += link.mass * np.einsum("ai,aj->ij", jv, jv) + np.einsum("ai,ab,bj->ij", jw, inertia, jw)
+    return mass_matrix
+
+
+def solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x (n, m) with a x = b, for a symmetric positive definite (n, n) and b (n, m).
+
+    Gaussian elimination without pivoting in elementwise numpy (no BLAS or LAPACK): their
+    multi-threaded kernels round differently with the number of threads, and the stage's output
+    must not depend on where it runs (a local process or a worker with one thread).
+    """
+    a = np.array(a, np.float64)
+    x = np.array(b, np.float64)
+    n = len(a)
+    for k in range(n - 1):
+        f = a[k + 1:, k] / a[k, k]  # (n-k-1,)
+        a[k + 1:, k:] -= f[:, None] * a[k, k:][None, :]
+        x[k + 1:] -= f[:, None] * x[k][None, :]
+    for k in reversed(range(n)):
+        x[k] = (x[k] - (a[k, k + 1:, None] * x[k + 1:]).sum(axis=0)) / a[k, k]
+    return x
+
+
+class Springs:
+    """The springs of every joint of ``chains`` (in chain order, J joints), for physics step ``dt`` (s)."""
+
+    def __init__(self, chains: list[ChainSpec], dt: float):
+        blocks, stiff, damp, bound, sizes = [], [], [], [], []
+        self.dt = float(dt)
+        self.mass_matrices: list[np.ndarray] = []  # per chain (n, n)
+        self.resolved = 0  # chains solved again with weaker springs (bound passed), a count
+        for chain in chains:
+            mass_matrix = chain_mass_matrix(chain)
+            diag = np.diag(mass_matrix)
+            k = np.repeat([joint.stiffness for joint in chain.joints], 3) * diag / dt ** 2
+            c = np.repeat([joint.damping for joint in chain.joints], 3) * diag / dt
+            d = k * dt + c
+            # (1 + dt D M^-1)^-1 = M (M + dt D)^-1 = ((M + dt D)^-1 M)^T, M and D symmetric
+            blocks.append(solve_spd(mass_matrix + np.diag(dt * d), mass_matrix).T)
+            stiff.append(k)
+            damp.append(d)
+            bound.append(np.repeat([joint.max_torque for joint in chain.joints], 3))
+            sizes.append(len(diag))
+            self.mass_matrices.append(mass_matrix)
+        width = max((len(b) for b in blocks), default=0)
+        self.blocks = np.zeros((len(blocks), width, width))  # (C, n, n) each chain's matrix, zero-padded
+        for i, b in enumerate(blocks):
+            self.blocks[i, :len(b), :len(b)] = b
+        self.rows = np.concatenate([i * width + np.arange(len(b)) for i, b in enumerate(blocks)]).astype(int) \
+            if blocks else np.zeros(0, int)  # (3J,) each joint axis's place in the padded (C * n,)
+        self.stiffness = np.concatenate(stiff) if stiff else np.zeros(0)  # (3J,) K, N m/rad
+        self.damping = np.concatenate(damp) if damp else np.zeros(0)  # (3J,) D = K dt + C, N m s/rad
+        self.bound = np.concatenate(bound) if bound else np.zeros(0)  # (3J,) N m
+        self.inverse_bound = 1.0 / np.maximum(self.bound, 1e-300)  # (3J,) 1/N m
+        self.chain_sizes = np.array(sizes, int)  # (C,) rows of each chain
+        self._padded = np.zeros(self.blocks.shape[:2])
+        self.chain_starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int) if sizes else np.zeros(0, int)
+
+    def torques(self, rotation: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+        """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3)."""
+        padded = self._padded  # (C, n), zero outside the rows
+        padded.ravel()[self.rows] = self.stiffness * rotation.ravel() + self.damping * velocity.ravel()
+        tau = -np.einsum("cij,cj->ci", self.blocks, padded).ravel()[self.rows]  # no BLAS: see solve_spd
+        over = np.abs(tau) * self.inverse_bound  # (3J,) share of each axis's bound used
+        if not len(tau) or over.max() <= 1.0:
+            return tau.reshape(-1, 3)
+        for c in np.flatnonzero(np.maximum.reduceat(over, self.chain_starts) > 1.0).tolist():
+            rows = slice(self.chain_starts[c], self.chain_starts[c] + self.chain_sizes[c])
+            share = 1.0 / np.maximum(over[rows], 1.0)  # (n,) weaker springs where the bound was passed
+            k, d = self.stiffness[rows] * share, self.damping[rows] * share
+            mass_matrix = self.mass_matrices[c]
+            solve = solve_spd(mass_matrix + np.diag(self.dt * d), mass_matrix).T
+            tau[rows] = -(solve * (k * rotation.ravel()[rows] + d * velocity.ravel()[rows])).sum(axis=1)
+            self.resolved += 1
+        return tau.reshape(-1, 3)
