@@ -189,7 +189,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
     cases = load_cases(dataset, protocols)
     fingerprints = dataset_fingerprints(dataset, list(cases))
     check_results_folder(out, fingerprints)
-    metas = [method_meta(m.metadata, dataset, fingerprints) for m in instances]
+    metas = [method_meta(m.metadata, dataset, fingerprints, m.weights_fingerprint()) for m in instances]
     for method, meta in zip(instances, metas):  # refuse before anything is written
         check_method_folder(method_dir(out, method.metadata.name, method.metadata.version), meta)
     on_ray = engine is not None and getattr(engine, "name", "local") != "local"

@@ -68,6 +68,18 @@ class PoseTransferMethod(abc.ABC):
     def setup(self, device: str = "cpu") -> None:
         """Load weights and move to ``device`` (``cpu`` or ``cuda[:i]``); called once."""
 
+    def weights_fingerprint(self) -> str | None:
+        """Fingerprint of the weights this instance will load (e.g.
+        :func:`schemas.fingerprint.files_fingerprint` of its checkpoint files), None for a method
+        without weights (the default).
+
+        Results are stored per method version and resumed, so ``bench run`` records it in the
+        results' ``meta.json`` and refuses to add rows made with other weights (a user's own
+        checkpoint given by option or environment variable) to a folder holding rows of the
+        shipped ones. Called in the driver, before :meth:`setup`; it must not load the weights.
+        """
+        return None
+
     @abc.abstractmethod
     def transfer(self, requests: Sequence[TransferRequest]) -> list[np.ndarray]:
         """Return, for each request, the posed target vertices (Nt, 3) float32, in order."""

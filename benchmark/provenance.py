@@ -11,11 +11,13 @@ cases were made).
     {"method": {MethodMetadata fields}, "toolkit_version": "0.1.0", "dataset": "data/zoo",
      "fingerprints": {"characters": sha, "motions": sha, "pairs": sha | null,
                       "cases": {"h2h": sha, "cct": sha}},
+     "weights": sha | null,
      "created": "2026-11-30T08:00:00+00:00"}
 
-and refuses (it never silently redoes) to add rows to a results folder whose rows were made from
-other fingerprints or by another toolkit version, saying which differs: use another ``--out``,
-or delete the old folder. The leaderboard calls :func:`check_results_provenance`, which refuses
+(``weights``: :meth:`benchmark.method.PoseTransferMethod.weights_fingerprint`, null for a method
+without weights) and refuses (it never silently redoes) to add rows to a results folder whose
+rows were made from other fingerprints, with other weights or by another toolkit version, saying
+which differs: use another ``--out``, or delete the old folder. The leaderboard calls :func:`check_results_provenance`, which refuses
 a results folder that mixes fingerprints.
 """
 from __future__ import annotations
@@ -91,10 +93,12 @@ def dataset_fingerprints(dataset, protocols: Sequence[str]) -> dict:
             "cases": {p: split_fingerprint(manifest, "cases", p) for p in protocols}}
 
 
-def method_meta(metadata, dataset, fingerprints: dict) -> dict:
-    """The content of ``meta.json`` for a method version run on ``dataset``."""
+def method_meta(metadata, dataset, fingerprints: dict, weights: str | None = None) -> dict:
+    """The content of ``meta.json`` for a method version run on ``dataset`` with the weights whose
+    fingerprint is ``weights`` (None: the method has none)."""
     return {"method": asdict(metadata), "toolkit_version": TOOLKIT_VERSION, "dataset": str(dataset),
-            "fingerprints": fingerprints, "created": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+            "fingerprints": fingerprints, "weights": weights,
+            "created": datetime.now(timezone.utc).isoformat(timespec="seconds")}
 
 
 def read_meta(folder) -> dict | None:
@@ -148,9 +152,18 @@ def check_method_folder(folder, meta: dict) -> None:
     if diff:
         raise ProvenanceError(f"{folder}: its rows were made from another dataset state ({', '.join(diff)} differ; "
                               f"dataset was {old.get('dataset')}); {fresh}")
+    if old.get("weights") != meta.get("weights"):
+        recorded = "no weights recorded" if "weights" not in old else f"weights {_short(old['weights'])}"
+        raise ProvenanceError(f"{folder}: its rows were made with other weights ({recorded}; this run loads "
+                              f"{_short(meta.get('weights'))}), e.g. a checkpoint given by option or environment "
+                              f"variable against the shipped one; {fresh}")
     if old.get("toolkit_version") != meta["toolkit_version"]:
         raise ProvenanceError(f"{folder}: its rows were scored by mimicbench {old.get('toolkit_version')}, this is "
                               f"{meta['toolkit_version']}; {fresh}")
+
+
+def _short(weights: str | None) -> str:
+    return "none" if weights is None else weights[:12]
 
 
 def write_method_meta(folder, meta: dict) -> None:

@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 from typing import Iterable
 
-from schemas.manifest import load_manifest
+from schemas.manifest import load_manifest, sha256_of
 
 
 def digest_of(value) -> str:
@@ -24,6 +24,23 @@ def digest_of(value) -> str:
     """
     text = json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def files_fingerprint(paths: Iterable[str | os.PathLike]) -> str:
+    """Fingerprint of a set of files by name and content: the sha256 of each, sorted by file name
+    (the folder they lie in does not count, so a copied checkpoint folder keeps its fingerprint).
+
+    Raises:
+        ValueError: no path given, or two paths share a file name.
+        FileNotFoundError: a path does not exist.
+    """
+    named = sorted((Path(p).name, sha256_of(p)) for p in paths)
+    if not named:
+        raise ValueError("files_fingerprint: expected at least one file")
+    names = [n for n, _ in named]
+    if len(set(names)) != len(names):
+        raise ValueError(f"files_fingerprint: two files share a name in {names}")
+    return digest_of(named)
 
 
 def table_fingerprint(root: str | os.PathLike, table: str, manifest: dict | None = None) -> str:

@@ -1,12 +1,13 @@
 """Results know what made them, keep their stored order and survive bad parts (issue 12, items 3, 5,
 8 and 10): meta.json, cases tied to the dataset state, no mixing, sequence-numbered parts, umask,
 0-byte parts skipped."""
+import hashlib
 import json
 import logging
 import os
 import shutil
 import subprocess
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import pyarrow.parquet as pq
 import pytest
@@ -20,7 +21,7 @@ from benchmark.provenance import META_FILE, ProvenanceError, check_results_prove
 from benchmark.registry import register
 from benchmark.results import done_case_ids, method_dir, part_files, read_result_records
 from mimicbench import __version__
-from schemas.fingerprint import table_fingerprint
+from schemas.fingerprint import files_fingerprint, table_fingerprint
 from schemas.manifest import load_manifest, sha256_of
 from schemas.shards import read_records
 from schemas.validate import validate_dataset
@@ -47,7 +48,8 @@ def case_shards(dataset):
 def test_meta_json_records_fingerprints_metadata_and_version(bench_data, tmp_path):
     run_benchmark(bench_data, ["identity"], ["h2h", "cct"], tmp_path, progress=False)
     meta = json.loads((method_dir(tmp_path, "identity", "1") / META_FILE).read_text())
-    assert set(meta) == {"method", "toolkit_version", "dataset", "fingerprints", "created"}
+    assert set(meta) == {"method", "toolkit_version", "dataset", "fingerprints", "weights", "created"}
+    assert meta["weights"] is None  # identity has no weights
     assert meta["method"] == json.loads(json.dumps(asdict(Identity.metadata)))
     assert meta["toolkit_version"] == __version__ and meta["dataset"] == str(bench_data)
     fps = meta["fingerprints"]
@@ -110,6 +112,74 @@ def test_results_of_another_dataset_are_not_resumed_or_mixed(bench_data, tmp_pat
 
     with pytest.raises(ProvenanceError):
         write_leaderboard(res)
+
+
+class WeightedIdentity(Identity):
+    """Identity that says it loads the weights file named by WEIGHTED_IDENTITY_FILE."""
+
+    metadata = replace(Identity.metadata, name="weighted_identity")
+
+    def weights_fingerprint(self):
+        return files_fingerprint([os.environ["WEIGHTED_IDENTITY_FILE"]])
+
+
+def test_rows_made_with_other_weights_are_not_resumed_or_mixed(bench_data, tmp_path, monkeypatch):
+    """A user's checkpoint (given by environment variable) must not add rows to the folder of the
+    shipped weights' rows of the same method version, nor resume from them."""
+    register("weighted_identity", WeightedIdentity)
+    weights = tmp_path / "weights.safetensors"
+    weights.write_bytes(b"shipped")
+    monkeypatch.setenv("WEIGHTED_IDENTITY_FILE", str(weights))
+    res = tmp_path / "res"
+    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
+    folder = method_dir(res, "weighted_identity", Identity.metadata.version)
+    meta = json.loads((folder / META_FILE).read_text())
+    name_sha = json.dumps([["weights.safetensors", hashlib.sha256(b"shipped").hexdigest()]], separators=(",", ":"))
+    assert meta["weights"] == hashlib.sha256(name_sha.encode()).hexdigest()
+    before = {p.name: sha256_of(p) for p in part_files(folder)}
+    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)  # same weights: resumes
+    weights.write_bytes(b"retrained")
+    with pytest.raises(ProvenanceError, match="other weights.*this run loads"):
+        run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
+    assert {p.name: sha256_of(p) for p in part_files(folder)} == before
+    assert json.loads((folder / META_FILE).read_text())["weights"] == meta["weights"]
+    # a copy of the weights under another folder is the same weights
+    copy = tmp_path / "copy" / "weights.safetensors"
+    copy.parent.mkdir()
+    copy.write_bytes(b"shipped")
+    monkeypatch.setenv("WEIGHTED_IDENTITY_FILE", str(copy))
+    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
+
+
+def test_results_without_recorded_weights_are_refused_for_a_method_with_weights(bench_data, tmp_path, monkeypatch):
+    register("weighted_identity", WeightedIdentity)
+    weights = tmp_path / "w.bin"
+    weights.write_bytes(b"w")
+    monkeypatch.setenv("WEIGHTED_IDENTITY_FILE", str(weights))
+    res = tmp_path / "res"
+    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
+    path = method_dir(res, "weighted_identity", Identity.metadata.version) / META_FILE
+    meta = json.loads(path.read_text())
+    del meta["weights"]  # as written by an older toolkit
+    path.write_text(json.dumps(meta))
+    with pytest.raises(ProvenanceError, match="no weights recorded"):
+        run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
+
+
+def test_files_fingerprint_ignores_the_folder_and_refuses_duplicate_names(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    for d in ("a", "b"):
+        (tmp_path / d / "x.safetensors").write_bytes(b"1")
+        (tmp_path / d / "y.safetensors").write_bytes(b"2")
+    fa = files_fingerprint([tmp_path / "a" / "y.safetensors", tmp_path / "a" / "x.safetensors"])
+    assert fa == files_fingerprint([tmp_path / "b" / "x.safetensors", tmp_path / "b" / "y.safetensors"])
+    (tmp_path / "b" / "y.safetensors").write_bytes(b"3")
+    assert fa != files_fingerprint([tmp_path / "b" / "x.safetensors", tmp_path / "b" / "y.safetensors"])
+    with pytest.raises(ValueError, match="share a name"):
+        files_fingerprint([tmp_path / "a" / "x.safetensors", tmp_path / "b" / "x.safetensors"])
+    with pytest.raises(ValueError, match="at least one"):
+        files_fingerprint([])
 
 
 def test_parts_without_meta_json_are_refused(bench_data, tmp_path):
