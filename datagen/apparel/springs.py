@@ -74,7 +74,7 @@ def solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     n = len(a)
     for k in range(n - 1):
         f = a[k + 1:, k] / a[k, k]  # (n-k-1,)
-        a[k + 1:, k:] -= f[:, None] * a[k, k:][None, :]
+        a[k + 1:, k + 1:] -= f[:, None] * a[k, k + 1:][None, :]  # column k is not read again
         x[k + 1:] -= f[:, None] * x[k][None, :]
     for k in reversed(range(n)):
         x[k] = (x[k] - (a[k, k + 1:, None] * x[k + 1:]).sum(axis=0)) / a[k, k]
