@@ -117,3 +117,23 @@ def test_ground_truth_refuses_different_skeletons(small_zoo):
     b = next(c for c in chars if c.category == "fish")
     with pytest.raises(ValueError, match="do not share a skeleton"):
         ground_truth_transforms(a, b, np.zeros((len(a.parents), 7), np.float32))
+
+
+def test_cases_read_their_poses_from_the_motions_table_and_the_pool_holds_no_transforms(small_zoo):
+    """The pool keeps clip IDs and lengths only; each case's source pose is read back by
+    streaming the motions table. Checked against every motion loaded whole."""
+    from benchmark.protocols.base import CasePool, MotionInfo
+
+    pool = CasePool.load(small_zoo, "all")
+    infos = [m for ms in pool.motions.values() for m in ms]
+    assert infos and all(type(m) is MotionInfo and not hasattr(m, "transforms") for m in infos)
+    cases = build_cases(small_zoo, "all", h2h_pairs=6, h2h_poses=3, cct_pairs=8, cct_poses=2)
+    whole = {m.motion_id: m for m in read_records(small_zoo, "motions")}
+    checked = 0
+    for c in cases["h2h"] + cases["cct"]:
+        m = whole[c.motion_id]
+        assert c.case_id.endswith(f"/{m.name}#{c.frame}") and m.character_id == c.source_id
+        np.testing.assert_array_equal(np.asarray(c.source_transforms).reshape(-1, 7),
+                                      np.asarray(m.transforms[c.frame]).reshape(-1, 7))
+        checked += 1
+    assert checked == len(cases["h2h"]) + len(cases["cct"]) > 10

@@ -25,7 +25,7 @@ import numpy as np
 
 from benchmark.metrics import els, pmd
 from benchmark.normalisation import RestFrame
-from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome
+from benchmark.protocols.base import BenchmarkProtocol, Call, CaseDraw, CasePool, EvalData, Outcome
 from benchmark.request import MotionRequest
 from schemas.case import CaseRecord
 
@@ -76,7 +76,7 @@ class ApparelMotion(BenchmarkProtocol):
         return [(c, c) for c in pool.characters if np.asarray(c.apparel_bone_mask).any()
                 and any(m.name.endswith(SIM_SUFFIX) for m in pool.motions.get(c.character_id, []))]
 
-    def build_cases(self, pool: CasePool, pairs: int | None, poses: int, seed: int = 0) -> list[CaseRecord]:
+    def draw_cases(self, pool: CasePool, pairs: int | None, poses: int, seed: int = 0) -> list[CaseDraw]:
         """``poses`` windows per simulated clip of ``pairs`` characters (None: every one), drawn
         with the protocol's seeded generator."""
         rng = self.rng(seed)
@@ -93,7 +93,7 @@ class ApparelMotion(BenchmarkProtocol):
                 window = min(self.window, kin.num_frames)
                 starts = np.arange(kin.num_frames - window + 1)
                 for start in sorted(rng.choice(starts, size=min(poses, len(starts)), replace=False)):
-                    cases.append(self.make_case(c, c, (kin, sim), int(start)))
+                    cases.append(CaseDraw(c, c, (kin, sim), int(start)))
         return cases
 
     def make_case(self, source, target, motion, frame: int) -> CaseRecord:

@@ -11,7 +11,8 @@ from __future__ import annotations
 import abc
 import zlib
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -20,7 +21,9 @@ from benchmark.request import TransferRequest
 from benchmark.rigs import CharacterData
 from mimicbench.skinning import linear_blend_skinning
 from schemas.case import CaseRecord
-from schemas.shards import has_table, read_records, read_table
+from schemas.errors import DatasetError
+from schemas.shard_stream import checked_parquet_file, read_row_group
+from schemas.shards import has_table, read_records, read_table, readable_entries
 
 HUMANOID_LIKE = ("humanoid", "apparel")
 """Categories that count as humanoid (an ``apparel`` character is a humanoid wearing apparel)."""
@@ -52,12 +55,41 @@ class Outcome:
     outputs: dict = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class MotionInfo:
+    """What drawing cases needs of a clip: its IDs, name and length, without its transforms."""
+
+    motion_id: str
+    character_id: str
+    name: str
+    num_frames: int
+
+
+@dataclass(frozen=True)
+class CaseDraw:
+    """One drawn case before its poses are read: ``motions`` the clips it reads (one, or the
+    apparel protocol's (kinematic, simulated) pair), ``frame`` the pose or the window's start."""
+
+    source: object
+    target: object
+    motions: tuple
+    frame: int
+
+
 @dataclass
 class CasePool:
-    """Characters with a mesh, sorted by ID, and each one's motions sorted by motion ID."""
+    """Characters with a mesh, sorted by ID, and each one's motions (:class:`MotionInfo`) sorted
+    by motion ID.
+
+    The pool never holds the motions' transforms (a PokeAnimDB-size motions table is several
+    gigabytes): protocols draw cases from the clips' IDs and lengths, and :meth:`cases_from`
+    then streams the motions table one row group (16 clips) at a time and reads only the row
+    groups holding a drawn clip, keeping a clip's transforms only while a drawn case still needs it.
+    """
 
     characters: list
     motions: dict
+    dataset: object = None
 
     @classmethod
     def load(cls, dataset, split: str = "test") -> "CasePool":
@@ -66,12 +98,15 @@ class CasePool:
         chars.sort(key=lambda c: c.character_id)
         ids = {c.character_id for c in chars}
         motions: dict[str, list] = {}
-        for m in read_records(dataset, "motions"):
-            if m.character_id in ids:
-                motions.setdefault(m.character_id, []).append(m)
+        if has_table(dataset, "motions"):
+            t = read_table(dataset, "motions", columns=list(MOTION_INFO_COLUMNS))
+            for row in zip(*(t.column(c).to_pylist() for c in MOTION_INFO_COLUMNS)):
+                info = MotionInfo(*row)
+                if info.character_id in ids:
+                    motions.setdefault(info.character_id, []).append(info)
         for ms in motions.values():
             ms.sort(key=lambda m: m.motion_id)
-        return cls(chars, motions)
+        return cls(chars, motions, dataset)
 
     def frames_for(self, rng: np.random.Generator, character_id: str, n_poses: int) -> list[tuple]:
         """Up to ``n_poses`` (motion, frame) draws from a character's clips, never frame 0 (rest)."""
@@ -80,6 +115,52 @@ class CasePool:
             return []
         idx = rng.choice(len(choices), size=min(n_poses, len(choices)), replace=False)
         return [choices[i] for i in sorted(idx)]
+
+    def cases_from(self, protocol: "BenchmarkProtocol", draws: Sequence[CaseDraw]) -> list[CaseRecord]:
+        """``protocol.make_case`` of each draw, in the draws' order, with its clips' full records
+        (:class:`schemas.motion.MotionRecord`) read by streaming the motions table (see the class
+        docstring)."""
+        needed: dict[str, list[int]] = {}
+        for i, d in enumerate(draws):
+            for m in d.motions:
+                needed.setdefault(m.motion_id, []).append(i)
+        missing = {i: len({m.motion_id for m in d.motions}) for i, d in enumerate(draws)}
+        held: dict[str, object] = {}
+        seen: set[str] = set()
+        out: list[CaseRecord | None] = [None] * len(draws)
+        for record in self._records_of(set(needed)):
+            if record.motion_id in seen:
+                raise DatasetError(f"{self.dataset}: motion {record.motion_id!r} is stored twice; "
+                                   f"run `mimicbench validate {self.dataset}`")
+            seen.add(record.motion_id)
+            held[record.motion_id] = record
+            for i in needed[record.motion_id]:
+                missing[i] -= 1
+                if missing[i] == 0:
+                    d = draws[i]
+                    full = tuple(held[m.motion_id] for m in d.motions)
+                    out[i] = protocol.make_case(d.source, d.target, full[0] if len(full) == 1 else full, d.frame)
+            held = {k: v for k, v in held.items() if any(missing[i] for i in needed[k])}
+        lost = sorted({m.motion_id for d, c in zip(draws, out) if c is None for m in d.motions} - seen)
+        if lost:
+            raise DatasetError(f"{self.dataset}: motions {lost[:5]} were listed but not found when read again "
+                               "(the motions table changed while cases were built?)")
+        return out
+
+    def _records_of(self, motion_ids: set) -> Iterator:
+        """The motion records with an ID in ``motion_ids``, in stored order, one row group at a time."""
+        if not motion_ids:
+            return
+        root = Path(self.dataset)
+        for entry in readable_entries(root, "motions", None, False):
+            pf = checked_parquet_file(root, entry, "motions")
+            for g in range(pf.num_row_groups):
+                ids = pf.read_row_group(g, columns=["motion_id"]).column("motion_id").to_pylist()
+                if motion_ids.intersection(ids):
+                    yield from (r for r in read_row_group(pf, g, "motions") if r.motion_id in motion_ids)
+
+
+MOTION_INFO_COLUMNS = ("motion_id", "character_id", "name", "num_frames")
 
 
 @dataclass
@@ -149,7 +230,9 @@ class BenchmarkProtocol(abc.ABC):
 
     @abc.abstractmethod
     def make_case(self, source, target, motion, frame: int) -> CaseRecord:
-        """The case for one source pose (``motion.transforms[frame]``) and one target."""
+        """The case for one source pose (``motion.transforms[frame]``, ``motion`` a full
+        :class:`schemas.motion.MotionRecord`, or the tuple of them a :class:`CaseDraw` names) and
+        one target."""
 
     @abc.abstractmethod
     def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
@@ -160,13 +243,17 @@ class BenchmarkProtocol(abc.ABC):
         return np.random.default_rng([seed, zlib.crc32(self.name.encode())])
 
     def build_cases(self, pool: CasePool, pairs: int | None, poses: int, seed: int = 0) -> list[CaseRecord]:
-        """Cases for ``pairs`` candidate pairs drawn with a seeded generator (None: every
-        pair), each with ``poses`` frames of the source's clips (never the rest frame)."""
+        """The cases of :meth:`draw_cases`, with their poses read (:meth:`CasePool.cases_from`)."""
+        return pool.cases_from(self, self.draw_cases(pool, pairs, poses, seed))
+
+    def draw_cases(self, pool: CasePool, pairs: int | None, poses: int, seed: int = 0) -> list[CaseDraw]:
+        """``pairs`` candidate pairs drawn with a seeded generator (None: every pair), each with
+        ``poses`` frames of the source's clips (never the rest frame)."""
         rng = self.rng(seed)
         cands = [(a, b) for a, b in self.candidate_pairs(pool) if pool.motions.get(a.character_id)]
         if pairs is not None and len(cands) > pairs:
             cands = [cands[i] for i in sorted(rng.choice(len(cands), size=pairs, replace=False))]
-        return [self.make_case(a, b, m, f) for a, b in cands for m, f in pool.frames_for(rng, a.character_id, poses)]
+        return [CaseDraw(a, b, (m,), f) for a, b in cands for m, f in pool.frames_for(rng, a.character_id, poses)]
 
     def case_id(self, source, target, motion, frame: int) -> str:
         """``<protocol>/<source_id>-><target_id>/<motion name>#<frame>``."""
