@@ -11,7 +11,7 @@ import hashlib
 import json
 import os
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Mapping
 
 from schemas.manifest import load_manifest, sha256_of
 
@@ -26,21 +26,18 @@ def digest_of(value) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def files_fingerprint(paths: Iterable[str | os.PathLike]) -> str:
-    """Fingerprint of a set of files by name and content: the sha256 of each, sorted by file name
-    (the folder they lie in does not count, so a copied checkpoint folder keeps its fingerprint).
+def files_fingerprint(files: Mapping[str, str | os.PathLike]) -> str:
+    """Fingerprint of named files by content: ``{name: path}`` (e.g. a checkpoint's stage names
+    and weight files) to the digest of ``{name: sha256 of the file}``; where the files lie does not
+    count, so a copied checkpoint folder keeps its fingerprint.
 
     Raises:
-        ValueError: no path given, or two paths share a file name.
+        ValueError: no file given.
         FileNotFoundError: a path does not exist.
     """
-    named = sorted((Path(p).name, sha256_of(p)) for p in paths)
-    if not named:
+    if not files:
         raise ValueError("files_fingerprint: expected at least one file")
-    names = [n for n, _ in named]
-    if len(set(names)) != len(names):
-        raise ValueError(f"files_fingerprint: two files share a name in {names}")
-    return digest_of(named)
+    return digest_of({str(name): sha256_of(path) for name, path in files.items()})
 
 
 def table_fingerprint(root: str | os.PathLike, table: str, manifest: dict | None = None) -> str:

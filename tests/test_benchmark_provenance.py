@@ -120,7 +120,7 @@ class WeightedIdentity(Identity):
     metadata = replace(Identity.metadata, name="weighted_identity")
 
     def weights_fingerprint(self):
-        return files_fingerprint([os.environ["WEIGHTED_IDENTITY_FILE"]])
+        return files_fingerprint({"weights": os.environ["WEIGHTED_IDENTITY_FILE"]})
 
 
 def test_rows_made_with_other_weights_are_not_resumed_or_mixed(bench_data, tmp_path, monkeypatch):
@@ -134,7 +134,7 @@ def test_rows_made_with_other_weights_are_not_resumed_or_mixed(bench_data, tmp_p
     run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
     folder = method_dir(res, "weighted_identity", Identity.metadata.version)
     meta = json.loads((folder / META_FILE).read_text())
-    name_sha = json.dumps([["weights.safetensors", hashlib.sha256(b"shipped").hexdigest()]], separators=(",", ":"))
+    name_sha = json.dumps({"weights": hashlib.sha256(b"shipped").hexdigest()}, separators=(",", ":"))
     assert meta["weights"] == hashlib.sha256(name_sha.encode()).hexdigest()
     before = {p.name: sha256_of(p) for p in part_files(folder)}
     run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)  # same weights: resumes
@@ -166,20 +166,19 @@ def test_results_without_recorded_weights_are_refused_for_a_method_with_weights(
         run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
 
 
-def test_files_fingerprint_ignores_the_folder_and_refuses_duplicate_names(tmp_path):
+def test_files_fingerprint_is_by_name_and_content_not_folder(tmp_path):
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
     for d in ("a", "b"):
         (tmp_path / d / "x.safetensors").write_bytes(b"1")
         (tmp_path / d / "y.safetensors").write_bytes(b"2")
-    fa = files_fingerprint([tmp_path / "a" / "y.safetensors", tmp_path / "a" / "x.safetensors"])
-    assert fa == files_fingerprint([tmp_path / "b" / "x.safetensors", tmp_path / "b" / "y.safetensors"])
+    fa = files_fingerprint({"y": tmp_path / "a" / "y.safetensors", "x": tmp_path / "a" / "x.safetensors"})
+    assert fa == files_fingerprint({"x": tmp_path / "b" / "x.safetensors", "y": tmp_path / "b" / "y.safetensors"})
+    assert fa != files_fingerprint({"x": tmp_path / "b" / "y.safetensors", "y": tmp_path / "b" / "x.safetensors"})
     (tmp_path / "b" / "y.safetensors").write_bytes(b"3")
-    assert fa != files_fingerprint([tmp_path / "b" / "x.safetensors", tmp_path / "b" / "y.safetensors"])
-    with pytest.raises(ValueError, match="share a name"):
-        files_fingerprint([tmp_path / "a" / "x.safetensors", tmp_path / "b" / "x.safetensors"])
+    assert fa != files_fingerprint({"x": tmp_path / "b" / "x.safetensors", "y": tmp_path / "b" / "y.safetensors"})
     with pytest.raises(ValueError, match="at least one"):
-        files_fingerprint([])
+        files_fingerprint({})
 
 
 def test_parts_without_meta_json_are_refused(bench_data, tmp_path):

@@ -39,3 +39,37 @@ def test_shipped_weights_match_the_recorded_digest_of_their_version(family):
     assert folder_digest(folder) == digest, (
         f"{folder}: the shipped weights changed; bump the version of {[m.metadata.name for m in methods]} "
         f"and record the new digest {folder_digest(folder)} here")
+
+
+def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
+    """Results record these fingerprints (meta.json 'weights'), so a user's checkpoint never
+    resumes into the shipped weights' rows: a copied folder is the same weights, one changed
+    byte is not."""
+    import json
+    import shutil
+
+    from baselines.mmdmc.method import ENV as MMDMC_ENV
+
+    by_hand = lambda files: hashlib.sha256(json.dumps(  # noqa: E731
+        {k: hashlib.sha256(Path(v).read_bytes()).hexdigest() for k, v in files.items()},
+        sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+    shipped = {"shape": BUNDLED / "shape.safetensors", "corr": BUNDLED / "corr.safetensors",
+               "transfer": BUNDLED / "transfer.safetensors"}
+    assert Mimicat().weights_fingerprint() == by_hand(shipped)
+    assert MimicatNoPrior().weights_fingerprint() != Mimicat().weights_fingerprint()
+    copy = tmp_path / "mimicat"
+    shutil.copytree(BUNDLED, copy)
+    assert Mimicat(checkpoint=copy).weights_fingerprint() == Mimicat().weights_fingerprint()
+    data = bytearray((copy / "corr.safetensors").read_bytes())
+    data[-1] ^= 1
+    (copy / "corr.safetensors").write_bytes(bytes(data))
+    assert Mimicat(checkpoint=copy).weights_fingerprint() != Mimicat().weights_fingerprint()
+
+    full, body_only = Mmdmc().weights_fingerprint(), MmdmcBodyOnly().weights_fingerprint()
+    assert body_only == by_hand({"body": CHECKPOINTS / "body.safetensors"}) and full != body_only
+    run = tmp_path / "mmdmc"
+    shutil.copytree(CHECKPOINTS, run)
+    monkeypatch.setenv(MMDMC_ENV, str(run))
+    assert Mmdmc().weights_fingerprint() == full
+    (run / "refine.safetensors").write_bytes(b"other")
+    assert Mmdmc().weights_fingerprint() != full and MmdmcBodyOnly().weights_fingerprint() == body_only

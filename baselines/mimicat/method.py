@@ -67,6 +67,13 @@ class Mimicat(PoseTransferMethod):
         self._m_cache: dict = {}
         self._refiner = None
 
+    def weights_fingerprint(self) -> str:
+        """Fingerprint of the shape, corr and transfer weights this instance loads."""
+        from schemas.fingerprint import files_fingerprint
+
+        stages = ("shape", "corr", self.transfer_stage)
+        return files_fingerprint({s: checkpoint_path(self.checkpoint, s) for s in stages})
+
     def setup(self, device: str = "cpu") -> None:
         import torch
 

@@ -68,6 +68,12 @@ class Mmdmc(PoseTransferMethod):
         self.device = "cpu"
         self._prepared: dict = {}
 
+    def weights_fingerprint(self) -> str:
+        """Fingerprint of the weights of the stages this variant loads (see :func:`checkpoint_path`)."""
+        from schemas.fingerprint import files_fingerprint
+
+        return files_fingerprint({s: checkpoint_path(s) for s in VARIANT_STAGES[self.variant]})
+
     def setup(self, device: str = "cpu") -> None:
         self.device = device
         self.modules = load_modules(device=device, stages=VARIANT_STAGES[self.variant])
