@@ -102,3 +102,50 @@ def test_checkpoint_round_trips_and_resumes(apparel_data, run, tmp_path):
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
     assert (tmp_path / "b" / "seg" / "loss.csv").read_text().count("\n") == \
         (tmp_path / "a" / "seg" / "loss.csv").read_text().count("\n")
+
+
+def test_body_weight_term_averages_over_body_vertices_only(apparel_data, run):
+    """weights_on="body": the L1 weight term is the mean over body vertices of |w - target|_1 (a naive
+    loop), and the targets of apparel vertices do not move it; "all" counts every vertex."""
+    st = trainable("mmdmc").stage("body")
+    torch.manual_seed(0)
+    module = st.build(tiny_config(), None)
+    for mode in ("body", "all"):
+        cfg = {**tiny_config(), "weights_on": mode}
+        ctx = context(apparel_data, run, "body", cfg)
+        batch = next(iter(st.batches(cfg, ctx, np.random.default_rng(0))))
+        apparel = batch["apparel"].astype(bool)
+        assert apparel.any() and (~apparel).any()
+        t = {k: torch.as_tensor(v) for k, v in batch.items()}
+        got = float(st.loss(module, t, ctx)["weights"].detach())
+        w = module(t["points"], t["joints"], t["geo"], t["bone"], t["joint_mask"]).detach().numpy()
+        rows = [np.abs(w[b, i] - batch["target_weights"][b, i]).sum() for b in range(len(w)) for i in range(w.shape[1])
+                if mode == "all" or not apparel[b, i]]
+        assert got == pytest.approx(float(np.mean(rows)), rel=1e-5)
+        moved = dict(t, target_weights=torch.where(torch.as_tensor(apparel)[..., None], 1.0 - t["target_weights"],
+                                                   t["target_weights"]))
+        changed = float(st.loss(module, moved, ctx)["weights"].detach())
+        assert (changed == pytest.approx(got, rel=1e-6)) == (mode == "body")
+    with pytest.raises(ValueError, match="weights_on"):
+        st.loss(module, t, context(apparel_data, run, "body", {**tiny_config(), "weights_on": "apparel"}))
+
+
+def test_seg_and_body_train_on_a_zoo_never_simulated(apparel_data, tmp_path):
+    """With seg_body_clips="kinematic" seg and body read only kinematic clips and the apparel mask: they
+    train on the unsimulated zoo, which the default (simulated pairs) refuses with a message naming
+    `datagen apparel`."""
+    from baselines.mmdmc.data import TrainingData
+    from schemas.shards import read_records
+
+    zoo = apparel_data.parent / "zoo"
+    data = TrainingData.load(zoo, simulated=False)
+    names = [m.name for m in read_records(zoo, "motions")]
+    assert sorted(c.name for c in data.clips) == sorted(names) and all(c.simulated is None for c in data.clips)
+    with pytest.raises(ValueError, match="datagen apparel"):
+        TrainingData.load(zoo)
+    for s in ("seg", "body"):
+        with pytest.raises(ValueError, match="datagen apparel"):
+            train_stage("mmdmc", s, zoo, tmp_path, tiny_config(), epochs=1, seed=0, progress=False)
+        path = train_stage("mmdmc", s, zoo, tmp_path, {**tiny_config(), "seg_body_clips": "kinematic"}, epochs=1,
+                           seed=0, progress=False)
+        assert path.is_file()

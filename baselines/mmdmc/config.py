@@ -15,6 +15,9 @@ COMMON = {
     "w_smooth": 0.01,
     "w_reg": 0.01,
     "w_weights": 1.0,        # ours, not the paper's: L1 of f_s's weights against the body target's (see training.py)
+    "weights_on": "all",     # ours: vertices that L1 term averages over, "all" (the shipped model's) or "body"
+    "seg_body_clips": "simulated",  # clips seg and body read: "simulated" (pairs with '<clip>@sim', the shipped
+                                    # model's) or "kinematic" (every clip; a zoo never simulated will do)
     "bridge_neighbours": 4,  # geodesic graph: nearest vertices looked at for bridges between mesh pieces
     "knn": 8,                # EdgeConv neighbours, within one connected apparel component
     "neighbours_loss": 6,    # rest-pose neighbours standing in for mesh edges on a vertex subsample

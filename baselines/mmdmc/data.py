@@ -103,12 +103,13 @@ def prepare(character_id: str, vertices, faces, keypoints, parents, body, bridge
 
 @dataclass
 class ClipPair:
-    """A clip of a training character: kinematic and simulated transforms, each (F, K, 7)."""
+    """A clip of a training character: kinematic and simulated transforms, each (F, K, 7) (simulated
+    None when the data was loaded for the body stage alone)."""
 
     character_id: str
     name: str
     kinematic: np.ndarray
-    simulated: np.ndarray
+    simulated: np.ndarray | None
 
     @property
     def frames(self) -> int:
@@ -123,8 +124,13 @@ class TrainingData:
     clips: list[ClipPair]
 
     @classmethod
-    def load(cls, dataset, split: str = "all", bridge_neighbours: int = 4) -> "TrainingData":
-        """Characters of ``split`` (``all``: every split) that have apparel bones and simulated clips."""
+    def load(cls, dataset, split: str = "all", bridge_neighbours: int = 4, simulated: bool = True) -> "TrainingData":
+        """Characters of ``split`` (``all``: every split) that have apparel bones and simulated clips.
+
+        With ``simulated=False`` (the body stage, whose target needs only the kinematic clip) every
+        kinematic clip of a character with apparel bones is a :class:`ClipPair` with ``simulated``
+        None, so f_s can train on a zoo that ``datagen apparel`` never simulated.
+        """
         from schemas.shards import read_records
 
         dataset = Path(dataset)
@@ -138,11 +144,18 @@ class TrainingData:
         for cid in sorted(by_char):
             k = len(chars[cid].parents)
             for name, sim in sorted(by_char[cid].items()):
+                if not simulated:
+                    if not name.endswith(SIM_SUFFIX):
+                        clips.append(ClipPair(cid, name, np.asarray(sim.transforms, np.float32).reshape(-1, k, 7), None))
+                    continue
                 kin = by_char[cid].get(name[: -len(SIM_SUFFIX)]) if name.endswith(SIM_SUFFIX) else None
                 if kin is None or kin.num_frames != sim.num_frames:
                     continue
                 clips.append(ClipPair(cid, kin.name, np.asarray(kin.transforms, np.float32).reshape(-1, k, 7),
                                       np.asarray(sim.transforms, np.float32).reshape(-1, k, 7)))
+        if not clips and not simulated:
+            raise ValueError(f"{dataset}: no character with apparel bones and a clip in split {split!r}; make a zoo "
+                             f"with `mimicbench zoo --out {dataset} --categories apparel`")
         if not clips:
             raise ValueError(f"{dataset}: no character with apparel bones and a simulated clip ('<clip>@sim') in "
                              f"split {split!r}; make one with `mimicbench datagen apparel IN {dataset}`")
