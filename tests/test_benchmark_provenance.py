@@ -123,16 +123,21 @@ class WeightedIdentity(Identity):
         return files_fingerprint({"weights": os.environ["WEIGHTED_IDENTITY_FILE"]})
 
 
+def run_weighted(bench_data, res, weights, content: bytes, monkeypatch):
+    """Score ``weighted_identity`` into ``res`` with its weights file ``weights`` holding ``content``;
+    returns its results folder."""
+    register("weighted_identity", WeightedIdentity)
+    weights.write_bytes(content)
+    monkeypatch.setenv("WEIGHTED_IDENTITY_FILE", str(weights))
+    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
+    return method_dir(res, "weighted_identity", Identity.metadata.version)
+
+
 def test_rows_made_with_other_weights_are_not_resumed_or_mixed(bench_data, tmp_path, monkeypatch):
     """A user's checkpoint (given by environment variable) must not add rows to the folder of the
     shipped weights' rows of the same method version, nor resume from them."""
-    register("weighted_identity", WeightedIdentity)
-    weights = tmp_path / "weights.safetensors"
-    weights.write_bytes(b"shipped")
-    monkeypatch.setenv("WEIGHTED_IDENTITY_FILE", str(weights))
-    res = tmp_path / "res"
-    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
-    folder = method_dir(res, "weighted_identity", Identity.metadata.version)
+    weights, res = tmp_path / "weights.safetensors", tmp_path / "res"
+    folder = run_weighted(bench_data, res, weights, b"shipped", monkeypatch)
     meta = json.loads((folder / META_FILE).read_text())
     name_sha = json.dumps({"weights": hashlib.sha256(b"shipped").hexdigest()}, separators=(",", ":"))
     assert meta["weights"] == hashlib.sha256(name_sha.encode()).hexdigest()
@@ -144,21 +149,13 @@ def test_rows_made_with_other_weights_are_not_resumed_or_mixed(bench_data, tmp_p
     assert {p.name: sha256_of(p) for p in part_files(folder)} == before
     assert json.loads((folder / META_FILE).read_text())["weights"] == meta["weights"]
     # a copy of the weights under another folder is the same weights
-    copy = tmp_path / "copy" / "weights.safetensors"
-    copy.parent.mkdir()
-    copy.write_bytes(b"shipped")
-    monkeypatch.setenv("WEIGHTED_IDENTITY_FILE", str(copy))
-    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
+    (tmp_path / "copy").mkdir()
+    run_weighted(bench_data, res, tmp_path / "copy" / "weights.safetensors", b"shipped", monkeypatch)
 
 
 def test_results_without_recorded_weights_are_refused_for_a_method_with_weights(bench_data, tmp_path, monkeypatch):
-    register("weighted_identity", WeightedIdentity)
-    weights = tmp_path / "w.bin"
-    weights.write_bytes(b"w")
-    monkeypatch.setenv("WEIGHTED_IDENTITY_FILE", str(weights))
     res = tmp_path / "res"
-    run_benchmark(bench_data, ["weighted_identity"], ["h2h"], res, progress=False, in_process=True)
-    path = method_dir(res, "weighted_identity", Identity.metadata.version) / META_FILE
+    path = run_weighted(bench_data, res, tmp_path / "w.bin", b"w", monkeypatch) / META_FILE
     meta = json.loads(path.read_text())
     del meta["weights"]  # as written by an older toolkit
     path.write_text(json.dumps(meta))
