@@ -55,6 +55,10 @@ class Outcome:
     outputs: dict = field(default_factory=dict)
 
 
+MOTION_INFO_COLUMNS = ("motion_id", "character_id", "name", "num_frames")
+"""The motions table's columns :class:`MotionInfo` is read from (in its fields' order)."""
+
+
 @dataclass(frozen=True)
 class MotionInfo:
     """What drawing cases needs of a clip: its IDs, name and length, without its transforms."""
@@ -158,9 +162,6 @@ class CasePool:
                 ids = pf.read_row_group(g, columns=["motion_id"]).column("motion_id").to_pylist()
                 if motion_ids.intersection(ids):
                     yield from (r for r in read_row_group(pf, g, "motions") if r.motion_id in motion_ids)
-
-
-MOTION_INFO_COLUMNS = ("motion_id", "character_id", "name", "num_frames")
 
 
 @dataclass
