@@ -29,8 +29,12 @@ rigid bodies and joints in the tables rigid_bodies and joints, and each <stem>.v
 Categories come from --category-map, or are inferred from bone names and the skeleton
 (meta.category says how). Characters with equal bone names and parents share a skeleton_id.
 
+A folder stands for every asset file under it (.glb .gltf .fbx .bvh .obj .blend .pmx .pmd; a model's
+own .vmd motions are found beside it by name); hidden folders and OUT itself are not walked.
+
 Examples:
   mimicbench datagen ingest 'assets/*.glb' --out data/mine --jobs 2
+  mimicbench datagen ingest my_characters/ --out data/mine
   mimicbench datagen ingest mocap/run.bvh --out data/mine --bvh-scale 0.01 --split test
 """
 
@@ -45,7 +49,7 @@ def register(subparsers) -> None:
         "ingest", help="import rigged assets (glTF/GLB, FBX, BVH, OBJ, .blend through Blender; MMD .pmx/.pmd "
         "without) into a dataset",
         description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("paths", nargs="+", help="asset files or glob patterns")
+    p.add_argument("paths", nargs="+", help="asset files, folders (walked for asset files) or glob patterns")
     p.add_argument("--out", required=True, help="dataset folder (created, or added to)")
     p.add_argument("--jobs", type=job_count, default=1, help=f"Blender processes at once, 1 to {MAX_JOBS} (default 1)")
     p.add_argument("--timeout", type=positive_float, default=300.0,

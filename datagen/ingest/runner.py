@@ -26,6 +26,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from datagen.ingest import blender_pool
+from datagen.ingest.asset_paths import BLENDER_SUFFIXES, FOLDER_SUFFIXES, expand_asset_paths
 from datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_rest_height
 from datagen.ingest.category import infer_category
 from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
@@ -44,7 +45,7 @@ from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
 
 CACHE = ".ingest"
-SUPPORTED = (".glb", ".gltf", ".fbx", ".bvh", ".obj", ".blend")
+SUPPORTED = BLENDER_SUFFIXES
 EXPORT_FORMATS = ("obj", "bvh")
 DEFAULT_BVH_SCALE = "auto"  # metres per BVH unit from the rest skeleton (datagen/ingest/bvh_units.py)
 
@@ -228,7 +229,8 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
 
     Args:
         paths: asset files (.glb, .gltf, .fbx, .bvh, .obj, .blend through Blender; .pmx, .pmd, .vmd
-            through :mod:`datagen.mmd` without it).
+            through :mod:`datagen.mmd` without it) or folders, walked for asset files
+            (:mod:`.asset_paths`; ``out_dir`` is never walked into).
         out_dir: dataset folder.
         jobs: Blender processes at once (at least 1).
         timeout: seconds per asset before its process is killed (> 0).
@@ -260,16 +262,13 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     cache.mkdir(parents=True, exist_ok=True)
     old_chars, old_motions, old_status = (_existing(out_dir, t) for t in ("characters", "motions", "status"))
     taken = {c.character_id: c.source for c in old_chars}
-    assets, seen = [], set()
-    for p in paths:
-        a = Path(p).resolve()
-        if a not in seen:
-            seen.add(a)
-            assets.append(a)
+    assets, empty_folders = expand_asset_paths(paths, skip=out_dir)
     from datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)
 
     assets, mmd_assets = split_mmd_paths(assets)
-    statuses: list[StatusRecord] = []
+    statuses: list[StatusRecord] = [
+        StatusRecord(f, "ingest", "failed", f"folder holds no asset files (expected {', '.join(FOLDER_SUFFIXES)})", 0.0)
+        for f in empty_folders]
     jobs_todo, plan = [], {}
     for a in assets:
         problem = None
@@ -361,7 +360,8 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     new_ids = {c.character_id for c in chars}
     chars = [c for c in old_chars if c.character_id not in new_ids] + chars
     motions = [m for m in old_motions if m.character_id not in new_ids] + motions
-    this_run = {str(a) for a in assets} | {str(a) for a in mmd_assets} | {s.asset for s in mmd.statuses}
+    this_run = ({str(a) for a in assets} | {str(a) for a in mmd_assets} | {s.asset for s in mmd.statuses}
+                | set(empty_folders))
     statuses = [s for s in old_status if s.asset.split("#")[0] not in this_run] + statuses
     config = {"stage": "ingest", "timeout": timeout, "category_map": opts.category_map, "bvh_scale": bvh_scale,
               "allow_external_uris": allow_external_uris, "split": split, "split_file": split_file,
