@@ -56,7 +56,9 @@ def write_cases(dataset, cases: dict[str, list[CaseRecord]], config: dict) -> di
     if not any(cases.values()):
         raise ValueError(f"{dataset}: no cases were made (no two characters of the split share a skeleton_id "
                          "for h2h, no cross-category pair for cct, or no characters); the existing cases are kept. "
-                         "Try another split (--split all)")
+                         + ("Add characters that share a skeleton or differ in category"
+                            if config.get("split") == "all" or config.get("all_pairs")
+                            else "Try another split (--split all)"))
     config = cases_config(dataset, config)
     counts = {}
     for protocol, recs in cases.items():

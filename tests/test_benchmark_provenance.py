@@ -259,6 +259,9 @@ def test_cases_split_bogus_and_empty_results_keep_the_cases(bench_data, tmp_path
     assert exc.value.code == 2 and "invalid choice: 'bogus'" in capsys.readouterr().err
     assert main(["bench", "cases", str(data), "--h2h-pairs", "0", "--cct-pairs", "0"]) == 2
     assert "mimicbench: error: " in (err := capsys.readouterr().err) and "no cases were made" in err
+    assert "(--split all)" in err  # the test split was used: another split may have cases
+    assert main(["bench", "cases", str(data), "--split", "all", "--h2h-pairs", "0", "--cct-pairs", "0"]) == 2
+    assert "no cases were made" in (err := capsys.readouterr().err) and "--split all" not in err  # already all
     with pytest.raises(ValueError, match="no cases were made"):
         write_cases(data, build_cases(data, "bogus"), {"stage": "t"})
     assert case_shards(data) == before
