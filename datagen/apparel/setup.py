@@ -18,10 +18,11 @@ from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 
 SIM_SUFFIX = "@sim"
-SIM_VERSION = "6"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
+SIM_VERSION = "7"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
 # projected every step, constraint ERP 0.8; 6: springs as implicit torques from numpy instead of
-# Bullet's joint motors
+# Bullet's joint motors; 7: springs solved per tree of links (a merged multibody's chains
+# apart), which rounds differently
 
 
 @dataclass

@@ -3,15 +3,17 @@
 Each spherical joint is pulled toward rest by a spring with damping. Stiff springs on light links
 blow up when their torque is taken from the present state alone (explicit: the chain's fast
 zig-zag mode has a far smaller inertia than any one joint), so the torque is the implicit one of
-"stable PD" control (Tan, Liu and Turk, 2011), with the joint-space mass matrix M of each chain at
-rest: the torque that, after one step of length dt, meets the spring and damper at the new speed,
+"stable PD" control (Tan, Liu and Turk, 2011), with the joint-space mass matrix M of each tree of
+links at rest (a chain; a multibody of merged chains holds several, :func:`chain_components`,
+and solving them apart costs a fraction of solving them together): the torque that, after one
+step of length dt, meets the spring and damper at the new speed,
 
     tau = -(K q + D w+),  w+ = w + dt M^-1 tau,  D = K dt + C
     =>  tau = -(1 + dt D M^-1)^-1 (K q + D w)
 
 with q a joint's rotation vector from rest and w its velocity (each 3 per joint, in the child
 link's frame). Where a joint's torque passes its ``max_torque`` on an axis, that axis's K and
-D are scaled down by the overshoot and the chain's implicit step is solved again with them, so
+D are scaled down by the overshoot and that tree's implicit step is solved again with them, so
 the torque comes back to about the bound (clipping the torque alone would undo the implicit
 step: its neighbours overcorrect and the chain zig-zags; any K, D >= 0 keep the step stable);
 with ``max_torque`` 0 the joint is free. The gains follow a joint's
@@ -81,54 +83,80 @@ def solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return x
 
 
+def chain_components(chain: ChainSpec) -> list[np.ndarray]:
+    """Each tree of ``chain``'s links (a root with every link below it) as its link indices in order.
+
+    A multibody of merged chains (:func:`datagen.apparel.world.merged_by_anchor`) holds several
+    trees on one anchor; with the anchor fixed they do not move one another, so the mass matrix
+    is block-diagonal by tree and each tree's springs are solved on their own.
+    """
+    tree = []
+    for j, p in enumerate(chain.link_parents):
+        tree.append(j if p < 0 else tree[p])  # parents come before children
+    return [np.flatnonzero(np.array(tree) == root) for root in sorted(set(tree))]
+
+
 class Springs:
-    """The springs of every joint of ``chains`` (in chain order, J joints), for physics step ``dt`` (s)."""
+    """The springs of every joint of ``chains`` (in chain order, J joints), for physics step ``dt`` (s).
+
+    Solved per tree of links (:func:`chain_components`): the implicit step's matrix of each tree
+    (B trees, each at most n = 3 x its links rows) is kept zero-padded in one (B, n, n) array.
+    """
 
     def __init__(self, chains: list[ChainSpec], dt: float):
-        blocks, stiff, damp, bound, sizes = [], [], [], [], []
+        blocks, stiff, damp, bound, rows = [], [], [], [], []
         self.dt = float(dt)
-        self.mass_matrices: list[np.ndarray] = []  # per chain (n, n)
-        self.resolved = 0  # chains solved again with weaker springs (bound passed), a count
+        self.mass_matrices: list[np.ndarray] = []  # per tree (n, n)
+        self.resolved = 0  # trees solved again with weaker springs (bound passed), a count
+        start = 0
         for chain in chains:
             mass_matrix = chain_mass_matrix(chain)
             diag = np.diag(mass_matrix)
             k = np.repeat([joint.stiffness for joint in chain.joints], 3) * diag / dt ** 2
             c = np.repeat([joint.damping for joint in chain.joints], 3) * diag / dt
             d = k * dt + c
-            # (1 + dt D M^-1)^-1 = M (M + dt D)^-1 = ((M + dt D)^-1 M)^T, M and D symmetric
-            blocks.append(solve_spd(mass_matrix + np.diag(dt * d), mass_matrix).T)
             stiff.append(k)
             damp.append(d)
             bound.append(np.repeat([joint.max_torque for joint in chain.joints], 3))
-            sizes.append(len(diag))
-            self.mass_matrices.append(mass_matrix)
+            for links in chain_components(chain):
+                axes = (3 * links[:, None] + np.arange(3)).ravel()  # this tree's rows in the chain's
+                m = mass_matrix[np.ix_(axes, axes)]
+                # (1 + dt D M^-1)^-1 = M (M + dt D)^-1 = ((M + dt D)^-1 M)^T, M and D symmetric
+                blocks.append(solve_spd(m + np.diag(dt * d[axes]), m).T)
+                self.mass_matrices.append(m)
+                rows.append(start + axes)
+            start += len(diag)
         width = max((len(b) for b in blocks), default=0)
-        self.blocks = np.zeros((len(blocks), width, width))  # (C, n, n) each chain's matrix, zero-padded
+        self.blocks = np.zeros((len(blocks), width, width))  # (B, n, n) each tree's matrix, zero-padded
         for i, b in enumerate(blocks):
             self.blocks[i, :len(b), :len(b)] = b
-        self.rows = np.concatenate([i * width + np.arange(len(b)) for i, b in enumerate(blocks)]).astype(int) \
-            if blocks else np.zeros(0, int)  # (3J,) each joint axis's place in the padded (C * n,)
+        self.tree_rows = rows  # per tree: its joint axes' indices in the (3J,) arrays
+        order = np.concatenate(rows).astype(int) if rows else np.zeros(0, int)  # (3J,) axes tree by tree
+        slots = np.concatenate([i * width + np.arange(len(r)) for i, r in enumerate(rows)]).astype(int) \
+            if rows else np.zeros(0, int)  # (3J,) their places in the padded (B * n,)
+        self.rows = np.empty_like(slots)  # (3J,) each joint axis's place in the padded (B * n,)
+        self.rows[order] = slots
         self.stiffness = np.concatenate(stiff) if stiff else np.zeros(0)  # (3J,) K, N m/rad
         self.damping = np.concatenate(damp) if damp else np.zeros(0)  # (3J,) D = K dt + C, N m s/rad
         self.bound = np.concatenate(bound) if bound else np.zeros(0)  # (3J,) N m
         self.inverse_bound = 1.0 / np.maximum(self.bound, 1e-300)  # (3J,) 1/N m
-        self.chain_sizes = np.array(sizes, int)  # (C,) rows of each chain
         self._padded = np.zeros(self.blocks.shape[:2])
-        self.chain_starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int) if sizes else np.zeros(0, int)
+        self._over = np.zeros(self.blocks.shape[:2])  # (B, n) share of each axis's bound, zero-padded
 
     def torques(self, rotation: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3)."""
-        padded = self._padded  # (C, n), zero outside the rows
+        padded = self._padded  # (B, n), zero outside the rows
         padded.ravel()[self.rows] = self.stiffness * rotation.ravel() + self.damping * velocity.ravel()
         tau = -np.einsum("cij,cj->ci", self.blocks, padded).ravel()[self.rows]  # no BLAS: see solve_spd
         over = np.abs(tau) * self.inverse_bound  # (3J,) share of each axis's bound used
         if not len(tau) or over.max() <= 1.0:
             return tau.reshape(-1, 3)
-        for c in np.flatnonzero(np.maximum.reduceat(over, self.chain_starts) > 1.0).tolist():
-            rows = slice(self.chain_starts[c], self.chain_starts[c] + self.chain_sizes[c])
+        self._over.ravel()[self.rows] = over
+        for b in np.flatnonzero(self._over.max(axis=1) > 1.0).tolist():
+            rows = self.tree_rows[b]
             share = 1.0 / np.maximum(over[rows], 1.0)  # (n,) weaker springs where the bound was passed
             k, d = self.stiffness[rows] * share, self.damping[rows] * share
-            mass_matrix = self.mass_matrices[c]
+            mass_matrix = self.mass_matrices[b]
             solve = solve_spd(mass_matrix + np.diag(self.dt * d), mass_matrix).T
             tau[rows] = -(solve * (k * rotation.ravel()[rows] + d * velocity.ravel()[rows])).sum(axis=1)
             self.resolved += 1
