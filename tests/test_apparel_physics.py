@@ -274,3 +274,72 @@ def test_selection_by_globs_and_weights():
     np.testing.assert_array_equal(apparel_vertex_mask(dense, np.array([0, 1, 1, 1, 0], bool)), [0, 1, 0, 0])
     assert bone_kind("J_Sec_Coat_Tail_01", None) == "coat_tail"
     assert bone_kind("x", "apparel/cape/2/1") == "cape" and bone_kind("Spine", None) == "default"
+
+
+def _hanging_chain(name: str, x: float, links: int, max_torque: float):
+    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+
+    down = np.array([0.0, -1.0, 0.0])
+    specs = tuple(LinkSpec(1 + i, np.array([x, 1.0 - 0.08 * i, 0.0]), down, 0.08, 0.015, 0.05 + 0.01 * i)
+                  for i in range(links))
+    joints = tuple(JointSpec(0.7, 0.2, 0.03, 0.4, max_torque) for _ in range(links))
+    return ChainSpec(name, "skirt", 0, specs, tuple(range(-1, links - 1)), joints)
+
+
+@pytest.mark.parametrize("lengths", [(3, 4), (4, 4)])  # trees zero-padded to the widest; all as wide
+@pytest.mark.parametrize("max_torque", [1e6, 2e-3])  # the bound never reached; reached by some joints
+def test_springs_of_merged_chains_match_one_dense_solve(max_torque, lengths):
+    # chains on one anchor share a multibody (merged_by_anchor) and their springs are solved per
+    # chain; the reference solves the merged chain's whole implicit step at once with LAPACK:
+    # tau = -M (M + dt D)^-1 (K q + D w), K = s diag(M) / dt^2, D = K dt + v diag(M) / dt, and
+    # where |tau| passes the bound, K and D of that axis scaled by bound / |tau| and solved again
+    from datagen.apparel.springs import Springs
+    from datagen.apparel.world import merged_by_anchor
+
+    dt = 1 / 240
+    merged = merged_by_anchor([_hanging_chain("a", 0.2, lengths[0], max_torque),
+                               _hanging_chain("b", -0.2, lengths[1], max_torque)])
+    links = sum(lengths)
+    assert len(merged) == 1 and len(merged[0].links) == links
+    rng = np.random.default_rng(1)
+    rotation, velocity = rng.normal(size=(links, 3)) * 0.3, rng.normal(size=(links, 3)) * 2.0
+    springs = Springs(merged, dt)
+    got = springs.torques(rotation, velocity).ravel()
+
+    m = chain_mass_matrix(merged[0])
+    k = 0.03 * np.diag(m) / dt ** 2
+    d = k * dt + 0.4 * np.diag(m) / dt
+    q, w = rotation.ravel(), velocity.ravel()
+
+    def dense(k, d):
+        return -m @ np.linalg.solve(m + dt * np.diag(d), k * q + d * w)
+
+    expected = dense(k, d)
+    share = 1.0 / np.maximum(np.abs(expected) / max_torque, 1.0)
+    if max_torque < 1:
+        assert share.min() < 0.5 and springs.resolved > 0
+        expected = dense(k * share, d * share)
+    else:
+        assert springs.resolved == 0
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+
+
+def test_substep_poses_are_the_frame_by_frame_blends():
+    # a clip's substep poses are computed for many frames at once; they must be the very numbers
+    # of blending each frame from the one before it (the first from the given previous pose)
+    from datagen.apparel.relax import blend_poses, substep_poses
+
+    rng = np.random.default_rng(2)
+    q = rng.normal(size=(6, 5, 4))
+    poses = np.concatenate([q / np.linalg.norm(q, axis=-1, keepdims=True), rng.normal(size=(6, 5, 3))], axis=-1)
+    previous = poses[0] * np.array([-1, -1, -1, -1, 1, 1, 1])  # the same rotations with the other sign
+    got = substep_poses(previous, poses[1:], 8)
+    loop, before = [], previous
+    for pose in poses[1:]:
+        loop.append(blend_poses(before, pose, np.arange(1, 9) / 8))
+        before = pose
+    assert got.shape == (5 * 8, 5, 7)
+    assert got.tobytes() == np.concatenate(loop).tobytes()
+    # each frame's last substep is the frame itself (a rotation up to its sign)
+    np.testing.assert_allclose(np.abs(np.einsum("fkc,fkc->fk", got[7::8, :, :4], poses[1:, :, :4])), 1.0, atol=1e-12)
+    np.testing.assert_allclose(got[7::8, :, 4:], poses[1:, :, 4:], atol=1e-12)

@@ -26,6 +26,21 @@ def blend_poses(a: np.ndarray, b: np.ndarray, s) -> np.ndarray:
     return np.concatenate([q, (1 - w) * a[:, 4:] + w * b[:, 4:]], axis=-1)
 
 
+def substep_poses(previous: np.ndarray, poses: np.ndarray, substeps: int) -> np.ndarray:
+    """The body poses of every physics step of frames ``poses`` (F, K, 7): frame f's ``substeps``
+    steps blend (:func:`blend_poses`) from frame f - 1 (``previous`` (K, 7) before the first)
+    into frame f, the last one at frame f itself. Returns (F * substeps, K, 7) float64; the same
+    numbers as :func:`blend_poses` frame by frame, computed at once.
+    """
+    b = np.asarray(poses, np.float64)
+    a = np.concatenate([np.asarray(previous, np.float64)[None], b[:-1]])  # (F, K, 7)
+    s = np.arange(1, substeps + 1) / substeps  # (S,)
+    w = s[:, None, None]  # (S, 1, 1)
+    q = quat_slerp(quat_normalize(a[:, None, :, :4]), quat_normalize(b[:, None, :, :4]), s[:, None])
+    t = (1 - w) * a[:, None, :, 4:] + w * b[:, None, :, 4:]
+    return np.concatenate([q, t], axis=-1).reshape((-1,) + b.shape[1:])
+
+
 def relax_frames(rest_keypoints: np.ndarray, first: np.ndarray, n: int) -> np.ndarray:
     """(n, K, 7) float64 body poses leading from rest into ``first`` (K, 7); n = 0 gives none."""
     rest = rest_transforms(rest_keypoints).astype(np.float64)

@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.apparel.relax import blend_poses, relax_frames
+from datagen.apparel.relax import relax_frames, substep_poses
 from datagen.apparel.world import ApparelWorld
 from mimicbench.kinematics import rest_transforms
+
+
+CHUNK_FRAMES = 64  # frames whose substep poses are computed at once (memory: frames x substeps x bones)
 
 
 class SimulationExploded(RuntimeError):
@@ -46,20 +49,23 @@ def simulate_clip(world: ApparelWorld, transforms: np.ndarray, substeps: int, re
     def where(f: int) -> str:
         return f"relaxation frame {f + 1} of {len(lead)}" if f < len(lead) else f"frame {f - len(lead)}"
 
-    driven = world.driven_bones
-    fractions = np.arange(1, substeps + 1) / substeps
-    for f, pose in enumerate(poses):
-        steps = np.repeat(pose[None], substeps, axis=0)
-        steps[:, driven] = blend_poses(previous[driven], pose[driven], fractions)  # only bones the world reads
-        world.drive(steps)
-        previous = pose
-        quats, positions, speed = world.read_links()
-        if not (np.isfinite(quats).all() and np.isfinite(positions).all() and np.isfinite(speed)):
-            raise SimulationExploded(f"NaN in the simulation at {where(f)}")
-        if speed > world.sim.max_speed:
-            raise SimulationExploded(f"a link reached {speed:.1f} m/s at {where(f)} "
-                                     f"(bound {world.sim.max_speed:g} m/s)")
-        if f >= len(lead) and len(bones):
-            out[f - len(lead), bones, :4] = quats
-            out[f - len(lead), bones, 4:] = positions
+    driven = world.driven_bones  # only bones the world reads
+    rotations = np.zeros((len(poses), len(bones), 4))  # links' world orientations per frame (w, x, y, z)
+    positions = np.zeros((len(poses), len(bones), 3))  # and their heads
+    for first in range(0, len(poses), CHUNK_FRAMES):
+        chunk = poses[first:first + CHUNK_FRAMES, driven]
+        steps = np.zeros((len(chunk) * substeps, len(world.keypoints), 7))
+        steps[:, driven] = substep_poses(previous[driven], chunk, substeps)
+        previous = poses[first + len(chunk) - 1]
+        for f in world.follow(steps, substeps):
+            f += first
+            rotations[f], positions[f], speed = world.link_states()
+            if not (np.isfinite(rotations[f]).all() and np.isfinite(positions[f]).all() and np.isfinite(speed)):
+                raise SimulationExploded(f"NaN in the simulation at {where(f)}")
+            if speed > world.sim.max_speed:
+                raise SimulationExploded(f"a link reached {speed:.1f} m/s at {where(f)} "
+                                         f"(bound {world.sim.max_speed:g} m/s)")
+    if len(bones):
+        out[:, bones, :4] = world.rest_relative(rotations[len(lead):])
+        out[:, bones, 4:] = positions[len(lead):]
     return out

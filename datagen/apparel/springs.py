@@ -140,14 +140,19 @@ class Springs:
         self.damping = np.concatenate(damp) if damp else np.zeros(0)  # (3J,) D = K dt + C, N m s/rad
         self.bound = np.concatenate(bound) if bound else np.zeros(0)  # (3J,) N m
         self.inverse_bound = 1.0 / np.maximum(self.bound, 1e-300)  # (3J,) 1/N m
-        self._padded = np.zeros(self.blocks.shape[:2])
+        self._padded = np.zeros(self.blocks.shape[:2])  # (B, n) zero outside the rows
+        self._padded_flat = self._padded.ravel()  # (B * n,) a view of it
+        self._unpadded = bool(np.array_equal(self.rows, np.arange(len(self.rows))))
         self._over = np.zeros(self.blocks.shape[:2])  # (B, n) share of each axis's bound, zero-padded
 
     def torques(self, rotation: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3)."""
-        padded = self._padded  # (B, n), zero outside the rows
-        padded.ravel()[self.rows] = self.stiffness * rotation.ravel() + self.damping * velocity.ravel()
-        tau = -np.einsum("cij,cj->ci", self.blocks, padded).ravel()[self.rows]  # no BLAS: see solve_spd
+        x = self.stiffness * rotation.ravel() + self.damping * velocity.ravel()  # (3J,)
+        if self._unpadded:  # every tree as wide as the widest, in joint order: the padded (B, n) is x itself
+            tau = -np.einsum("cij,cj->ci", self.blocks, x.reshape(self._padded.shape)).ravel()  # no BLAS: solve_spd
+        else:
+            self._padded_flat[self.rows] = x
+            tau = -np.einsum("cij,cj->ci", self.blocks, self._padded).ravel()[self.rows]
         over = np.abs(tau) * self.inverse_bound  # (3J,) share of each axis's bound used
         if not len(tau) or over.max() <= 1.0:
             return tau.reshape(-1, 3)

@@ -10,6 +10,7 @@ inertia link without collision, carried by a fixed constraint (see :mod:`datagen
 """
 from __future__ import annotations
 
+import functools
 import warnings
 
 import numpy as np
@@ -34,10 +35,18 @@ def bone_frame(axis: np.ndarray) -> Rotation:
     """The rest orientation of a link frame: the rotation taking +Z onto unit ``axis`` (shortest arc).
 
     Bullet's spherical joint limit bends about the joint frame's X and Y and twists about its Z,
-    and its capsules lie along Z, so each link frame has Z along its bone.
+    and its capsules lie along Z, so each link frame has Z along its bone. Remembered per axis
+    (its exact bytes): building a world asks for each link's frame four times.
     """
+    given = np.asarray(axis)
+    return _bone_frame(given.dtype.str, given.shape, given.tobytes())
+
+
+@functools.lru_cache(maxsize=4096)
+def _bone_frame(dtype: str, shape: tuple, axis_bytes: bytes) -> Rotation:
+    given = np.frombuffer(axis_bytes, dtype).reshape(shape)
     z = np.array([0.0, 0.0, 1.0])
-    axis = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+    axis = np.asarray(given, np.float64) / np.linalg.norm(given)
     cross = np.cross(z, axis)
     s, c = np.linalg.norm(cross), float(np.dot(z, axis))
     if s < 1e-12:

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import tempfile
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,11 +56,19 @@ def xyzw(q_wxyz) -> list[float]:
     return [float(q_wxyz[1]), float(q_wxyz[2]), float(q_wxyz[3]), float(q_wxyz[0])]
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b of (n, 3) arrays, each component computed as ``numpy.cross`` does (the same bytes)
+    without its per-call overhead (it runs every frame)."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+
+
 def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Vectors v (n, 3) rotated by unit quaternions q (n, 4) (w, x, y, z): v + 2 w (u x v) + 2 u x (u x v)."""
     w, u = q[:, :1], q[:, 1:]
-    uv = np.cross(u, v)
-    return v + 2.0 * (w * uv + np.cross(u, uv))
+    uv = _cross(u, v)
+    return v + 2.0 * (w * uv + _cross(u, uv))
 
 
 def merged_by_anchor(chains: list[ChainSpec]) -> list[ChainSpec]:
@@ -183,6 +192,8 @@ class ApparelWorld:
             self._joint_slices.append(slice(start, start + len(c.spec.joints)))
         self._swing_limits = np.array([j.swing_limit for c in self.chains for j in c.spec.joints], np.float64)
         self._twist_limits = np.array([j.twist_limit for c in self.chains for j in c.spec.joints], np.float64)
+        # (J,) below this rotation angle a joint is within both limits (less a margin for rounding)
+        self._limit_floor = np.minimum(self._swing_limits, self._twist_limits) * (1.0 - 1e-9)
 
     def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray, offsets=None) -> int:
         hulls = []
@@ -322,9 +333,20 @@ class ApparelWorld:
     def drive(self, poses: np.ndarray, step: bool = True) -> None:
         """Follow body poses ``poses`` (S, K, 7), one physics step after each (the substeps of a frame).
 
+        ``step=False`` places without stepping (S = 1). See :meth:`follow`.
+        """
+        for _ in self.follow(poses, len(poses), step):
+            pass
+
+    def follow(self, poses: np.ndarray, per_frame: int, step: bool = True):
+        """Follow body poses ``poses`` (S, K, 7), one physics step after each; a generator that
+        yields after every ``per_frame`` steps (a clip frame's substeps), so the caller reads the
+        apparel there.
+
         The pieces' placements and the anchors' pivots and orientations of all S poses are computed
-        at once; a piece is re-placed and an anchor constraint changed only when its bone moved
-        since the last placement. ``step=False`` places without stepping (S = 1).
+        at once, before the first step; a piece is re-placed and an anchor constraint changed only
+        when its bone moved since the last placement. Only the bones in :attr:`driven_bones` are
+        read from ``poses``.
         """
         pb, cid = self.pb, self.client
         poses = np.asarray(poses, np.float64)
@@ -346,17 +368,19 @@ class ApparelWorld:
         for s, i in zip(*(a.tolist() for a in np.nonzero(anchor_moved))):
             anchors_moved[s].append(i)
         reset, change, stepper = pb.resetBasePositionAndOrientation, pb.changeConstraint, pb.stepSimulation
+        after, piece_ids, constraints = self._after_step, self.piece_ids, self._anchor_constraints
         for s in range(len(poses)):
             for i in pieces_moved[s]:
                 p = piece_l[s][i]
-                reset(self.piece_ids[i], p[:3], p[3:], physicsClientId=cid)
+                reset(piece_ids[i], p[:3], p[3:], physicsClientId=cid)
             for i in anchors_moved[s]:
                 a = anchor_l[s][i]
-                change(self._anchor_constraints[i], jointChildPivot=a[:3], jointChildFrameOrientation=a[3:],
-                       physicsClientId=cid)
+                change(constraints[i], jointChildPivot=a[:3], jointChildFrameOrientation=a[3:], physicsClientId=cid)
             if step:
                 stepper(physicsClientId=cid)
-                self._after_step()
+                after()
+            if (s + 1) % per_frame == 0:
+                yield (s + 1) // per_frame - 1
 
     def reset(self) -> None:
         """Put the world back as it was built (bodies, joints, contacts), ready for another clip.
@@ -396,24 +420,29 @@ class ApparelWorld:
         (r, the rotation vector, is the same in the parent's and the child's frame; the velocity is
         in the child's). One read of joint states and one torque call per chain.
         """
-        pb, cid = self.pb, self.client
-        states = [s for body, joints in self._joint_lists for s in
-                  pb.getJointStatesMultiDof(body, joints, physicsClientId=cid)]
+        get = self.pb.getJointStatesMultiDof
+        states = []
+        for body, joints in self._joint_lists:
+            states += get(body, joints, physicsClientId=self.client)
         if not states:
             return
         try:
-            both = np.array([s[0] + s[1] for s in states], np.float64)  # (J, 7)
+            both = np.fromiter(itertools.chain.from_iterable(s[0] + s[1] for s in states), np.float64,
+                               7 * len(states)).reshape(-1, 7)  # (J, 7)
         except ValueError:  # a joint without a state
             raise RuntimeError(f"pybullet returned no state for some chain joints; expected (4 + 3) "
                                f"numbers for each of {len(states)} spherical joints") from None
-        q = both[:, :4] * np.where(both[:, 3:4] < 0, -1.0, 1.0)  # (J, 4) x, y, z, w with w >= 0
+        q = both[:, :4]
+        np.negative(q, out=q, where=q[:, 3:] < 0)  # (J, 4) x, y, z, w with w >= 0
         velocity = both[:, 4:]  # (J, 3) in each child link's frame
         sin_half = np.sqrt(np.einsum("ij,ij->i", q[:, :3], q[:, :3]))
-        r = q[:, :3] * (2.0 * np.arctan2(sin_half, q[:, 3]) / np.maximum(sin_half, 1e-12))[:, None]  # (J, 3)
-        bend = np.sqrt(np.einsum("ij,ij->i", r[:, :2], r[:, :2]))
-        over = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
-        if len(over):
-            self._project_limits(states, q, r, bend, velocity, over)
+        angle = 2.0 * np.arctan2(sin_half, q[:, 3])  # (J,) rad, |r|
+        r = q[:, :3] * (angle / np.maximum(sin_half, 1e-12))[:, None]  # (J, 3)
+        if (angle > self._limit_floor).any():  # else no joint can be past a limit: swing, |twist| <= |r|
+            bend = np.sqrt(np.einsum("ij,ij->i", r[:, :2], r[:, :2]))
+            over = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
+            if len(over):
+                self._project_limits(states, q, r, bend, velocity, over)
         self._apply_torques(self.springs.torques(r, velocity))
 
     def _apply_torques(self, torques: np.ndarray) -> None:
@@ -481,6 +510,12 @@ class ApparelWorld:
         chain in chain order: a link frame's world orientation times the inverse of its rest
         orientation (Z along the bone), and the frame's origin (the bone head).
         """
+        world, positions, speed = self.link_states()
+        return self.rest_relative(world), positions, speed
+
+    def link_states(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """Links' world orientations (L, 4) (w, x, y, z), heads (L, 3) metres, and the fastest
+        link speed (m/s), L as in :meth:`read_links`."""
         pb, cid = self.pb, self.client
         states = [s for c in self.chains
                   for s in pb.getLinkStates(c.body, list(range(len(c.spec.links))), computeLinkVelocity=1,
@@ -490,7 +525,12 @@ class ApparelWorld:
         world = np.array([s[5] for s in states], np.float64)[:, [3, 0, 1, 2]]  # (L, 4) w, x, y, z
         positions = np.array([s[4] for s in states], np.float64)
         speed = float(np.linalg.norm(np.array([s[6] for s in states], np.float64), axis=1).max())
-        return quat_multiply(world, self._rest_frames_inv), positions, speed
+        return world, positions, speed
+
+    def rest_relative(self, world: np.ndarray) -> np.ndarray:
+        """Bones' rest-relative rotations (..., L, 4) of links' world orientations ``world`` (..., L, 4)
+        (w, x, y, z), as :meth:`read_links` gives them (for many frames at once)."""
+        return quat_multiply(world, self._rest_frames_inv)
 
     def close(self) -> None:
         if self.client is not None:
