@@ -30,8 +30,8 @@ clear of it (:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair col
 from __future__ import annotations
 
 import dataclasses
-import tempfile
 import itertools
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
