@@ -55,12 +55,14 @@ def inference_fps(record, motion, device: str) -> tuple[float, float]:
 
 
 def training_steps_per_second(dataset, steps: int) -> dict:
-    from baselines.mmdmc.method import load_modules
+    from baselines.mmdmc.method import checkpoint_path, load_modules
+    from mimicbench.training.checkpoint import read_header
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
 
     model = trainable("mmdmc")
-    cfg = model.config("small")
+    # the settings the shipped weights were trained with (the last stage's header holds the run's config)
+    cfg = {**model.config("small"), **read_header(checkpoint_path("refine"))["config"]}
     mods = load_modules()
     frozen = {"seg": mods.seg, "body": mods.body, "apparel": mods.apparel}
     out = {}

@@ -80,3 +80,25 @@ def test_untrained_body_module_is_the_bone_distance_prior():
     expected = np.exp(-(b - b.min(1, keepdims=True)) / PRIOR_TAU)
     expected /= expected.sum(1, keepdims=True)
     np.testing.assert_allclose(w, expected, atol=1e-5)
+
+
+def test_weight_smoothing_matches_a_naive_loop():
+    from baselines.mmdmc.weight_smoothing import smooth_weights
+
+    rng = np.random.default_rng(0)
+    w = rng.dirichlet(np.ones(3), size=5)
+    edges = np.array([[0, 1], [1, 2], [2, 3], [0, 2]])  # vertex 4 in no edge
+    expected = w.copy()
+    for _ in range(3):
+        nxt = expected.copy()
+        for i in range(4):
+            nb = [b if a == i else a for a, b in edges if i in (a, b)]
+            nxt[i] = 0.5 * (expected[i] + np.mean([expected[j] for j in nb], axis=0))
+        expected = nxt
+    got = smooth_weights(w, edges, 3)
+    np.testing.assert_allclose(got, expected, rtol=1e-5)
+    np.testing.assert_allclose(got.sum(1), 1.0, rtol=1e-6)  # rows stay convex combinations
+    np.testing.assert_allclose(got[4], w[4], rtol=1e-6)  # a vertex in no edge keeps its weights
+    np.testing.assert_allclose(smooth_weights(w, edges, 0), w, rtol=1e-6)
+    with pytest.raises(ValueError, match="iterations >= 0"):
+        smooth_weights(w, edges, -1)

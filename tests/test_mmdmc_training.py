@@ -149,3 +149,53 @@ def test_seg_and_body_train_on_a_zoo_never_simulated(apparel_data, tmp_path):
         path = train_stage("mmdmc", s, zoo, tmp_path, {**tiny_config(), "seg_body_clips": "kinematic"}, epochs=1,
                            seed=0, progress=False)
         assert path.is_file()
+
+
+def test_attachment_options_train_and_skin_apparel_to_its_chains_body_bone(apparel_data, tmp_path):
+    """seg_inputs="bones", apparel_skinning="attachment" and mask_by_piece: every stage trains, the run
+    loads with those settings, and with a zero f_d the apparel vertices are LBS of the kinematic pose
+    with all their weight on the body bone their nearest apparel chain hangs from (a naive loop)."""
+    import copy
+
+    from baselines.mmdmc.apparel import ApparelDynamics
+    from baselines.mmdmc.body import skin
+    from baselines.mmdmc.data import TrainingData, attachment_bones
+    from baselines.mmdmc.method import load_modules
+    from baselines.mmdmc.pipeline import apparel_probability, predict, skinning_weights
+
+    cfg = {**tiny_config(), "seg_inputs": "bones", "apparel_skinning": "attachment", "mask_by_piece": True,
+           "threshold": 0.5}
+    for s in STAGES:
+        train_stage("mmdmc", s, apparel_data, tmp_path, cfg, epochs=1, seed=0, progress=False)
+    mods = load_modules(tmp_path)
+    assert mods.seg.channels == 5 and mods.apparel_skinning == "attachment" and mods.mask_by_piece
+    c = next(iter(TrainingData.load(apparel_data).characters.values()))
+    clip = TrainingData.load(apparel_data).clips[0]
+    mods.threshold = 0.0  # an f_c trained for one step: count every vertex as apparel
+    zero = copy.copy(mods)
+    zero.apparel = ApparelDynamics(cfg["apparel_hidden"], cfg["code"])
+    got = predict(zero, c, clip.kinematic[:4], "no_refine")
+    assert (apparel_probability(mods.seg, c, True) > 0).all()
+    w = skinning_weights(mods.body, c).numpy().copy()
+    attach = attachment_bones(c.parents, c.body)
+    apparel_bones = np.flatnonzero(~c.body)
+    body_column = {int(k): i for i, k in enumerate(np.flatnonzero(c.body))}
+    for i, p in enumerate(c.rest.astype(np.float64)):  # nearest apparel bone segment, by brute force
+        best, bone = np.inf, -1
+        for k in apparel_bones:
+            kids = [j for j in apparel_bones if c.parents[j] == k]
+            ends = [c.keypoints[j] for j in kids] or [c.keypoints[k]]
+            for e in ends:
+                a, b = c.keypoints[k].astype(np.float64), np.asarray(e, np.float64)
+                ab = b - a
+                t = 0.0 if not ab.any() else np.clip(np.dot(p - a, ab) / np.dot(ab, ab), 0, 1)
+                d = np.linalg.norm(p - (a + t * ab))
+                if d < best:
+                    best, bone = d, k
+        if attach[bone] >= 0:
+            w[i] = 0
+            w[i, body_column[int(attach[bone])]] = 1
+    kin = clip.kinematic[:4]
+    expected = skin(torch.as_tensor(c.rest), torch.as_tensor(c.keypoints[c.body]), torch.as_tensor(w),
+                    torch.as_tensor(kin[:, c.body])).numpy()
+    np.testing.assert_allclose(got, expected, atol=1e-5)

@@ -18,6 +18,13 @@ COMMON = {
     "weights_on": "all",     # ours: vertices that L1 term averages over, "all" (the shipped model's) or "body"
     "seg_body_clips": "simulated",  # clips seg and body read: "simulated" (pairs with '<clip>@sim', the shipped
                                     # model's) or "kinematic" (every clip; a zoo never simulated will do)
+    "seg_inputs": "positions",     # ours: f_c's inputs, "positions" (the paper's, the first shipped model's) or
+                                   # "bones" (plus distances to the nearest body and apparel bone; segmentation.py)
+    "apparel_skinning": "fs",      # ours: how the vertices of f_c's mask are skinned before f_d displaces them,
+                                   # "fs" (f_s's weights) or "attachment" (the body bone their chain hangs from;
+                                   # chain_attachment.py)
+    "weight_smoothing": 0,         # ours: iterations f_s's weights are smoothed along the mesh (weight_smoothing.py)
+    "mask_by_piece": False,        # ours: f_c's probability averaged over each mesh piece (pipeline.py)
     "bridge_neighbours": 4,  # geodesic graph: nearest vertices looked at for bridges between mesh pieces
     "knn": 8,                # EdgeConv neighbours, within one connected apparel component
     "neighbours_loss": 6,    # rest-pose neighbours standing in for mesh edges on a vertex subsample

@@ -52,7 +52,12 @@ def load_modules(folder=None, device: str = "cpu", stages=STAGES):
     mods = {s: load_module(checkpoint_path(s, folder), lambda cfg, s=s: BUILDERS[s](cfg, None), device) if s in stages
             else None for s in STAGES}
     config = read_header(checkpoint_path("body", folder))["config"]
-    return Modules(mods["seg"], mods["body"], mods["apparel"], mods["refine"], config["knn"], config["threshold"])
+    # the mask's piece vote and how apparel is skinned before f_d are the apparel stage's settings,
+    # the weights' smoothing the body stage's
+    apparel = read_header(checkpoint_path("apparel", folder))["config"] if "apparel" in stages else {}
+    return Modules(mods["seg"], mods["body"], mods["apparel"], mods["refine"], config["knn"], config["threshold"],
+                   apparel.get("apparel_skinning", "fs"), bool(apparel.get("mask_by_piece", False)),
+                   int(config.get("weight_smoothing", 0)))
 
 
 class Mmdmc(PoseTransferMethod):

@@ -3,7 +3,8 @@
 Stages, in order (Sec. 4.5 of the paper: segmentation and body trained independently, the rest
 end to end on their outputs):
 
-- ``seg``: f_c, binary cross entropy against the dataset's apparel vertex mask.
+- ``seg``: f_c, binary cross entropy against the dataset's apparel vertex mask (inputs per
+  ``seg_inputs``: positions, or positions and bone distances; :mod:`baselines.mmdmc.segmentation`).
 - ``body``: f_s, L1 vertex (Eq. 8), edge length (Eq. 9) and weight smoothness (Eq. 10) against the
   body target (:mod:`baselines.mmdmc.data`), plus (ours, ``w_weights``) the L1 distance of f_s's
   weights to the body target's weights, a denser signal than the posed vertices (which say
@@ -23,7 +24,12 @@ end to end on their outputs):
   length (Eq. 14-15) and an L2 regulariser on the displacements. A share ``rest_start`` of the
   windows (ours; the paper starts every window from ground truth) starts as inference does, from
   the body state at rest (no apparel history is known when a request starts), so f_d learns to
-  roll out from there too.
+  roll out from there too. With ``apparel_skinning="attachment"`` the apparel vertices (f_c's mask,
+  voted per mesh piece with ``mask_by_piece``) start from the body bone their chain hangs from
+  (:mod:`baselines.mmdmc.chain_attachment`), the body target's own rule, rather than f_s's
+  weights; ``weight_smoothing`` smooths f_s's weights along the mesh
+  (:mod:`baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
+  model's settings) and read at inference from the stages' checkpoints.
 - ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference; L1 vertex,
   edge length, L2 on the corrections.
 
@@ -42,10 +48,10 @@ from baselines.mmdmc.body import BodySkinning, skin
 from baselines.mmdmc.config import CONFIGS
 from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
 from baselines.mmdmc.losses import edge_length, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
-from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, rollout_from_body,
-                                      skinning_weights, to_unit)
+from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, apparel_skinned, body_states,
+                                      rollout_from_body, skinning_weights, to_unit)
 from baselines.mmdmc.refine import JointRefiner
-from baselines.mmdmc.segmentation import ApparelSegmenter
+from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.registry import register_trainable
 from mimicbench.training.stage import StageContext, TrainStage
@@ -99,8 +105,16 @@ def _knn_edges(points: np.ndarray, k: int) -> np.ndarray:
 
 # ---- seg -------------------------------------------------------------------------------------
 
+def seg_channels(config: dict) -> int:
+    """f_c's input channels for the config's ``seg_inputs`` (absent in the first shipped model's: positions)."""
+    mode = config.get("seg_inputs", "positions")
+    if mode not in SEG_INPUTS:
+        raise ValueError(f"seg_inputs: expected one of {sorted(SEG_INPUTS)}, got {mode!r}")
+    return SEG_INPUTS[mode]
+
+
 def build_seg(config: dict, context: StageContext | None = None) -> torch.nn.Module:
-    return ApparelSegmenter(config["seg_hidden"])
+    return ApparelSegmenter(config["seg_hidden"], seg_channels(config))
 
 
 def batches_seg(config: dict, context: StageContext, rng: np.random.Generator):
@@ -113,7 +127,7 @@ def batches_seg(config: dict, context: StageContext, rng: np.random.Generator):
             c = data.characters[ids[pick]]
             rows = _subsample(len(c.rest), config["points"], r)
             scale = r.uniform(0.9, 1.1)
-            pts.append(c.rest_norm[rows] * scale)
+            pts.append(segmenter_inputs(c, seg_channels(config))[rows] * scale)
             labels.append(c.apparel[rows])
         yield {"points": np.stack(pts).astype(np.float32), "labels": np.stack(labels).astype(np.float32)}
 
@@ -199,7 +213,7 @@ def build_apparel(config: dict, context: StageContext | None = None) -> torch.nn
 
 
 def _predicted_mask(c: Prepared, context: StageContext, config: dict) -> np.ndarray:
-    return apparel_probability(context.frozen["seg"], c) > config["threshold"]
+    return apparel_probability(context.frozen["seg"], c, config.get("mask_by_piece", False)) > config["threshold"]
 
 
 def _pick_components(c: Prepared, mask: np.ndarray, cap: int, r: np.random.Generator) -> np.ndarray:
@@ -240,7 +254,8 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
             idx = _pick_components(c, mask, config["apparel_points"], r)
             nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
                                       config["knn"])
-            w = skinning_weights(context.frozen["body"], c).cpu()
+            w = apparel_skinned(skinning_weights(context.frozen["body"], c, config.get("weight_smoothing", 0)), c, mask,
+                                config.get("apparel_skinning", "fs")).cpu()
             frames = slice(t0 - HISTORY, t0 + t)
             kin = clip.kinematic[frames]
             s = to_unit(c, skin(torch.as_tensor(c.rest[idx]), torch.as_tensor(c.keypoints[c.body]), w[idx],
@@ -279,9 +294,10 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
             clip = data.clips[ci]
             c = data.characters[clip.character_id]
             kin = clip.kinematic[t0:t0 + t]
-            prob = apparel_probability(context.frozen["seg"], c)
+            prob = apparel_probability(context.frozen["seg"], c, config.get("mask_by_piece", False))
             mask = prob > config["threshold"]
-            w = skinning_weights(context.frozen["body"], c)
+            w = apparel_skinned(skinning_weights(context.frozen["body"], c, config.get("weight_smoothing", 0)), c, mask,
+                                config.get("apparel_skinning", "fs"))
             s = body_states(c, w, kin)
             y = s.clone()
             if mask.any():
