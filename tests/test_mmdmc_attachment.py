@@ -8,7 +8,7 @@ import torch
 
 from baselines.mmdmc.chain_attachment import attached_weights, chain_attachment
 from baselines.mmdmc.data import prepare
-from baselines.mmdmc.pipeline import apparel_probability, apparel_skinned
+from baselines.mmdmc.pipeline import apparel_probability, mesh_weights
 from baselines.mmdmc.segmentation import ApparelSegmenter, segmenter_inputs
 
 # body: 0 root (0,0,0) -> 1 (1,0,0) -> 2 leaf (1,1,0); apparel chain A: 3 (1,0,1) -> 4 (1,0,2), hanging
@@ -65,16 +65,32 @@ def character():
     return prepare("toy", v, faces, KEYPOINTS, PARENTS, BODY)
 
 
-def test_apparel_skinned_modes():
+class UniformSkinning(torch.nn.Module):
+    """A stand-in f_s giving every vertex equal weights on the 3 body bones."""
+
+    def __init__(self):
+        super().__init__()
+        self.p = torch.nn.Parameter(torch.zeros(1))
+
+    def forward(self, points, joints, geo, bone):
+        return torch.full(geo.shape, 1 / 3) + self.p * 0
+
+
+def test_mesh_weights_attach_the_masked_vertices_then_smooth():
     prep = character()
-    w = torch.full((4, 3), 1 / 3)
+    body = UniformSkinning()
     mask = np.array([False, False, True, True])
-    assert apparel_skinned(w, prep, mask, "fs") is w
-    out = apparel_skinned(w, prep, mask, "attachment").numpy()
-    np.testing.assert_allclose(out[:2], 1 / 3)
-    np.testing.assert_array_equal(out[2:], [[0, 1, 0], [1, 0, 0]])
+    np.testing.assert_allclose(mesh_weights(body, prep, mask, "fs").numpy(), 1 / 3)
+    attached = mesh_weights(body, prep, mask, "attachment").numpy()
+    np.testing.assert_allclose(attached[:2], 1 / 3)
+    np.testing.assert_array_equal(attached[2:], [[0, 1, 0], [1, 0, 0]])
+    np.testing.assert_allclose(mesh_weights(body, prep, None, "attachment").numpy(), 1 / 3)  # no mask: f_s's
+    # smoothing comes after the attachment: one step by hand on the faces (0,1,2), (0,2,3)
+    nb = {0: [1, 2, 3], 1: [0, 2], 2: [0, 1, 3], 3: [0, 2]}
+    expected = np.array([0.5 * (attached[i] + attached[nb[i]].mean(0)) for i in range(4)])
+    np.testing.assert_allclose(mesh_weights(body, prep, mask, "attachment", 1).numpy(), expected, rtol=1e-6)
     with pytest.raises(ValueError, match="expected 'fs' or 'attachment'"):
-        apparel_skinned(w, prep, mask, "nearest")
+        mesh_weights(body, prep, mask, "nearest")
 
 
 def test_segmenter_bone_inputs_by_hand():

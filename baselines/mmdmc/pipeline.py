@@ -63,32 +63,39 @@ def apparel_probability(seg: torch.nn.Module, prep: Prepared, by_piece: bool = F
 
 
 @torch.no_grad()
-def skinning_weights(body: torch.nn.Module, prep: Prepared, smoothing: int = 0) -> torch.Tensor:
-    """(N, Kb) f_s's weights over the body joints (cached), smoothed along the mesh ``smoothing``
-    iterations (:mod:`baselines.mmdmc.weight_smoothing`)."""
-    key = ("weights", id(body), smoothing)
+def skinning_weights(body: torch.nn.Module, prep: Prepared) -> torch.Tensor:
+    """(N, Kb) f_s's weights over the body joints (cached)."""
+    key = ("weights", id(body))
     if key not in prep.cache:
         dev = device_of(body)
-        w = body(torch.as_tensor(prep.rest_norm, device=dev)[None], torch.as_tensor(prep.joints_norm, device=dev)[None],
-                 torch.as_tensor(prep.geo, device=dev)[None], torch.as_tensor(prep.bone, device=dev)[None])[0]
-        if smoothing:
-            w = torch.as_tensor(smooth_weights(w.cpu().numpy(), prep.edges, smoothing), device=dev)
-        prep.cache[key] = w
+        prep.cache[key] = body(torch.as_tensor(prep.rest_norm, device=dev)[None],
+                               torch.as_tensor(prep.joints_norm, device=dev)[None],
+                               torch.as_tensor(prep.geo, device=dev)[None],
+                               torch.as_tensor(prep.bone, device=dev)[None])[0]
     return prep.cache[key]
 
 
-def apparel_skinned(weights: torch.Tensor, prep: Prepared, mask: np.ndarray, mode: str) -> torch.Tensor:
-    """(N, Kb) weights the apparel path starts from: f_s's ``weights`` (``mode="fs"``), or with the
-    vertices of ``mask`` (N,) bool moved onto the body bone their apparel chain hangs from
-    (``"attachment"``; :mod:`baselines.mmdmc.chain_attachment`)."""
-    if mode == "fs":
-        return weights
-    if mode != "attachment":
-        raise ValueError(f"apparel_skinning: expected 'fs' or 'attachment', got {mode!r}")
-    key = ("attached", id(weights), np.asarray(mask, bool).tobytes())
+def mesh_weights(body: torch.nn.Module, prep: Prepared, mask: np.ndarray | None, apparel_skinning: str = "fs",
+                 smoothing: int = 0) -> torch.Tensor:
+    """(N, Kb) weights the body states are skinned with (cached): f_s's, with the vertices of ``mask``
+    (N,) bool (None: no apparel path, as in the body-only variant) moved onto the body bone their
+    apparel chain hangs from when ``apparel_skinning="attachment"``
+    (:mod:`baselines.mmdmc.chain_attachment`; ``"fs"`` keeps f_s's), then smoothed along the mesh
+    ``smoothing`` iterations (:mod:`baselines.mmdmc.weight_smoothing`), so the seams between body and
+    apparel skinning are smoothed too."""
+    if apparel_skinning not in ("fs", "attachment"):
+        raise ValueError(f"apparel_skinning: expected 'fs' or 'attachment', got {apparel_skinning!r}")
+    w = skinning_weights(body, prep)
+    mask = None if mask is None else np.asarray(mask, bool)
+    if (mask is None or apparel_skinning == "fs") and not smoothing:
+        return w
+    key = ("mesh_weights", id(body), None if mask is None else mask.tobytes(), apparel_skinning, smoothing)
     if key not in prep.cache:
-        w = attached_weights(weights.cpu().numpy(), mask, prepared_attachment(prep)[0])
-        prep.cache[key] = torch.as_tensor(w, dtype=weights.dtype, device=weights.device)
+        out = w.cpu().numpy()
+        if mask is not None and apparel_skinning == "attachment":
+            out = attached_weights(out, mask, prepared_attachment(prep)[0])
+        out = smooth_weights(out, prep.edges, smoothing)
+        prep.cache[key] = torch.as_tensor(out, dtype=w.dtype, device=w.device)
     return prep.cache[key]
 
 
@@ -151,12 +158,13 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
     """
     if variant not in ("full", "no_refine", "body_only"):
         raise ValueError(f"variant: expected 'full', 'no_refine' or 'body_only', got {variant!r}")
-    w = skinning_weights(modules.body, prep, modules.weight_smoothing)
     if variant == "body_only":
+        w = mesh_weights(modules.body, prep, None, smoothing=modules.weight_smoothing)
         return from_unit(prep, body_states(prep, w, transforms)).cpu().numpy().astype(np.float32)
     prob = apparel_probability(modules.seg, prep, modules.mask_by_piece)
     mask = prob > modules.threshold if gt_mask is None else np.asarray(gt_mask, bool)
-    s = body_states(prep, apparel_skinned(w, prep, mask, modules.apparel_skinning), transforms)  # (F, N, 3)
+    w = mesh_weights(modules.body, prep, mask, modules.apparel_skinning, modules.weight_smoothing)
+    s = body_states(prep, w, transforms)  # (F, N, 3)
     y = s.clone()
     if mask.any():
         idx, nb = apparel_layout(prep, mask, modules.knn)

@@ -48,8 +48,8 @@ from baselines.mmdmc.body import BodySkinning, skin
 from baselines.mmdmc.config import CONFIGS
 from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
 from baselines.mmdmc.losses import edge_length, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
-from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, apparel_skinned, body_states,
-                                      rollout_from_body, skinning_weights, to_unit)
+from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, mesh_weights,
+                                      rollout_from_body, to_unit)
 from baselines.mmdmc.refine import JointRefiner
 from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
@@ -254,8 +254,8 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
             idx = _pick_components(c, mask, config["apparel_points"], r)
             nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
                                       config["knn"])
-            w = apparel_skinned(skinning_weights(context.frozen["body"], c, config.get("weight_smoothing", 0)), c, mask,
-                                config.get("apparel_skinning", "fs")).cpu()
+            w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
+                             config.get("weight_smoothing", 0)).cpu()
             frames = slice(t0 - HISTORY, t0 + t)
             kin = clip.kinematic[frames]
             s = to_unit(c, skin(torch.as_tensor(c.rest[idx]), torch.as_tensor(c.keypoints[c.body]), w[idx],
@@ -296,8 +296,8 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
             kin = clip.kinematic[t0:t0 + t]
             prob = apparel_probability(context.frozen["seg"], c, config.get("mask_by_piece", False))
             mask = prob > config["threshold"]
-            w = apparel_skinned(skinning_weights(context.frozen["body"], c, config.get("weight_smoothing", 0)), c, mask,
-                                config.get("apparel_skinning", "fs"))
+            w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
+                             config.get("weight_smoothing", 0))
             s = body_states(c, w, kin)
             y = s.clone()
             if mask.any():
