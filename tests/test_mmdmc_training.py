@@ -163,15 +163,13 @@ def test_attachment_options_train_and_skin_apparel_to_its_chains_body_bone(appar
     from baselines.mmdmc.method import load_modules
     from baselines.mmdmc.pipeline import apparel_probability, predict, skinning_weights
 
-    cfg = {**tiny_config(), "seg_inputs": "bones", "apparel_skinning": "attachment", "mask_by_piece": True,
-           "threshold": 0.5}
+    cfg = {**tiny_config(), "seg_inputs": "bones", "apparel_skinning": "attachment", "mask_by_piece": True}
     for s in STAGES:
         train_stage("mmdmc", s, apparel_data, tmp_path, cfg, epochs=1, seed=0, progress=False)
     mods = load_modules(tmp_path)
     assert mods.seg.channels == 5 and mods.apparel_skinning == "attachment" and mods.mask_by_piece
     c = next(iter(TrainingData.load(apparel_data).characters.values()))
     clip = TrainingData.load(apparel_data).clips[0]
-    mods.threshold = 0.0  # an f_c trained for one step: count every vertex as apparel
     zero = copy.copy(mods)
     zero.apparel = ApparelDynamics(cfg["apparel_hidden"], cfg["code"])
     got = predict(zero, c, clip.kinematic[:4], "no_refine")
