@@ -11,6 +11,10 @@ kinematic clip against the simulation, cm at 1.70 m): f_s alone, body vertices a
 0 iterations PMD_b 0.276 and ELS 0.982; 5: 0.257, 0.986; 10: 0.261, 0.987; 20: 0.288, 0.987.
 With f_c's mask voted per piece and the attachment: apparel-edge ELS 0.9820 unsmoothed, 0.9891
 after 3 iterations and 0.9915 after 10 (all edges 0.9823, 0.9870, 0.9886; PMD_a 2.40, 2.39, 2.39).
+
+Iterations count edges, not distance: a coarse mesh is smoothed over a larger share of its body
+(the demo's 2,000-vertex characters, mean edge 3.8% of the height against 1.5-2.1% on the zoo
+above: the full model's PMD_b 0.32, 0.50, 0.73 cm after 0, 3, 10 iterations).
 """
 from __future__ import annotations
 
