@@ -27,12 +27,27 @@ frames are counted (the stage adds ``--relax-frames``, 30 by default, to each cl
 clip's first pose about 100 frames).
 
 Printed per link count: set-up seconds, CPU seconds per clip and the real-time factor (clip
-seconds / CPU seconds) of each route; the ratio Blender / this stage last (above 1: this stage
-is faster).
+seconds / CPU seconds) of each route, and wall seconds per clip; the ratios Blender / this stage
+last (above 1: this stage is faster), in CPU and in wall seconds. Blender's bake keeps a second
+thread busy (its CPU seconds are about twice its wall seconds at 10 links), this stage one: on an
+idle machine the wall ratio is the fairer one; on a loaded machine only the CPU one means anything.
 
     python benchmarks/apparel.py [--links 10 50 200] [--seconds 2] [--clips 3] [--no-blender]
 
-Measured (simulation version 7 with the output-preserving speed-ups after it; 2 shared cores under
+Measured on an idle machine (2 cores, load 1; simulation version 7, main at 5efe527; three runs,
+the least of each):
+
+    links  this stage s/clip, CPU = wall (x real time)   Blender bake s/clip CPU / wall
+       10  0.086 (23x)                                   0.090 / 0.047
+       50  0.213 (9.4x)                                  0.318 / 0.231
+      200  0.805 (2.5x)                                  1.098 / 0.952
+
+Blender / this stage in wall seconds: 0.55-0.57x at 10 links, 1.09-1.12x at 50, 1.12-1.21x at 200
+(in CPU seconds 1.05-1.10x, 1.49-1.57x, 1.29-1.40x). So: faster than Blender at 50 and 200 links
+by about 10-20% of wall time, slower at 10 links (Blender's bake is about twice as fast there);
+10x real time at 50 links is missed (9.4x at best: 0.213 s against 0.2).
+
+Measured earlier (simulation version 7 with the output-preserving speed-ups after it; 2 shared cores under
 load 5-6 from other jobs, CPU seconds, the least of 3 runs; runs vary by about 15%):
 
     links  this stage s/clip (x real time)  version 6   Blender bake s/clip (x real time)
@@ -129,8 +144,9 @@ def stage_chains(keypoints, parents):
     return sim, pieces, chains
 
 
-def run_ours(keypoints, parents, yaw, shift, clips: int = CLIPS_PER_CHARACTER) -> tuple[float, float]:
-    """CPU seconds of this stage: (set-up of the character's world, mean simulation of one clip).
+def run_ours(keypoints, parents, yaw, shift, clips: int = CLIPS_PER_CHARACTER) -> tuple[float, float, float]:
+    """Seconds of this stage: (CPU set-up of the character's world, CPU and wall mean simulation
+    of one clip).
 
     As the stage does it: one world per character (:mod:`datagen.apparel.world_cache`), reset
     before each of its ``clips`` clips (here the same clip each time).
@@ -143,13 +159,13 @@ def run_ours(keypoints, parents, yaw, shift, clips: int = CLIPS_PER_CHARACTER) -
     start = time.process_time()
     with ApparelWorld(keypoints, pieces, chains, sim, 1.0 / (FPS * SUBSTEPS)) as world:
         world.reset()
-        built = time.process_time()
+        built, built_wall = time.process_time(), time.perf_counter()
         for i in range(clips):
             if i:
                 world.reset()
             simulate_clip(world, clip, SUBSTEPS, 0)
-        done = time.process_time()
-    return built - start, (done - built) / clips
+        done, done_wall = time.process_time(), time.perf_counter()
+    return built - start, (done - built) / clips, (done_wall - built_wall) / clips
 
 
 def blender_springs(keypoints, parents) -> tuple[np.ndarray, np.ndarray]:
@@ -164,8 +180,8 @@ def blender_springs(keypoints, parents) -> tuple[np.ndarray, np.ndarray]:
     return stiffness, (springs.damping.reshape(-1, 3) - stiffness * dt)
 
 
-def run_blender(keypoints, parents, yaw, shift, tmp: Path) -> tuple[float, float]:
-    """CPU seconds of Blender's rigid-body route in a child process: (build, bake)."""
+def run_blender(keypoints, parents, yaw, shift, tmp: Path) -> tuple[float, float, float]:
+    """Seconds of Blender's rigid-body route in a child process: (CPU build, CPU bake, wall bake)."""
     stiffness, damping = blender_springs(keypoints, parents)
     chain_of = np.cumsum(np.asarray(parents) < 0) - 1
     np.savez(tmp / "in.npz", torso_box=TORSO_BOX, torso_head=TORSO_HEAD, torso_yaw=yaw, torso_shift=shift,
@@ -178,7 +194,7 @@ def run_blender(keypoints, parents, yaw, shift, tmp: Path) -> tuple[float, float
     if done.returncode != 0:
         raise RuntimeError(f"Blender child failed:\n{done.stderr[-2000:]}")
     out = np.load(tmp / "out.npz")
-    return float(out["build_seconds"]), float(out["bake_seconds"])
+    return float(out["build_seconds"]), float(out["bake_seconds"]), float(out["bake_wall_seconds"])
 
 
 def main() -> None:
@@ -190,22 +206,25 @@ def main() -> None:
     ap.add_argument("--no-blender", action="store_true", help="time this stage only")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="mimicbench-apparel-"))
-    print(f"{'links':>6s} {'route':26s} {'set-up s':>9s} {'cpu s/clip':>11s} {'x real time':>12s}")
-    ratios = []
+    print(f"{'links':>6s} {'route':26s} {'set-up s':>9s} {'cpu s/clip':>11s} {'x real time':>12s} {'wall s/clip':>12s}")
+    ratios, wall_ratios = [], []
     for n in args.links:
         keypoints, parents, yaw, shift = scene(n, args.seconds)
         clip = len(yaw) / FPS
-        setup, per_clip = run_ours(keypoints, parents, yaw, shift, args.clips)
-        ours = per_clip + setup / args.clips
-        rows = [("mimicbench pybullet", setup, ours)]
+        setup, per_clip, per_clip_wall = run_ours(keypoints, parents, yaw, shift, args.clips)
+        ours, ours_wall = per_clip + setup / args.clips, per_clip_wall + setup / args.clips
+        rows = [("mimicbench pybullet", setup, ours, ours_wall)]
         if not args.no_blender:
-            build, bake = run_blender(keypoints, parents, yaw, shift, tmp)
-            rows.append(("blender rigid-body bake", build, bake))
+            build, bake, bake_wall = run_blender(keypoints, parents, yaw, shift, tmp)
+            rows.append(("blender rigid-body bake", build, bake, bake_wall))
             ratios.append(f"{len(parents)} links {bake / ours:.2f}x")
-        for name, first, sec in rows:
-            print(f"{len(parents):6d} {name:26s} {first:9.3f} {sec:11.3f} {clip / sec:12.1f}")
+            wall_ratios.append(f"{len(parents)} links {bake_wall / ours_wall:.2f}x")
+        for name, first, sec, wall in rows:
+            print(f"{len(parents):6d} {name:26s} {first:9.3f} {sec:11.3f} {clip / sec:12.1f} {wall:12.3f}")
     if ratios:
-        print("ratio blender / mimicbench (seconds per clip; above 1: mimicbench is faster): " + "; ".join(ratios))
+        print("ratio blender / mimicbench (CPU seconds per clip; above 1: mimicbench is faster): " + "; ".join(ratios))
+        print("the same in wall seconds (fair only on an idle machine; Blender's bake may use threads): "
+              + "; ".join(wall_ratios))
 
 
 if __name__ == "__main__":
