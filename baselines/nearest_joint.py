@@ -18,6 +18,15 @@ from mimicbench.hungarian import hungarian_match
 from mimicbench.mesh import normalize_unit_height
 
 
+def nearest_joint_pairs(source, target) -> np.ndarray:
+    """(P, 2) int (source bone, target bone) pairs: the Hungarian match of the two characters' rest
+    keypoints, each normalised to unit height by its own rest mesh, on Euclidean distance."""
+    ks = normalize_unit_height(source.keypoints, source.vertices)
+    kt = normalize_unit_height(target.keypoints, target.vertices)
+    pairs, _ = hungarian_match(cdist(ks, kt), maximize=False)
+    return pairs
+
+
 class NearestJoint(PoseTransferMethod):
     metadata = MethodMetadata(name="nearest_joint", version="3", licence="MIT",
                               description="Hungarian matching of unit-height rest joints")
@@ -28,9 +37,8 @@ class NearestJoint(PoseTransferMethod):
     @staticmethod
     def _one(r):
         q_src, t_src = source_pose(r)
-        ks = normalize_unit_height(r.source.keypoints, r.source.vertices)
-        kt = normalize_unit_height(r.target.keypoints, r.target.vertices)
-        pairs, _ = hungarian_match(cdist(ks, kt), maximize=False)
+        pairs = nearest_joint_pairs(r.source, r.target)
+        kt = r.target.keypoints
         q = np.tile([1.0, 0.0, 0.0, 0.0], (len(kt), 1))
         matched = np.zeros(len(kt), bool)
         q[pairs[:, 1]] = q_src[pairs[:, 0]]

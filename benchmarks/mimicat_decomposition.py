@@ -36,16 +36,11 @@ import torch
 
 
 def nearest_joint_matches(source, target) -> torch.Tensor:
-    """One-hot (Ks, Kt) M of nearest_joint's Hungarian match on unit-height rest keypoints."""
-    from scipy.spatial.distance import cdist
+    """One-hot (Ks, Kt) M of nearest_joint's Hungarian match (:func:`baselines.nearest_joint.nearest_joint_pairs`)."""
+    from baselines.nearest_joint import nearest_joint_pairs
 
-    from mimicbench.hungarian import hungarian_match
-    from mimicbench.mesh import normalize_unit_height
-
-    ks = normalize_unit_height(source.keypoints, source.vertices)
-    kt = normalize_unit_height(target.keypoints, target.vertices)
-    pairs, _ = hungarian_match(cdist(ks, kt), maximize=False)
-    m = torch.zeros(len(ks), len(kt))
+    pairs = nearest_joint_pairs(source, target)
+    m = torch.zeros(len(source.keypoints), len(target.keypoints))
     m[pairs[:, 0], pairs[:, 1]] = 1
     return m
 
@@ -70,27 +65,10 @@ def variant(name: str, use_h: bool, matches: str, checkpoint: Path):
                     last.weight.zero_()
                     last.bias.zero_()
 
-        def _batch(self, requests):
-            from baselines.mimicat.transfer import correspondences, pose_mesh, transfer_batch
-            from baselines.posing import source_pose
-
-            src = [self._character(r.source) for r in requests]
-            tgt = [self._character(r.target) for r in requests]
-            poses = [source_pose(r) for r in requests]
-            q_s = [torch.as_tensor(q, dtype=torch.float32) for q, _ in poses]
-            t_s = [torch.as_tensor(t, dtype=torch.float32) for _, t in poses]
-            posed = [torch.tensor(np.asarray(r.source_posed, np.float32)) for r in requests]
-            mods = self._modules
-            with torch.no_grad():
-                if matches == "G":
-                    ms = correspondences(mods["shape"], mods["corr"], src, tgt, self._m_cache, self.m_temperature)
-                else:
-                    ms = [nearest_joint_matches(r.source, r.target) for r in requests]
-                result, _, _ = transfer_batch(mods["shape"], mods["corr"], mods["transfer"], src, q_s, t_s, posed,
-                                              tgt, ms)
-                verts = [pose_mesh(t, q, p).numpy().astype(np.float32) for t, (q, p) in zip(tgt, result)]
-            return [self._refiner.refine(r.target.character_id, r.target.vertices, r.target.faces,
-                                         r.target.weights.values, v) for r, v in zip(requests, verts)]
+        def _correspondences(self, requests, src, tgt):
+            if matches == "G":
+                return super()._correspondences(requests, src, tgt)
+            return [nearest_joint_matches(r.source, r.target).to(self.device) for r in requests]
 
     return Variant
 

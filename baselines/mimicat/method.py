@@ -118,7 +118,7 @@ class Mimicat(PoseTransferMethod):
     def _batch(self, requests) -> list[np.ndarray]:
         import torch
 
-        from baselines.mimicat.transfer import correspondences, pose_mesh, transfer_batch
+        from baselines.mimicat.transfer import pose_mesh, transfer_batch
         from baselines.posing import source_pose
 
         src = [self._character(r.source) for r in requests]
@@ -131,13 +131,22 @@ class Mimicat(PoseTransferMethod):
         posed = [torch.tensor(np.asarray(r.source_posed, np.float32), device=self.device) for r in requests]
         m = self._modules
         with torch.no_grad():
-            ms = correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)
+            ms = self._correspondences(requests, src, tgt)
             result, _, _ = transfer_batch(m["shape"], m["corr"], m["transfer"], src, q_s, t_s, posed, tgt, ms)
             verts = [pose_mesh(t, q, p).cpu().numpy().astype(np.float32) for t, (q, p) in zip(tgt, result)]
         if self._refiner is not None:
             verts = [self._refiner.refine(r.target.character_id, r.target.vertices, r.target.faces,
                                           r.target.weights.values, v) for r, v in zip(requests, verts)]
         return verts
+
+    def _correspondences(self, requests, src, tgt) -> list:
+        """G's soft correspondence M (Ks, Kt) of each request's characters (prepared ``src``, ``tgt``),
+        cached per pair; a diagnostic subclass may supply other matches
+        (benchmarks/mimicat_decomposition.py)."""
+        from baselines.mimicat.transfer import correspondences
+
+        m = self._modules
+        return correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)
 
 
 def _header_config(path: Path) -> dict:

@@ -9,6 +9,7 @@ so a dataset's own ``.ingest`` cache or a ``.git`` folder under the walked folde
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from datagen.mmd import MODEL_SUFFIXES
@@ -18,16 +19,15 @@ FOLDER_SUFFIXES = BLENDER_SUFFIXES + MODEL_SUFFIXES
 
 
 def assets_in_folder(folder: Path, skip: Path | None = None) -> list[Path]:
-    """Asset files under ``folder`` (any depth, sorted, hidden names and anything under ``skip``
-    skipped), resolved."""
+    """Asset files under ``folder`` (any depth, sorted), resolved. Hidden folders and ``skip`` are
+    pruned from the walk (never listed: a large ``.git`` costs nothing); hidden files are skipped."""
     found = []
-    for p in sorted(folder.rglob("*")):
-        rel = p.relative_to(folder).parts
-        if any(part.startswith(".") for part in rel) or (skip is not None and p.resolve().is_relative_to(skip)):
-            continue
-        if p.is_file() and p.suffix.lower() in FOLDER_SUFFIXES:
-            found.append(p.resolve())
-    return found
+    for root, dirs, files in os.walk(folder):
+        here = Path(root)
+        dirs[:] = [d for d in dirs if not d.startswith(".") and (skip is None or (here / d).resolve() != skip)]
+        found += [(here / f).resolve() for f in files
+                  if not f.startswith(".") and Path(f).suffix.lower() in FOLDER_SUFFIXES]
+    return sorted(found)
 
 
 def expand_asset_paths(paths, skip=None) -> tuple[list[Path], list[str]]:
