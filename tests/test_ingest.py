@@ -77,11 +77,12 @@ def vertex_map(ref: GltfReference, meshes: list[str], counts) -> np.ndarray:
     return np.concatenate(out)
 
 
-def compare_with_reference(path, char, motions, meta, arrays, skip=()):
-    """Per clip (mean %, max %) of stored LBS vs the glTF evaluator at 5 frames per clip."""
+def compare_with_reference(path, char, motions, meta, arrays, skip=(), unit=1.0):
+    """Per clip (mean %, max %) of stored LBS vs the glTF evaluator at 5 frames per clip (the
+    evaluator's metres times ``unit``, the ingest's ``mesh_unit``)."""
     ref = GltfReference(path)
     idx = vertex_map(ref, meta["meshes"], arrays["mesh_vertex_counts"])
-    height = float(np.ptp(ref.vertices(None)[:, 1]))
+    height = float(np.ptp(ref.vertices(None)[:, 1])) * unit
     names = [a.get("name") for a in ref.animations]
     errors = {}
     for ci, clip in enumerate(meta["clips"]):
@@ -92,7 +93,7 @@ def compare_with_reference(path, char, motions, meta, arrays, skip=()):
         frames = sorted({0, 1, m.num_frames // 3, m.num_frames // 2, m.num_frames - 1})
         pred = linear_blend_skinning(char.vertices, char.keypoints, char.weights, m.transforms[frames],
                                      None if m.scale is None else m.scale[frames])
-        want = np.stack([ref.vertices(ai, t0 + f / m.fps)[idx] for f in frames])  # frame f is t0 + f / fps
+        want = np.stack([ref.vertices(ai, t0 + f / m.fps)[idx] for f in frames]) * unit  # frame f is t0 + f / fps
         d = np.linalg.norm(pred - want, axis=-1) / height * 100
         errors[clip["name"]] = (float(d.mean()), float(d.max()))
     return errors
@@ -162,6 +163,32 @@ def test_step_cubic_retimed_and_scaled_clips_match_the_specification(assets_dir,
         rigid = linear_blend_skinning(char.vertices, char.keypoints, char.weights, m.transforms[f])
         scaled = linear_blend_skinning(char.vertices, char.keypoints, char.weights, m.transforms[f], m.scale[f])
         assert np.abs(rigid - scaled).max() / char.height > 0.005
+
+
+@pytest.mark.slow
+def test_mesh_unit_rescales_a_file_in_another_unit_and_its_size_is_warned(ingested, assets_dir, tmp_path):
+    """The Fox is authored in centimetres but glTF declares metres: as read it is 79 m tall and
+    the run warns; with --mesh-unit 0.01 every length (mesh, joints, clip translations) is a
+    hundredth, the clips still match the specification's evaluator (scaled), and no warning."""
+    out, summary = ingested
+    assert [w for w in summary["warnings"] if w.startswith("assets/Fox:") and "--mesh-unit" in w]
+    assert not [w for w in summary["warnings"] if "CesiumMan" in w or "Quaternius" in w]
+    fox = assets_dir / "glb" / "Fox.glb"
+    small = ingest_assets([fox], tmp_path / "small", mesh_unit=0.01, progress=False)
+    assert small["warnings"] == []
+    char, motions, meta, arrays = load(tmp_path / "small", "Fox")
+    big, big_motions, _, _ = load(out, "Fox")
+    assert char.meta["ingest"]["metres_per_unit"] == 0.01 and big.meta["ingest"]["metres_per_unit"] == 1.0
+    assert 0.7 < char.height < 0.9
+    np.testing.assert_allclose(char.vertices, big.vertices * 0.01, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(char.keypoints, big.keypoints * 0.01, rtol=1e-5, atol=1e-6)
+    for name, m in motions.items():
+        np.testing.assert_array_equal(m.transforms[..., :4], big_motions[name].transforms[..., :4])
+        np.testing.assert_allclose(m.transforms[..., 4:], big_motions[name].transforms[..., 4:] * 0.01, rtol=1e-5, atol=1e-6)
+    for name, (mean, worst) in compare_with_reference(fox, char, motions, meta, arrays, unit=0.01).items():
+        assert mean < MEAN_PCT and worst < MAX_PCT, (name, mean, worst)
+    with pytest.raises(ValueError, match="--mesh-unit"):
+        ingest_assets([fox], tmp_path / "bad", mesh_unit=0.0, progress=False)
 
 
 @pytest.mark.slow

@@ -133,7 +133,8 @@ def test_options_are_range_checked(tmp_path, kwargs, message):
 @pytest.mark.parametrize("args,needle", [(["--timeout", "0"], "--timeout: expected a finite number > 0"),
                                          (["--jobs", "0"], "--jobs: expected an integer >= 1"),
                                          (["--export", "stl"], "--export: unknown 'stl'; expected a comma-separated list of obj, bvh"),
-                                         (["--bvh-scale", "x"], "--bvh-scale: expected a finite number > 0")])
+                                         (["--bvh-scale", "x"], "--bvh-scale: expected a finite number > 0"),
+                                         (["--mesh-unit", "-1"], "--mesh-unit: expected a finite number > 0")])
 def test_cli_rejects_bad_options(tmp_path, capsys, args, needle):
     with pytest.raises(SystemExit) as e:
         main(["datagen", "ingest", "x.glb", "--out", str(tmp_path / "o")] + args)

@@ -36,6 +36,7 @@ Examples:
   mimicbench datagen ingest 'assets/*.glb' --out data/mine --jobs 2
   mimicbench datagen ingest my_characters/ --out data/mine
   mimicbench datagen ingest mocap/run.bvh --out data/mine --bvh-scale 0.01 --split test
+  mimicbench datagen ingest Fox.glb --out data/mine --mesh-unit 0.01   # authored in cm, declared in metres
 """
 
 
@@ -64,6 +65,11 @@ def register(subparsers) -> None:
     p.add_argument("--mmd-unit", type=positive_float, default=0.08, metavar="METRES",
                    help="metres per MMD unit for .pmx/.pmd/.vmd files, > 0 (default 0.08, the scale of mmd_tools "
                         "and of MMD players); recorded in each MMD character's meta.mmd.metres_per_unit")
+    p.add_argument("--mesh-unit", type=positive_float, default=1.0, metavar="METRES",
+                   help="metres per unit of the scene Blender imports from .glb/.gltf/.fbx/.obj/.blend, > 0 "
+                        "(default 1: glTF is in metres and Blender converts FBX units); every length is "
+                        "multiplied by it (0.01 for a file authored in centimetres but declared in metres); "
+                        "a character under 0.05 m or over 30 m across gets a warning; recorded in meta.ingest")
     p.add_argument("--export", type=comma_choices(EXPORT_FORMATS), default=(), help="comma-separated of obj,bvh: also write OUT/export/ files")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--split", choices=("train", "val", "test"), default=None,
@@ -100,7 +106,8 @@ def run(args) -> int:
     cmap = json.loads(open(args.category_map).read()) if args.category_map else None
     s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, args.export, not args.quiet,
                       bvh_scale=args.bvh_scale, allow_external_uris=args.allow_external_uris, split=args.split,
-                      split_file=args.split_file, mmd_unit=args.mmd_unit, engine=engine_from_args(args))
+                      split_file=args.split_file, mmd_unit=args.mmd_unit, engine=engine_from_args(args),
+                      mesh_unit=args.mesh_unit)
     print(summarize_statuses([x for x in s["statuses"] if x.status != "skipped"]))
     for w in s["warnings"]:
         print(f"warning: {w}")

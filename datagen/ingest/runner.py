@@ -48,6 +48,7 @@ CACHE = ".ingest"
 SUPPORTED = BLENDER_SUFFIXES
 EXPORT_FORMATS = ("obj", "bvh")
 DEFAULT_BVH_SCALE = "auto"  # metres per BVH unit from the rest skeleton (datagen/ingest/bvh_units.py)
+PLAUSIBLE_EXTENT_M = (0.05, 30.0)  # a meshed character's largest rest extent outside this: warn (--mesh-unit)
 
 
 @dataclass
@@ -64,6 +65,7 @@ class IngestOptions:
     assets_per_process: int = 50
     category_map: dict = field(default_factory=dict)
     mmd_unit: float = MMD_UNIT_METRES
+    mesh_unit: float = 1.0
 
     def check(self) -> None:
         """Raise ValueError naming the option and the allowed range."""
@@ -79,6 +81,10 @@ class IngestOptions:
                 or not math.isfinite(self.mmd_unit) or not self.mmd_unit > 0:
             raise ValueError(f"--mmd-unit: expected metres per MMD unit, a finite number greater than 0 (MMD's usual "
                              f"0.08), got {self.mmd_unit!r}")
+        if isinstance(self.mesh_unit, bool) or not isinstance(self.mesh_unit, (int, float)) \
+                or not math.isfinite(self.mesh_unit) or not self.mesh_unit > 0:
+            raise ValueError(f"--mesh-unit: expected metres per unit of the imported scene, a finite number greater "
+                             f"than 0 (1: glTF's metres; 0.01 for a file authored in centimetres), got {self.mesh_unit!r}")
         if not isinstance(self.assets_per_process, int) or self.assets_per_process < 1:
             raise ValueError(f"assets_per_process: expected at least 1, got {self.assets_per_process!r}")
         unknown = [x for x in self.export if x not in EXPORT_FORMATS]
@@ -168,11 +174,19 @@ def reproduction_error(char: CharacterRecord, transforms: np.ndarray, scale: np.
 
 
 def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, split: str,
-                       category_map: dict | None = None, bvh_scale: tuple[float, dict] | None = None
-                       ) -> tuple[CharacterRecord, list[MotionRecord]]:
-    """Character and motion records of one cached child result."""
+                       category_map: dict | None = None, bvh_scale: tuple[float, dict] | None = None,
+                       mesh_unit: float = 1.0) -> tuple[CharacterRecord, list[MotionRecord]]:
+    """Character and motion records of one cached child result.
+
+    ``mesh_unit`` (metres per unit of the scene Blender imported; ignored for BVH, which has
+    ``bvh_scale``) multiplies every length: vertices, joints, clip translations. The cache holds
+    the file's own units, so changing it needs no new Blender run.
+    """
     meta = json.loads((cache / f"{key}.json").read_text())
-    d = np.load(cache / f"{key}.npz")
+    d = dict(np.load(cache / f"{key}.npz"))
+    unit = 1.0 if asset.suffix.lower() == ".bvh" else float(mesh_unit)
+    if unit != 1.0:
+        d = _scaled_lengths(d, unit)
     verts = d["vertices"].astype(np.float32)
     k = len(meta["bone_names"])
     if len(verts):
@@ -188,6 +202,8 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
     info = {"blender": meta.get("blender"), "meshes": meta.get("meshes"), "clips": meta["clips"],
             "applied_modifiers": meta.get("applied_modifiers", []), "unweighted_vertices": meta.get("unweighted_vertices", 0),
             "default_pose_bones": meta.get("default_pose_bones", 0), "cache_key": key}
+    if asset.suffix.lower() != ".bvh":
+        info["metres_per_unit"] = unit
     if asset.suffix.lower() == ".bvh":
         kp = d["keypoints"]
         info["bvh_scale"], unit_evidence = bvh_scale
@@ -214,6 +230,19 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
     return char, motions
 
 
+def _scaled_lengths(arrays: dict, unit: float) -> dict:
+    """A child's result arrays with every length times ``unit``: vertices (N, 3), keypoints and
+    default keypoints (K, 3), evaluated vertices (E, N, 3) and the translation part of each clip's
+    (F, K, 7) transforms; rotations, weights and per-bone scale factors are unitless and kept."""
+    out = dict(arrays)
+    for name, value in arrays.items():
+        if name in ("vertices", "keypoints", "default_keypoints") or name.endswith("_eval_vertices"):
+            out[name] = value * unit
+        elif name.endswith("_transforms"):
+            out[name] = np.concatenate([value[..., :4], value[..., 4:] * unit], axis=-1)
+    return out
+
+
 def _existing(out_dir: Path, table: str) -> list:
     """Rows an earlier run put in ``table`` (none when the folder is not a dataset yet)."""
     if not (out_dir / MANIFEST).is_file() or not has_table(out_dir, table, allow_incomplete=True):
@@ -224,7 +253,8 @@ def _existing(out_dir: Path, table: str) -> list:
 def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, category_map: dict | None = None,
                   export=(), progress: bool = True, bvh_scale: float = DEFAULT_BVH_SCALE,
                   allow_external_uris: bool = False, split: str | None = None, split_file: str | None = None,
-                  assets_per_process: int = 50, mmd_unit: float = MMD_UNIT_METRES, engine=None) -> dict:
+                  assets_per_process: int = 50, mmd_unit: float = MMD_UNIT_METRES, engine=None,
+                  mesh_unit: float = 1.0) -> dict:
     """Ingest assets into ``out_dir`` (keeping what earlier runs put there); returns a summary.
 
     Args:
@@ -243,6 +273,10 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         assets_per_process: assets one Blender process ingests before a fresh one starts.
         mmd_unit: metres per MMD unit for .pmx/.pmd/.vmd (default 0.08), recorded in each MMD
             character's ``meta.mmd.metres_per_unit``.
+        mesh_unit: metres per unit of the scene Blender imports from .glb/.gltf/.fbx/.obj/.blend
+            (default 1: glTF is in metres and Blender converts FBX units); every length is
+            multiplied by it, recorded in ``meta.ingest.metres_per_unit``. A character whose largest
+            rest extent falls outside :data:`PLAUSIBLE_EXTENT_M` gets a warning that names it.
         engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task of 1 CPU and
             3 GiB with its worker's own Blender process (:mod:`datagen.ingest.engine_task`); None
             or a local engine keeps ``jobs`` Blender processes here. The output is the same.
@@ -253,7 +287,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     from datagen.splits import load_split_file
 
     opts = IngestOptions(jobs, timeout, bvh_scale, allow_external_uris, tuple(export), split, split_file,
-                         assets_per_process, dict(category_map or {}), mmd_unit)
+                         assets_per_process, dict(category_map or {}), mmd_unit, mesh_unit)
     opts.check()
     split_map = load_split_file(split_file) if split_file else {}
     start = time.perf_counter()
@@ -336,7 +370,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
             continue
         sp = split or split_map.get(cid) or split_of(cid)
         c, m = records_from_cache(a, cache, key, cid, sp, category_map,
-                                 opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None)
+                                 opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None, mesh_unit)
         chars.append(c)
         motions.extend(m)
         for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
@@ -357,6 +391,11 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
             warnings.append(f"{c.character_id}: skeleton {h:.3g} m tall at {info['bvh_scale']:g} m per file unit "
                             f"({info.get('bvh_unit') or '--bvh-scale'}); if that is not the file's unit, pass "
                             f"--bvh-scale (metres per file unit; CMU conversions use 0.056444)")
+        unit = info.get("metres_per_unit")
+        extent = float(np.ptp(c.vertices, axis=0).max()) if unit is not None and len(c.vertices) else None
+        if extent is not None and not PLAUSIBLE_EXTENT_M[0] <= extent <= PLAUSIBLE_EXTENT_M[1]:
+            warnings.append(f"{c.character_id}: {extent:.3g} m across at rest at {unit:g} m per file unit; if the file "
+                            f"is authored in another unit, pass --mesh-unit (metres per unit: 0.01 for centimetres)")
     new_ids = {c.character_id for c in chars}
     chars = [c for c in old_chars if c.character_id not in new_ids] + chars
     motions = [m for m in old_motions if m.character_id not in new_ids] + motions
@@ -364,7 +403,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
                 | set(empty_folders))
     statuses = [s for s in old_status if s.asset.split("#")[0] not in this_run] + statuses
     config = {"stage": "ingest", "timeout": timeout, "category_map": opts.category_map, "bvh_scale": bvh_scale,
-              "allow_external_uris": allow_external_uris, "split": split, "split_file": split_file,
+              "allow_external_uris": allow_external_uris, "mesh_unit": mesh_unit, "split": split, "split_file": split_file,
               "cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"}
     mark_incomplete(out_dir, "ingest", config)  # until every table below is written
     old_splits = {c.split for c in old_chars}
