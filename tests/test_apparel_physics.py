@@ -343,3 +343,28 @@ def test_substep_poses_are_the_frame_by_frame_blends():
     # each frame's last substep is the frame itself (a rotation up to its sign)
     np.testing.assert_allclose(np.abs(np.einsum("fkc,fkc->fk", got[7::8, :, :4], poses[1:, :, :4])), 1.0, atol=1e-12)
     np.testing.assert_allclose(got[7::8, :, 4:], poses[1:, :, 4:], atol=1e-12)
+
+
+def test_joint_kernel_rotation_vectors_and_limit_count_match_scipy_and_a_naive_loop():
+    # the compiled per-step arithmetic: rotation vectors of the joint quaternions (either sign of
+    # a quaternion is the same rotation) against scipy's as_rotvec, and the number of joints past
+    # a swing cone or twist bound against a plain loop; below every joint's floor none is counted
+    from scipy.spatial.transform import Rotation
+
+    from datagen.apparel.joint_kernel import rotation_vectors
+
+    rng = np.random.default_rng(3)
+    joints = 40
+    rotvec = rng.normal(size=(joints, 3)) * rng.uniform(0.0, 1.2, size=(joints, 1))
+    rotvec[0] = 0.0  # the identity
+    quats = Rotation.from_rotvec(rotvec).as_quat()  # (x, y, z, w), w >= 0
+    quats[::3] *= -1.0  # the other sign of the same rotation
+    states = np.concatenate([quats, rng.normal(size=(joints, 3))], axis=1)
+    swing, twist = rng.uniform(0.3, 0.9, joints), rng.uniform(0.1, 0.5, joints)
+    floor = np.minimum(swing, twist) * (1.0 - 1e-9)
+    got = np.empty((joints, 3))
+    over = rotation_vectors(states.copy(), floor, swing, twist, got)
+    np.testing.assert_allclose(got, rotvec, atol=1e-12)
+    naive = sum(1 for (x, y, z), s, t in zip(rotvec, swing, twist) if (x * x + y * y) ** 0.5 > s or abs(z) > t)
+    assert over == naive and 0 < naive < joints
+    assert rotation_vectors(states.copy(), np.full(joints, 10.0), swing, twist, got) == 0

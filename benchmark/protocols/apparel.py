@@ -27,9 +27,9 @@ from benchmark.metrics import els, pmd
 from benchmark.normalisation import RestFrame
 from benchmark.protocols.base import BenchmarkProtocol, Call, CaseDraw, CasePool, EvalData, Outcome
 from benchmark.request import MotionRequest
+from datagen.apparel import SIM_SUFFIX
 from schemas.case import CaseRecord
 
-SIM_SUFFIX = "@sim"
 WINDOW = 16
 """Frames a case covers."""
 DEFAULT_FPS = 30.0

@@ -630,7 +630,8 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     from datagen.apparel.body_shapes import body_pieces
     from datagen.apparel.quality import clip_quality
     from datagen.apparel.selection import dominant_bone
-    from datagen.apparel.setup import SIM_SUFFIX, substeps_for
+    from datagen.apparel import SIM_SUFFIX
+    from datagen.apparel.setup import substeps_for
     from schemas.motion import MotionRecord
 
     steps = substeps_for(physics_fps, motion.fps)

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from datagen.apparel import SIM_SUFFIX
 from datagen.apparel.body_shapes import BodyPiece, body_pieces
 from datagen.apparel.chain_spec import ChainSpec
 from datagen.apparel.chains import build_chains
@@ -17,12 +18,12 @@ from datagen.apparel.world import ApparelWorld
 from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 
-SIM_SUFFIX = "@sim"
-SIM_VERSION = "7"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
+SIM_VERSION = "8"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
 # projected every step, constraint ERP 0.8; 6: springs as implicit torques from numpy instead of
 # Bullet's joint motors; 7: springs solved per tree of links (a merged multibody's chains
-# apart), which rounds differently
+# apart), which rounds differently; 8: the per-step joint arithmetic compiled (joint_kernel),
+# its sums in a fixed order (numpy's einsum summed in SIMD lanes), which rounds differently
 
 
 @dataclass

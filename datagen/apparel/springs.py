@@ -1,4 +1,5 @@
-"""The chains' joint springs: torques toward the rest pose, computed in numpy for all joints at once.
+"""The chains' joint springs: torques toward the rest pose, for all joints at once (compiled,
+:func:`datagen.apparel.joint_kernel.spring_torques`).
 
 Each spherical joint is pulled toward rest by a spring with damping. Stiff springs on light links
 blow up when their torque is taken from the present state alone (explicit: the chain's fast
@@ -29,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from datagen.apparel.chain_spec import ChainSpec
+from datagen.apparel.joint_kernel import spring_torques
 from datagen.apparel.urdf import bone_frame, capsule_inertia
 
 
@@ -140,22 +142,24 @@ class Springs:
         self.damping = np.concatenate(damp) if damp else np.zeros(0)  # (3J,) D = K dt + C, N m s/rad
         self.bound = np.concatenate(bound) if bound else np.zeros(0)  # (3J,) N m
         self.inverse_bound = 1.0 / np.maximum(self.bound, 1e-300)  # (3J,) 1/N m
-        self._padded = np.zeros(self.blocks.shape[:2])  # (B, n) zero outside the rows
-        self._padded_flat = self._padded.ravel()  # (B * n,) a view of it
-        self._unpadded = bool(np.array_equal(self.rows, np.arange(len(self.rows))))
+        self._padded_flat = np.zeros(self.blocks.shape[0] * self.blocks.shape[1])  # (B * n,) scratch, zero outside the rows
         self._over = np.zeros(self.blocks.shape[:2])  # (B, n) share of each axis's bound, zero-padded
 
     def torques(self, rotation: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-        """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3)."""
-        x = self.stiffness * rotation.ravel() + self.damping * velocity.ravel()  # (3J,)
-        if self._unpadded:  # every tree as wide as the widest, in joint order: the padded (B, n) is x itself
-            tau = -np.einsum("cij,cj->ci", self.blocks, x.reshape(self._padded.shape)).ravel()  # no BLAS: solve_spd
-        else:
-            self._padded_flat[self.rows] = x
-            tau = -np.einsum("cij,cj->ci", self.blocks, self._padded).ravel()[self.rows]
+        """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3).
+
+        Every tree's implicit step at once, compiled (:func:`datagen.apparel.joint_kernel.spring_torques`);
+        a tree with an axis past its bound is solved again here with weaker springs.
+        """
+        rotation = np.asarray(rotation, np.float64)
+        velocity = np.asarray(velocity, np.float64)
+        tau = np.empty((len(rotation), 3))
+        worst = spring_torques(rotation, velocity, self.stiffness, self.damping, self.blocks, self.rows,
+                               self.inverse_bound, self._padded_flat, tau)
+        if worst <= 1.0:
+            return tau
+        tau = tau.ravel()
         over = np.abs(tau) * self.inverse_bound  # (3J,) share of each axis's bound used
-        if not len(tau) or over.max() <= 1.0:
-            return tau.reshape(-1, 3)
         self._over.ravel()[self.rows] = over
         for b in np.flatnonzero(self._over.max(axis=1) > 1.0).tolist():
             rows = self.tree_rows[b]

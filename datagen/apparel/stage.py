@@ -19,9 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from datagen.apparel import SIM_SUFFIX
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching
-from datagen.apparel.setup import SIM_SUFFIX, SIM_VERSION, physics_step, simulate_motion
+from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
 from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage, summarize_statuses

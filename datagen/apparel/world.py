@@ -4,9 +4,10 @@ Each body piece is a mass-0 convex hull placed at its bone's pose every substep.
 multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass and
 is carried by a fixed constraint that is moved every substep (``changeConstraint`` with the new
 pivot and orientation): teleporting the base instead would move the whole chain rigidly and it
-would never swing. Springs toward the rest pose give the stiffness: torques computed in numpy
-for every joint at once (:mod:`datagen.apparel.springs`) and applied in one call per chain
-(Bullet's spherical joint motors cost half of every step); after every step each joint past
+would never swing. Springs toward the rest pose give the stiffness: torques computed for every
+joint at once (:mod:`datagen.apparel.springs`; the per-step arithmetic is compiled,
+:mod:`datagen.apparel.joint_kernel`) and applied in one call per chain (Bullet's spherical
+joint motors cost half of every step); after every step each joint past
 its swing cone or twist limit is put back onto it and stopped there
 (:meth:`ApparelWorld._after_step`). Chains that hang from the same body bone share one
 multibody (:func:`merged_by_anchor`), and a world is reused across a character's clips
@@ -40,6 +41,7 @@ from scipy.spatial.transform import Rotation
 
 from datagen.apparel.body_shapes import BodyPiece, hull_points
 from datagen.apparel.chain_spec import ChainSpec
+from datagen.apparel.joint_kernel import rotation_vectors
 from datagen.apparel.params import SimParams
 from datagen.apparel.springs import Springs
 from datagen.apparel.urdf import bone_frame, chain_urdf, hull_obj
@@ -432,17 +434,13 @@ class ApparelWorld:
         except ValueError:  # a joint without a state
             raise RuntimeError(f"pybullet returned no state for some chain joints; expected (4 + 3) "
                                f"numbers for each of {len(states)} spherical joints") from None
-        q = both[:, :4]
-        np.negative(q, out=q, where=q[:, 3:] < 0)  # (J, 4) x, y, z, w with w >= 0
         velocity = both[:, 4:]  # (J, 3) in each child link's frame
-        sin_half = np.sqrt(np.einsum("ij,ij->i", q[:, :3], q[:, :3]))
-        angle = 2.0 * np.arctan2(sin_half, q[:, 3])  # (J,) rad, |r|
-        r = q[:, :3] * (angle / np.maximum(sin_half, 1e-12))[:, None]  # (J, 3)
-        if (angle > self._limit_floor).any():  # else no joint can be past a limit: swing, |twist| <= |r|
+        r = np.empty((len(both), 3))  # (J, 3) rotation vectors, rad
+        if rotation_vectors(both, self._limit_floor, self._swing_limits, self._twist_limits, r):  # w >= 0 now
+            q = both[:, :4]  # (J, 4) x, y, z, w
             bend = np.sqrt(np.einsum("ij,ij->i", r[:, :2], r[:, :2]))
             over = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
-            if len(over):
-                self._project_limits(states, q, r, bend, velocity, over)
+            self._project_limits(states, q, r, bend, velocity, over)
         self._apply_torques(self.springs.torques(r, velocity))
 
     def _apply_torques(self, torques: np.ndarray) -> None:
