@@ -91,3 +91,24 @@ def spring_torques(rotation: np.ndarray, velocity: np.ndarray, stiffness: np.nda
         if share > worst:
             worst = share
     return worst
+
+
+@njit(cache=True)
+def joint_torques(states: np.ndarray, limits: np.ndarray, gains: np.ndarray, blocks: np.ndarray, slots: np.ndarray,
+                  padded: np.ndarray, rotation: np.ndarray, torques: np.ndarray) -> tuple[int, float]:
+    """One step's work in one call: :func:`rotation_vectors`, then, when no joint is past a limit,
+    :func:`spring_torques` (velocities: ``states[:, 4:]``).
+
+    Args:
+        limits: (3, J) each joint's ``limit_floor``, ``swing`` and ``twist``.
+        gains: (3, 3J) each joint axis's stiffness, damping and inverse torque bound.
+        the others: as in those two functions.
+
+    Returns:
+        (joints past a limit, largest share of a torque bound); with joints past a limit the
+        torques are not computed (share 0): the caller puts the joints back onto their limits first.
+    """
+    over = rotation_vectors(states, limits[0], limits[1], limits[2], rotation)
+    if over:
+        return over, 0.0
+    return 0, spring_torques(rotation, states[:, 4:], gains[0], gains[1], blocks, slots, gains[2], padded, torques)

@@ -142,23 +142,28 @@ class Springs:
         self.damping = np.concatenate(damp) if damp else np.zeros(0)  # (3J,) D = K dt + C, N m s/rad
         self.bound = np.concatenate(bound) if bound else np.zeros(0)  # (3J,) N m
         self.inverse_bound = 1.0 / np.maximum(self.bound, 1e-300)  # (3J,) 1/N m
-        self._padded_flat = np.zeros(self.blocks.shape[0] * self.blocks.shape[1])  # (B * n,) scratch, zero outside the rows
+        self.gains = np.stack([self.stiffness, self.damping, self.inverse_bound])  # (3, 3J) for the compiled step
+        self.padded = np.zeros(self.blocks.shape[0] * self.blocks.shape[1])  # (B * n,) scratch, zero outside the rows
         self._over = np.zeros(self.blocks.shape[:2])  # (B, n) share of each axis's bound, zero-padded
 
     def torques(self, rotation: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3).
 
         Every tree's implicit step at once, compiled (:func:`datagen.apparel.joint_kernel.spring_torques`);
-        a tree with an axis past its bound is solved again here with weaker springs.
+        then :meth:`within_bounds`.
         """
         rotation = np.asarray(rotation, np.float64)
         velocity = np.asarray(velocity, np.float64)
         tau = np.empty((len(rotation), 3))
         worst = spring_torques(rotation, velocity, self.stiffness, self.damping, self.blocks, self.rows,
-                               self.inverse_bound, self._padded_flat, tau)
-        if worst <= 1.0:
-            return tau
-        tau = tau.ravel()
+                               self.inverse_bound, self.padded, tau)
+        return tau if worst <= 1.0 else self.within_bounds(rotation, velocity, tau)
+
+    def within_bounds(self, rotation: np.ndarray, velocity: np.ndarray, torques: np.ndarray) -> np.ndarray:
+        """``torques`` (J, 3) of :meth:`torques` with every tree that has an axis past its bound
+        solved again with that axis's springs weaker by the overshoot (the trees within their
+        bounds keep their torques)."""
+        tau = torques.ravel()
         over = np.abs(tau) * self.inverse_bound  # (3J,) share of each axis's bound used
         self._over.ravel()[self.rows] = over
         for b in np.flatnonzero(self._over.max(axis=1) > 1.0).tolist():

@@ -31,7 +31,6 @@ clear of it (:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair col
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,7 +40,7 @@ from scipy.spatial.transform import Rotation
 
 from datagen.apparel.body_shapes import BodyPiece, hull_points
 from datagen.apparel.chain_spec import ChainSpec
-from datagen.apparel.joint_kernel import rotation_vectors
+from datagen.apparel.joint_kernel import joint_torques
 from datagen.apparel.params import SimParams
 from datagen.apparel.springs import Springs
 from datagen.apparel.urdf import bone_frame, chain_urdf, hull_obj
@@ -196,6 +195,7 @@ class ApparelWorld:
         self._twist_limits = np.array([j.twist_limit for c in self.chains for j in c.spec.joints], np.float64)
         # (J,) below this rotation angle a joint is within both limits (less a margin for rounding)
         self._limit_floor = np.minimum(self._swing_limits, self._twist_limits) * (1.0 - 1e-9)
+        self._limits = np.stack([self._limit_floor, self._swing_limits, self._twist_limits])  # (3, J) for joint_torques
 
     def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray, offsets=None) -> int:
         hulls = []
@@ -422,26 +422,32 @@ class ApparelWorld:
         (r, the rotation vector, is the same in the parent's and the child's frame; the velocity is
         in the child's). One read of joint states and one torque call per chain.
         """
-        get = self.pb.getJointStatesMultiDof
+        get, cid = self.pb.getJointStatesMultiDof, self.client
         states = []
         for body, joints in self._joint_lists:
-            states += get(body, joints, physicsClientId=self.client)
+            states += get(body, joints, physicsClientId=cid)
         if not states:
             return
         try:
-            both = np.fromiter(itertools.chain.from_iterable(s[0] + s[1] for s in states), np.float64,
-                               7 * len(states)).reshape(-1, 7)  # (J, 7)
-        except ValueError:  # a joint without a state
+            both = np.array([s[0] + s[1] for s in states], np.float64)  # (J, 7) x, y, z, w, velocity
+        except ValueError:  # rows of different lengths
+            both = None
+        if both is None or both.shape != (len(states), 7):  # a joint without a state
             raise RuntimeError(f"pybullet returned no state for some chain joints; expected (4 + 3) "
-                               f"numbers for each of {len(states)} spherical joints") from None
+                               f"numbers for each of {len(states)} spherical joints")
+        r, tau = np.empty((len(states), 3)), np.empty((len(states), 3))  # rotation vectors (rad), torques (N m)
+        springs = self.springs
+        over, worst = joint_torques(both, self._limits, springs.gains, springs.blocks, springs.rows, springs.padded,
+                                    r, tau)  # each quaternion turned to w >= 0
         velocity = both[:, 4:]  # (J, 3) in each child link's frame
-        r = np.empty((len(both), 3))  # (J, 3) rotation vectors, rad
-        if rotation_vectors(both, self._limit_floor, self._swing_limits, self._twist_limits, r):  # w >= 0 now
-            q = both[:, :4]  # (J, 4) x, y, z, w
+        if over:
             bend = np.sqrt(np.einsum("ij,ij->i", r[:, :2], r[:, :2]))
-            over = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
-            self._project_limits(states, q, r, bend, velocity, over)
-        self._apply_torques(self.springs.torques(r, velocity))
+            past = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
+            self._project_limits(states, both[:, :4], r, bend, velocity, past)
+            tau = springs.torques(r, velocity)
+        elif worst > 1.0:
+            tau = springs.within_bounds(r, velocity, tau)
+        self._apply_torques(tau)
 
     def _apply_torques(self, torques: np.ndarray) -> None:
         """Add ``torques`` (J, 3) N m to the joints for the next step (Bullet sums torques until a step)."""
