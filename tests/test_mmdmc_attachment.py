@@ -98,9 +98,13 @@ def test_segmenter_bone_inputs_by_hand():
     x = segmenter_inputs(prep, 5)
     assert x.shape == (4, 5) and x.dtype == np.float32
     np.testing.assert_allclose(x[:, :3], prep.rest_norm)
+    # the mesh's box, grown by 0.1 x its largest extent 2.0: x -0.1..1.25, y -1.7..0.7, z -0.2..1.7, leaves
+    # joints 2 (1,1,0), 4 (1,0,2) and 6 (0,-2,0) out, so bones 1, 3 and 5 end no segment there.
     # vertex 2 (1.05, 0, 1.5): nearest body point the joint (1,0,0), hypot(0.05, 1.5) away; nearest apparel
-    # segment 3-4, 0.05 away; both divided by the height (the Y extent, 2.0)
-    np.testing.assert_allclose(x[2, 3:], np.minimum([np.hypot(0.05, 1.5) / 2.0, 0.05 / 2.0], 1.0), rtol=1e-5)
+    # point joint 3 (1,0,1) or 4 (1,0,2), hypot(0.05, 0.5) away (0.05 with the segment 3-4); divided by the
+    # height (the Y extent, 2.0)
+    np.testing.assert_allclose(x[2, 3:], np.minimum([np.hypot(0.05, 1.5) / 2.0, np.hypot(0.05, 0.5) / 2.0], 1.0),
+                               rtol=1e-5)
     assert (x[:, 3:] <= 1).all()
     np.testing.assert_array_equal(segmenter_inputs(prep, 3), prep.rest_norm)
     with pytest.raises(ValueError, match="input channels"):

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from baselines.mmdmc.body import PRIOR_TAU, BodySkinning
-from baselines.mmdmc.bone_distance import bone_distances
+from baselines.mmdmc.bone_distance import bone_distances, mesh_box
 from baselines.mmdmc.data import attachment_bones, body_target_weights, prepare
 from mimicbench.weights import SparseWeights
 
@@ -33,6 +33,22 @@ def test_bone_distances_take_the_nearest_of_several_children():
     kp = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float64)  # root with two children
     d = bone_distances(np.array([[0.5, 0.5, 0.0], [0.0, 0.5, 0.1]]), kp, np.array([-1, 0, 0]), np.ones(3, bool))
     np.testing.assert_allclose(d[:, 0], [0.5, 0.1], rtol=1e-6)
+
+
+def test_a_child_joint_outside_the_mesh_box_ends_no_segment():
+    """An MMD weight bone (a physics helper far below the model) must not stretch its parent's
+    bone through the legs: with the mesh's box it is left out, and the parent is a point."""
+    kp = np.array([[0, 1.5, 0], [0, 1.2, 0], [0, -6.0, 0]], np.float64)  # root, cloak joint, helper 7.2 m below
+    parents = np.array([-1, 0, 1])
+    mesh = np.array([[0.3, 0.0, 0.0], [-0.3, 1.6, 0.1], [0.0, 0.8, -0.1]])  # 1.6 m tall
+    box = mesh_box(mesh)
+    np.testing.assert_allclose(box, [[-0.46, -0.16, -0.26], [0.46, 1.76, 0.26]], atol=1e-12)  # grown by 0.1 x 1.6
+    leg = np.array([[0.0, 0.2, 0.05]])
+    free = bone_distances(leg, kp, parents, np.ones(3, bool))
+    boxed = bone_distances(leg, kp, parents, np.ones(3, bool), box)
+    assert free[0, 1] == pytest.approx(0.05)  # on the segment 1.2 -> -6.0
+    assert boxed[0, 1] == pytest.approx(np.hypot(1.0, 0.05))  # the cloak joint's point
+    np.testing.assert_array_equal(boxed[:, [0, 2]], free[:, [0, 2]])  # the others keep their segments
 
 
 def test_bone_distances_say_what_was_expected():
@@ -76,7 +92,7 @@ def test_untrained_body_module_is_the_bone_distance_prior():
     f_s = BodySkinning(hidden=8)
     w = f_s(torch.as_tensor(c.rest_norm)[None], torch.as_tensor(c.joints_norm)[None], torch.as_tensor(c.geo)[None],
             torch.as_tensor(c.bone)[None])[0].detach().numpy()
-    b = bone_distances(c.rest, KEYPOINTS, PARENTS, BODY) / c.height
+    b = bone_distances(c.rest, KEYPOINTS, PARENTS, BODY, mesh_box(c.rest)) / c.height  # as prepare() reads them
     expected = np.exp(-(b - b.min(1, keepdims=True)) / PRIOR_TAU)
     expected /= expected.sum(1, keepdims=True)
     np.testing.assert_allclose(w, expected, atol=1e-5)

@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from baselines.mmdmc.bone_distance import bone_distances
+from baselines.mmdmc.bone_distance import bone_distances, mesh_box
 from baselines.mmdmc.data import attachment_bones
 
 
 def chain_attachment(vertices: np.ndarray, keypoints: np.ndarray, parents: np.ndarray,
-                     body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                     body: np.ndarray, box: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For every vertex (N, 3): the column (0..Kb-1, in body-bone order) of the body bone its nearest
     apparel chain hangs from, (N,) int64, -1 when the rig has no apparel bone or that chain hangs from
     no body bone; and its distance to that nearest apparel bone, (N,) float32 metres (inf without
@@ -31,6 +31,8 @@ def chain_attachment(vertices: np.ndarray, keypoints: np.ndarray, parents: np.nd
 
     Args:
         keypoints: (K, 3) rest joints, metres; parents: (K,) int, -1 for a root; body: (K,) bool body bones.
+        box: (2, 3) the rest mesh's :func:`~baselines.mmdmc.bone_distance.mesh_box`: an apparel joint
+            outside it (a physics helper) ends no apparel bone's segment. None: every joint does.
     """
     body = np.asarray(body, bool)
     apparel = ~body
@@ -40,7 +42,7 @@ def chain_attachment(vertices: np.ndarray, keypoints: np.ndarray, parents: np.nd
     attach = attachment_bones(parents, body)  # (K,) bone index, -1 when none
     column = np.full(len(body), -1, np.int64)
     column[body] = np.arange(int(body.sum()))
-    d = bone_distances(vertices, keypoints, parents, apparel)  # (N, Ka)
+    d = bone_distances(vertices, keypoints, parents, apparel, box)  # (N, Ka)
     nearest = np.flatnonzero(apparel)[d.argmin(axis=1)]
     bone = attach[nearest]
     ok = bone >= 0
@@ -62,6 +64,6 @@ def prepared_attachment(prep) -> tuple[np.ndarray, np.ndarray]:
     """:func:`chain_attachment` of a :class:`~baselines.mmdmc.data.Prepared` character (cached on it):
     columns (N,) int64 and the distance to the nearest apparel bone (N,) float32 divided by the height."""
     if "attachment" not in prep.cache:
-        columns, dist = chain_attachment(prep.rest, prep.keypoints, prep.parents, prep.body)
+        columns, dist = chain_attachment(prep.rest, prep.keypoints, prep.parents, prep.body, mesh_box(prep.rest))
         prep.cache["attachment"] = (columns, (dist / prep.height).astype(np.float32))
     return prep.cache["attachment"]

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from baselines.mmdmc.bone_distance import bone_distances
+from baselines.mmdmc.bone_distance import bone_distances, mesh_box
 from baselines.mmdmc.geodesic import geodesic_distances
 from mimicbench.mesh import unique_edges, unit_height_frame
 from mimicbench.skinning import linear_blend_skinning
@@ -95,7 +95,7 @@ def prepare(character_id: str, vertices, faces, keypoints, parents, body, bridge
                          f"body bone, got shape {body.shape} with {int(body.sum())} body bones")
     centre, height = unit_height_frame(v)
     geo = geodesic_distances(v, faces, np.asarray(keypoints)[body], bridge_neighbours) / height
-    bone = bone_distances(v, keypoints, parents, body) / height
+    bone = bone_distances(v, keypoints, parents, body, mesh_box(v)) / height
     return Prepared(character_id, v, np.array(faces, np.int32), np.array(keypoints, np.float32),
                     np.array(parents, np.int32), body, centre, height, geo.astype(np.float32),
                     bone.astype(np.float32), unique_edges(faces), None if apparel is None else np.asarray(apparel, bool), weights)
