@@ -36,3 +36,16 @@ def test_gene_pmx_at_rest_stays_at_rest(assets_dir, tmp_path):
     assert full.shape == (6, len(v), 3) and np.isfinite(full).all()
     drift = np.linalg.norm(full - v[None], axis=-1).mean() / float(np.ptp(v[:, 1]))
     assert drift < 0.05, f"a still window moved the mesh by {drift:.1%} of its height on average"
+
+    # Gene's front cloak bone has a physics weight bone (錘) 7.5 m below the model: a bone segment to
+    # it would run down through the legs. The file's own physics put no apparel below 0.97 m, and
+    # f_c must label none of the legs and shoes (below 0.5 m) apparel.
+    from baselines.mmdmc.pipeline import apparel_probability
+
+    m = get_method("mmdmc")
+    m.setup()
+    prep = m._prepare(rig, body)
+    assert np.asarray(v)[np.asarray(c.apparel_vertex_mask, bool), 1].min() > 0.9
+    labelled = apparel_probability(m.modules.seg, prep, m.modules.mask_by_piece) > m.modules.threshold
+    low = np.asarray(v)[:, 1] < 0.5
+    assert low.sum() > 4000 and not labelled[low].any(), f"{int(labelled[low].sum())} leg vertices labelled apparel"
