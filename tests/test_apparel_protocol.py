@@ -154,3 +154,21 @@ def test_leaderboard_strips_show_the_window_middle_frame(tmp_path):
         np.testing.assert_allclose(truth.vertices[apparel] - pred.vertices[apparel],
                                    np.tile([SHIFT, 0, 0], (apparel.sum(), 1)), atol=1e-5)
         np.testing.assert_allclose(source.vertices, pred.vertices, atol=1e-5)  # kinematic source = lbs_kinematic
+
+
+def test_pose_protocols_draw_kinematic_clips_only(tmp_path):
+    """h2h draws poses from ``turn``, never from its simulated twin ``turn@sim`` (same body pose)."""
+    a, b = (dataclasses.replace(make_character(i), skeleton_id="skel-toy") for i in ("toy/a", "toy/b"))
+    motions = []
+    for c in (a, b):
+        kin = make_motion(c, quick_turn(20, 4), "turn")
+        motions += [kin, dataclasses.replace(kin, motion_id=kin.motion_id + "@sim", name="turn@sim")]
+    root = tmp_path / "twins"
+    write_records(root, "characters", [a, b], split="train")
+    write_records(root, "motions", motions, split="train")
+    pool = CasePool.load(root, "all")
+    assert sorted(m.name for m in pool.motions["toy/a"]) == ["turn", "turn@sim"]
+    draws = pool.frames_for(np.random.default_rng(0), "toy/a", 100)
+    assert len(draws) == 19 and {m.name for m, _ in draws} == {"turn"}  # every frame but the rest frame, once
+    cases = get_protocol("h2h").build_cases(pool, None, 50, seed=0)
+    assert len(cases) == 2 * 19 and {k.motion_id.rsplit("/", 1)[1] for k in cases} == {"turn"}

@@ -19,6 +19,7 @@ import numpy as np
 from benchmark.normalisation import RestFrame
 from benchmark.request import TransferRequest
 from benchmark.rigs import CharacterData
+from datagen.apparel import SIM_SUFFIX
 from mimicbench.skinning import linear_blend_skinning
 from schemas.case import CaseRecord
 from schemas.errors import DatasetError
@@ -113,8 +114,11 @@ class CasePool:
         return cls(chars, motions, dataset)
 
     def frames_for(self, rng: np.random.Generator, character_id: str, n_poses: int) -> list[tuple]:
-        """Up to ``n_poses`` (motion, frame) draws from a character's clips, never frame 0 (rest)."""
-        choices = [(m, f) for m in self.motions.get(character_id, []) for f in range(1, m.num_frames)]
+        """Up to ``n_poses`` (motion, frame) draws from a character's kinematic clips, never frame 0
+        (rest). A simulated clip (``<clip>@sim``, :mod:`datagen.apparel`) is left out: its body pose
+        is its kinematic twin's, so drawing both would count an apparel character's poses twice."""
+        choices = [(m, f) for m in self.motions.get(character_id, []) if not m.name.endswith(SIM_SUFFIX)
+                   for f in range(1, m.num_frames)]
         if not choices:
             return []
         idx = rng.choice(len(choices), size=min(n_poses, len(choices)), replace=False)
