@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from datagen.apparel.params import params_from_json
+from datagen.apparel.selection import selection_problem
 from datagen.apparel.stage import simulate_dataset
 from mimicbench.cli import main
 from schemas.shards import read_records, write_records
@@ -93,6 +94,31 @@ def test_apparel_bones_by_glob_choose_bones_and_vertices(toy_dataset, tmp_path):
     sim = {m.motion_id: m for m in read_records(out, "motions")}["toy/b/turn@sim"]
     kin = {m.motion_id: m for m in read_records(out, "motions")}["toy/b/turn"]
     np.testing.assert_array_equal(sim.transforms[:, :3], kin.transforms[:, :3])  # skirt_1, skirt_2 now body
+
+
+@pytest.mark.parametrize("patterns,needle", [(["*"], "every bone of the skeleton (5)"),
+                                             (["torso"], "apparel bone 'torso' hangs from no body bone")])
+def test_a_selection_that_cannot_hang_from_the_body_fails_its_clips_and_keeps_them(toy_dataset, tmp_path,
+                                                                                   patterns, needle):
+    out = tmp_path / "bad"
+    s = simulate_dataset(toy_dataset, out, relax=0, apparel_bones=patterns, progress=False)
+    assert s["simulated"] == 0 and s["failed"] == 4  # both characters' two clips
+    rows = [r for r in read_records(out, "status") if r.status == "failed"]
+    assert len(rows) == 4 and all(needle in r.reason and "--apparel-bones" in r.reason for r in rows)
+    assert sorted(m.name for m in read_records(out, "motions")) == ["still", "still", "turn", "turn"]
+    assert validate_dataset(out) == []
+
+
+def test_selection_problem_by_hand():
+    names = ["root", "spine", "hair_1", "hair_2", "tail"]
+    parents = np.array([-1, 0, 1, 2, 0])
+    some = np.array([True, False])
+    assert selection_problem(names, parents, np.array([0, 0, 1, 1, 0], bool), some) is None
+    assert "'root' hangs from no body bone" in selection_problem(names, parents, np.array([1, 0, 0, 0, 0], bool), some)
+    # under an apparel root: the first apparel bone found without a body bone above it is named
+    assert "hangs from no body bone" in selection_problem(names, parents, np.array([1, 0, 0, 0, 1], bool), some)
+    assert "every bone" in selection_problem(names, parents, np.ones(5, bool), some)
+    assert "no vertex" in selection_problem(names, parents, np.array([0, 0, 0, 0, 1], bool), np.zeros(2, bool))
 
 
 def test_cli_runs_and_rejects_bad_options(toy_dataset, tmp_path, capsys):

@@ -33,6 +33,29 @@ def apparel_vertex_mask(weights, bone_mask: np.ndarray) -> np.ndarray:
     return dense[:, np.asarray(bone_mask, bool)].sum(axis=1) > 0.5
 
 
+def selection_problem(bone_names: list[str], parents: np.ndarray, bones: np.ndarray, vertices: np.ndarray) -> str | None:
+    """Why the apparel ``bones`` (K,) bool of a skeleton (``parents`` (K,), -1 for a root) cannot be
+    simulated as chains, or None. A chain hangs from a body bone that carries it, so the body keeps
+    at least one bone and every apparel bone has a body bone above it; and the apparel bones must
+    own some vertex (``vertices`` (N,) bool, :func:`apparel_vertex_mask`), or there is nothing to move."""
+    bones = np.asarray(bones, bool)
+    if bones.all():
+        return (f"the apparel bones are every bone of the skeleton ({len(bones)}); a chain hangs from a body bone, so "
+                f"leave the body at least its root (narrow --apparel-bones)")
+    parents = np.asarray(parents, np.int64)
+    for k in np.flatnonzero(bones):
+        j = k
+        while j >= 0 and bones[j]:
+            j = parents[j]
+        if j < 0:
+            return (f"apparel bone {bone_names[k]!r} hangs from no body bone (no body bone above it up to the root); "
+                    f"a chain must hang from the body (narrow --apparel-bones)")
+    if not np.asarray(vertices, bool).any():
+        return (f"the {int(bones.sum())} apparel bones hold more than half the skin weight of no vertex: nothing to "
+                f"simulate (widen --apparel-bones to the bones that drive the apparel)")
+    return None
+
+
 def bone_kind(name: str, role: str | None) -> str:
     """The apparel kind of a bone: from a role ``apparel/<kind>/...``, else a known kind named in
     the bone name (``Hair_L_03`` -> ``hair``), else ``default``."""

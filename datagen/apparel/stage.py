@@ -21,7 +21,7 @@ import numpy as np
 
 from datagen.apparel import SIM_SUFFIX
 from datagen.apparel.params import ApparelParams
-from datagen.apparel.selection import apparel_vertex_mask, bones_matching
+from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
 from mimicbench.engines import Engine
@@ -156,6 +156,11 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
                         f"character_id in the characters table")
     file_rows = _file_physics(in_dir, file_tables, apparel_bones)
     statuses: list[StatusRecord] = []
+    unusable = {cid: problem for cid, (bones, vertices) in masks.items() if bones.any() and cid not in file_rows
+                and (problem := selection_problem(by_id[cid].bone_names, by_id[cid].parents, bones, vertices))}
+    statuses += [StatusRecord(m.motion_id, STAGE, "failed", unusable[m.character_id], 0.0) for m in todo
+                 if m.character_id in unusable]  # the kinematic clip stays; a fixed selection re-runs them
+    todo = [m for m in todo if m.character_id not in unusable]
     fn = partial(_simulate_one, params=params, physics_fps=physics_fps, relax=relax)
     for i in range(0, max(len(todo), 1), batch):
         chunk = todo[i:i + batch]
