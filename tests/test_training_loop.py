@@ -160,3 +160,27 @@ def test_torchrun_two_processes_match_one(data, tmp_path):
     with open(tmp_path / "two" / "fit" / "loss.csv") as f:
         assert len(list(csv.DictReader(f))) == 96 // 16
     assert (tmp_path / "two" / "head" / "model.safetensors").is_file()  # the second stage ran under the same group
+
+
+def test_cli_threads_sets_torch_threads_before_training(data, tmp_path, capsys, monkeypatch):
+    from mimicbench.cli import main
+    from mimicbench.training import loop
+
+    seen = []
+    real = loop.train_model
+
+    def spy(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return real(*args, **kwargs)
+
+    before = torch.get_num_threads()
+    monkeypatch.setattr(loop, "train_model", spy)
+    try:
+        torch.set_num_threads(2)
+        assert main(["train", "toy", str(data), "--out", str(tmp_path), "--stage", "fit", "--epochs", "1",
+                     "--set", "fit.width=8", "--no-progress", "--threads", "1"]) == 0
+        assert seen == [1]
+        assert main(["train", "toy", str(data), "--out", str(tmp_path / "b"), "--threads", "0"]) == 2
+        assert "--threads" in capsys.readouterr().err and seen == [1]
+    finally:
+        torch.set_num_threads(before)
