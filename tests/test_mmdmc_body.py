@@ -118,3 +118,56 @@ def test_weight_smoothing_matches_a_naive_loop():
     np.testing.assert_allclose(smooth_weights(w, edges, 0), w, rtol=1e-6)
     with pytest.raises(ValueError, match="iterations >= 0"):
         smooth_weights(w, edges, -1)
+
+
+def _strip(step: float, length: float = 2.0, width: float = 0.2):
+    """A flat strip x in [-length/2, length/2], z in [0, width] triangulated on a grid of ``step``."""
+    xs = np.linspace(-length / 2, length / 2, int(round(length / step)) + 1)
+    zs = np.linspace(0.0, width, int(round(width / step)) + 1)
+    gx, gz = np.meshgrid(xs, zs, indexing="ij")
+    v = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], 1)
+    nz = len(zs)
+    faces = []
+    for i in range(len(xs) - 1):
+        for j in range(nz - 1):
+            a, b, c, d = i * nz + j, (i + 1) * nz + j, (i + 1) * nz + j + 1, i * nz + j + 1
+            faces += [[a, b, c], [a, c, d]]
+    return v, np.array(faces)
+
+
+@pytest.mark.parametrize("step", [0.01, 0.04])
+def test_weight_diffusion_matches_the_screened_poisson_solution_at_any_resolution(step):
+    from baselines.mmdmc.weight_smoothing import diffuse_weights
+
+    # a step in the weights along x; (1 - r^2 d^2/dx^2) u = step has the closed form
+    # u = 1 - exp(-x/r)/2 for x >= 0 and exp(x/r)/2 for x < 0, on a fine mesh and a coarse one alike
+    v, f = _strip(step)
+    r = 0.1
+    step_w = (v[:, 0] > 1e-9).astype(np.float64) + 0.5 * (np.abs(v[:, 0]) <= 1e-9)
+    w = np.stack([step_w, 1.0 - step_w], 1)
+    got = diffuse_weights(w, v, f, r)
+    x = v[:, 0]
+    expected = np.where(x >= 0, 1.0 - 0.5 * np.exp(-x / r), 0.5 * np.exp(x / r))
+    inner = np.abs(x) < 0.6  # away from the strip's ends
+    assert np.abs(got[inner, 0] - expected[inner]).max() < 0.03
+    np.testing.assert_allclose(got.sum(1), 1.0, rtol=1e-5)
+    assert (got >= 0).all()
+
+
+def test_weight_diffusion_keeps_pieces_apart_and_lonely_vertices():
+    from baselines.mmdmc.weight_smoothing import diffuse_weights
+
+    v, f = _strip(0.05)
+    n = len(v)
+    v2 = np.concatenate([v, v + [0, 0.5, 0], [[9.0, 9.0, 9.0]]])  # a second piece above, one vertex in no face
+    f2 = np.concatenate([f, f + n])
+    rng = np.random.default_rng(1)
+    w = np.concatenate([np.tile([1.0, 0.0, 0.0], (n, 1)), rng.dirichlet(np.ones(3), size=n + 1)])
+    got = diffuse_weights(w, v2, f2, 0.2)
+    np.testing.assert_allclose(got[:n], w[:n], atol=1e-6)  # constant on its own piece: the other piece's weights stay out
+    np.testing.assert_allclose(got[-1], w[-1], rtol=1e-6)
+    assert np.abs(got[n:-1] - w[n:-1]).max() > 0.05  # the random piece was smoothed
+    np.testing.assert_allclose(got.sum(1), 1.0, rtol=1e-5)
+    np.testing.assert_allclose(diffuse_weights(w, v2, f2, 0.0), w, rtol=1e-6)
+    with pytest.raises(ValueError, match="radius >= 0"):
+        diffuse_weights(w, v2, f2, -0.1)

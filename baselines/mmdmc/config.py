@@ -24,6 +24,7 @@ COMMON = {
                                    # "fs" (f_s's weights) or "attachment" (the body bone their chain hangs from;
                                    # chain_attachment.py)
     "weight_smoothing": 0,         # ours: iterations f_s's weights are smoothed along the mesh (weight_smoothing.py)
+    "weight_smoothing_radius": 0.0,  # ours: then diffused over this share of the height (weight_smoothing.py)
     "mask_by_piece": False,        # ours: f_c's probability averaged over each mesh piece (pipeline.py)
     "bridge_neighbours": 4,  # geodesic graph: nearest vertices looked at for bridges between mesh pieces
     "knn": 8,                # EdgeConv neighbours, within one connected apparel component

@@ -53,11 +53,11 @@ def load_modules(folder=None, device: str = "cpu", stages=STAGES):
             else None for s in STAGES}
     config = read_header(checkpoint_path("body", folder))["config"]
     # the mask's piece vote and how apparel is skinned before f_d are the apparel stage's settings,
-    # the weights' smoothing the body stage's
+    # the weights' smoothing (iterations, radius) the body stage's
     apparel = read_header(checkpoint_path("apparel", folder))["config"] if "apparel" in stages else {}
     return Modules(mods["seg"], mods["body"], mods["apparel"], mods["refine"], config["knn"], config["threshold"],
                    apparel.get("apparel_skinning", "fs"), bool(apparel.get("mask_by_piece", False)),
-                   int(config.get("weight_smoothing", 0)))
+                   int(config.get("weight_smoothing", 0)), float(config.get("weight_smoothing_radius", 0.0)))
 
 
 class Mmdmc(PoseTransferMethod):

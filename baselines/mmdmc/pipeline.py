@@ -18,7 +18,7 @@ from baselines.mmdmc.body import skin
 from baselines.mmdmc.chain_attachment import attached_weights, prepared_attachment
 from baselines.mmdmc.data import Prepared
 from baselines.mmdmc.segmentation import segmenter_inputs
-from baselines.mmdmc.weight_smoothing import smooth_weights
+from baselines.mmdmc.weight_smoothing import diffuse_weights, smooth_weights
 
 
 @dataclass
@@ -34,6 +34,7 @@ class Modules:
     apparel_skinning: str = "fs"
     mask_by_piece: bool = False
     weight_smoothing: int = 0
+    weight_smoothing_radius: float = 0.0
 
 
 def device_of(module: torch.nn.Module) -> torch.device:
@@ -76,25 +77,27 @@ def skinning_weights(body: torch.nn.Module, prep: Prepared) -> torch.Tensor:
 
 
 def mesh_weights(body: torch.nn.Module, prep: Prepared, mask: np.ndarray | None, apparel_skinning: str = "fs",
-                 smoothing: int = 0) -> torch.Tensor:
+                 smoothing: int = 0, radius: float = 0.0) -> torch.Tensor:
     """(N, Kb) weights the body states are skinned with (cached): f_s's, with the vertices of ``mask``
     (N,) bool (None: no apparel path, as in the body-only variant) moved onto the body bone their
     apparel chain hangs from when ``apparel_skinning="attachment"``
     (:mod:`baselines.mmdmc.chain_attachment`; ``"fs"`` keeps f_s's), then smoothed along the mesh
-    ``smoothing`` iterations (:mod:`baselines.mmdmc.weight_smoothing`), so the seams between body and
-    apparel skinning are smoothed too."""
+    ``smoothing`` iterations and then diffused over ``radius`` (a share of the height; both in
+    :mod:`baselines.mmdmc.weight_smoothing`), so the seams between body and apparel skinning are
+    smoothed too."""
     if apparel_skinning not in ("fs", "attachment"):
         raise ValueError(f"apparel_skinning: expected 'fs' or 'attachment', got {apparel_skinning!r}")
     w = skinning_weights(body, prep)
     mask = None if mask is None else np.asarray(mask, bool)
-    if (mask is None or apparel_skinning == "fs") and not smoothing:
+    if (mask is None or apparel_skinning == "fs") and not smoothing and not radius:
         return w
-    key = ("mesh_weights", id(body), None if mask is None else mask.tobytes(), apparel_skinning, smoothing)
+    key = ("mesh_weights", id(body), None if mask is None else mask.tobytes(), apparel_skinning, smoothing, radius)
     if key not in prep.cache:
         out = w.cpu().numpy()
         if mask is not None and apparel_skinning == "attachment":
             out = attached_weights(out, mask, prepared_attachment(prep)[0])
         out = smooth_weights(out, prep.edges, smoothing)
+        out = diffuse_weights(out, prep.rest_norm, prep.faces, radius)
         prep.cache[key] = torch.as_tensor(out, dtype=w.dtype, device=w.device)
     return prep.cache[key]
 
@@ -159,11 +162,13 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
     if variant not in ("full", "no_refine", "body_only"):
         raise ValueError(f"variant: expected 'full', 'no_refine' or 'body_only', got {variant!r}")
     if variant == "body_only":
-        w = mesh_weights(modules.body, prep, None, smoothing=modules.weight_smoothing)
+        w = mesh_weights(modules.body, prep, None, smoothing=modules.weight_smoothing,
+                         radius=modules.weight_smoothing_radius)
         return from_unit(prep, body_states(prep, w, transforms)).cpu().numpy().astype(np.float32)
     prob = apparel_probability(modules.seg, prep, modules.mask_by_piece)
     mask = prob > modules.threshold if gt_mask is None else np.asarray(gt_mask, bool)
-    w = mesh_weights(modules.body, prep, mask, modules.apparel_skinning, modules.weight_smoothing)
+    w = mesh_weights(modules.body, prep, mask, modules.apparel_skinning, modules.weight_smoothing,
+                     modules.weight_smoothing_radius)
     s = body_states(prep, w, transforms)  # (F, N, 3)
     y = s.clone()
     if mask.any():

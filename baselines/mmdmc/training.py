@@ -27,8 +27,8 @@ end to end on their outputs):
   roll out from there too. With ``apparel_skinning="attachment"`` the apparel vertices (f_c's mask,
   voted per mesh piece with ``mask_by_piece``) start from the body bone their chain hangs from
   (:mod:`baselines.mmdmc.chain_attachment`), the body target's own rule, rather than f_s's
-  weights; ``weight_smoothing`` smooths f_s's weights along the mesh
-  (:mod:`baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
+  weights; ``weight_smoothing`` (edge hops) and ``weight_smoothing_radius`` (a distance) smooth
+  f_s's weights along the mesh (:mod:`baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
   model's settings) and read at inference from the stages' checkpoints.
 - ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference; L1 vertex,
   edge length, L2 on the corrections.
@@ -255,7 +255,7 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
             nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
                                       config["knn"])
             w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
-                             config.get("weight_smoothing", 0)).cpu()
+                             config.get("weight_smoothing", 0), config.get("weight_smoothing_radius", 0.0)).cpu()
             frames = slice(t0 - HISTORY, t0 + t)
             kin = clip.kinematic[frames]
             s = to_unit(c, skin(torch.as_tensor(c.rest[idx]), torch.as_tensor(c.keypoints[c.body]), w[idx],
@@ -297,7 +297,7 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
             prob = apparel_probability(context.frozen["seg"], c, config.get("mask_by_piece", False))
             mask = prob > config["threshold"]
             w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
-                             config.get("weight_smoothing", 0))
+                             config.get("weight_smoothing", 0), config.get("weight_smoothing_radius", 0.0))
             s = body_states(c, w, kin)
             y = s.clone()
             if mask.any():
