@@ -18,8 +18,8 @@ from baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMas
 SHIPPED = {
     "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior), "3",
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
-    "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "4",
-              "c5d8edd735e1805e44dd55ae5793ab2469f2bcd237a898c4597107a862f43484"),
+    "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "5",
+              "6b7789637f324065e487ff1e724dd6d38864c3b6b8c109da0723173b1fd7ad96"),
 }
 
 
