@@ -67,7 +67,8 @@ def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(characte
         outs[name] = (m, out)
     m, body = outs["mmdmc_body_only"]
     prep = next(iter(m._prepared.values()))
-    w = mesh_weights(m.modules.body, prep, None, smoothing=m.modules.weight_smoothing).numpy().astype(np.float64)
+    w = mesh_weights(m.modules.body, prep, None, smoothing=m.modules.weight_smoothing,
+                     radius=m.modules.weight_smoothing_radius).numpy().astype(np.float64)
     assert np.allclose(w.sum(1), 1.0, atol=1e-5) and (w >= 0).all()
     bones = np.flatnonzero(~np.asarray(rec.apparel_bone_mask, bool))
     ref = naive_lbs(np.asarray(rig.vertices, np.float64), np.asarray(rig.keypoints, np.float64)[bones], w,
@@ -79,8 +80,10 @@ def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(characte
     moved = np.abs(apparel - body).max(axis=(0, 2)) > 0
     mods, prep2 = m2.modules, next(iter(m2._prepared.values()))
     mask = apparel_probability(mods.seg, prep2, mods.mask_by_piece) > mods.threshold
-    reskinned = np.abs(mesh_weights(mods.body, prep2, mask, mods.apparel_skinning, mods.weight_smoothing).numpy()
-                       - mesh_weights(mods.body, prep2, None, smoothing=mods.weight_smoothing).numpy()).max(1) > 0
+    reskinned = np.abs(mesh_weights(mods.body, prep2, mask, mods.apparel_skinning, mods.weight_smoothing,
+                                     mods.weight_smoothing_radius).numpy()
+                       - mesh_weights(mods.body, prep2, None, smoothing=mods.weight_smoothing,
+                                     radius=mods.weight_smoothing_radius).numpy()).max(1) > 0
     assert moved.any() and not moved[~(mask | reskinned)].any()
 
 
