@@ -112,3 +112,72 @@ def joint_torques(states: np.ndarray, limits: np.ndarray, gains: np.ndarray, blo
     if over:
         return over, 0.0
     return 0, spring_torques(rotation, states[:, 4:], gains[0], gains[1], blocks, slots, gains[2], padded, torques)
+
+
+@njit(cache=True)
+def weaker_springs(rotation: np.ndarray, velocity: np.ndarray, gains: np.ndarray, mass_matrices: np.ndarray,
+                   sizes: np.ndarray, slots: np.ndarray, dt: float, torques: np.ndarray, system: np.ndarray,
+                   solution: np.ndarray) -> int:
+    """``torques`` (J, 3) of :func:`spring_torques` with every tree that has an axis past its bound
+    solved again, in place, with that axis's K and D scaled down by the overshoot:
+    tau = -M (M + dt D')^-1 (K' r + D' w) of that tree alone.
+
+    Args:
+        rotation, velocity: (J, 3). gains: (3, 3J) stiffness, damping, inverse bound.
+        mass_matrices: (B, n, n) each tree's joint-space mass matrix, zero-padded; sizes: (B,) its rows.
+        slots: (3J,) each joint axis's place b * n + i. dt: s.
+        system, solution: (n, n) scratch.
+
+    Returns:
+        the number of trees solved again.
+
+    The linear solve is Gaussian elimination without pivoting (M + dt D' is symmetric positive
+    definite), in a fixed order, no BLAS.
+    """
+    n = mass_matrices.shape[1]
+    blocks = mass_matrices.shape[0]
+    axes = slots.shape[0]
+    share = np.ones(blocks * n)  # per padded slot: 1 / max(|tau| / bound, 1)
+    member = np.full(blocks * n, -1)  # per padded slot: its joint axis
+    over = np.zeros(blocks, np.bool_)
+    for a in range(axes):
+        used = abs(torques[a // 3, a % 3]) * gains[2, a]
+        member[slots[a]] = a
+        if used > 1.0:
+            share[slots[a]] = 1.0 / used
+            over[slots[a] // n] = True
+    count = 0
+    for b in range(blocks):
+        if not over[b]:
+            continue
+        count += 1
+        m = sizes[b]
+        for i in range(m):  # system = M + dt D', solution = M
+            for c in range(m):
+                system[i, c] = mass_matrices[b, i, c]
+                solution[i, c] = mass_matrices[b, i, c]
+            a = member[b * n + i]
+            system[i, i] += dt * (gains[1, a] * share[b * n + i])
+        for k in range(m - 1):  # forward elimination
+            for i in range(k + 1, m):
+                f = system[i, k] / system[k, k]
+                for c in range(k + 1, m):
+                    system[i, c] -= f * system[k, c]
+                for c in range(m):
+                    solution[i, c] -= f * solution[k, c]
+        for k in range(m - 1, -1, -1):  # back substitution
+            for c in range(m):
+                total = 0.0
+                for i in range(k + 1, m):
+                    total += system[k, i] * solution[i, c]
+                solution[k, c] = (solution[k, c] - total) / system[k, k]
+        for i in range(m):  # tau_i = -sum_c (M + dt D')^-1 M [c, i] x_c
+            total = 0.0
+            for c in range(m):
+                a = member[b * n + c]
+                x = gains[0, a] * share[b * n + c] * rotation[a // 3, a % 3] \
+                    + gains[1, a] * share[b * n + c] * velocity[a // 3, a % 3]
+                total += solution[c, i] * x
+            a = member[b * n + i]
+            torques[a // 3, a % 3] = -total
+    return count

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from datagen.apparel.chain_spec import ChainSpec
-from datagen.apparel.joint_kernel import spring_torques
+from datagen.apparel.joint_kernel import spring_torques, weaker_springs
 from datagen.apparel.urdf import bone_frame, capsule_inertia
 
 
@@ -144,7 +144,11 @@ class Springs:
         self.inverse_bound = 1.0 / np.maximum(self.bound, 1e-300)  # (3J,) 1/N m
         self.gains = np.stack([self.stiffness, self.damping, self.inverse_bound])  # (3, 3J) for the compiled step
         self.padded = np.zeros(self.blocks.shape[0] * self.blocks.shape[1])  # (B * n,) scratch, zero outside the rows
-        self._over = np.zeros(self.blocks.shape[:2])  # (B, n) share of each axis's bound, zero-padded
+        self.padded_mass = np.zeros_like(self.blocks)  # (B, n, n) each tree's mass matrix, zero-padded
+        for i, m in enumerate(self.mass_matrices):
+            self.padded_mass[i, :len(m), :len(m)] = m
+        self.sizes = np.array([len(m) for m in self.mass_matrices], np.int64)  # (B,) each tree's rows
+        self._system, self._solution = np.zeros((width, width)), np.zeros((width, width))  # scratch
 
     def torques(self, rotation: np.ndarray, velocity: np.ndarray) -> np.ndarray:
         """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3).
@@ -162,16 +166,9 @@ class Springs:
     def within_bounds(self, rotation: np.ndarray, velocity: np.ndarray, torques: np.ndarray) -> np.ndarray:
         """``torques`` (J, 3) of :meth:`torques` with every tree that has an axis past its bound
         solved again with that axis's springs weaker by the overshoot (the trees within their
-        bounds keep their torques)."""
-        tau = torques.ravel()
-        over = np.abs(tau) * self.inverse_bound  # (3J,) share of each axis's bound used
-        self._over.ravel()[self.rows] = over
-        for b in np.flatnonzero(self._over.max(axis=1) > 1.0).tolist():
-            rows = self.tree_rows[b]
-            share = 1.0 / np.maximum(over[rows], 1.0)  # (n,) weaker springs where the bound was passed
-            k, d = self.stiffness[rows] * share, self.damping[rows] * share
-            mass_matrix = self.mass_matrices[b]
-            solve = solve_spd(mass_matrix + np.diag(self.dt * d), mass_matrix).T
-            tau[rows] = -(solve * (k * rotation.ravel()[rows] + d * velocity.ravel()[rows])).sum(axis=1)
-            self.resolved += 1
-        return tau.reshape(-1, 3)
+        bounds keep their torques); compiled, :func:`datagen.apparel.joint_kernel.weaker_springs`."""
+        tau = np.array(torques, np.float64)
+        self.resolved += weaker_springs(np.asarray(rotation, np.float64), np.asarray(velocity, np.float64), self.gains,
+                                        self.padded_mass, self.sizes, self.rows, self.dt, tau, self._system,
+                                        self._solution)
+        return tau

@@ -31,6 +31,7 @@ clear of it (:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair col
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -429,12 +430,11 @@ class ApparelWorld:
         if not states:
             return
         try:
-            both = np.array([s[0] + s[1] for s in states], np.float64)  # (J, 7) x, y, z, w, velocity
-        except ValueError:  # rows of different lengths
-            both = None
-        if both is None or both.shape != (len(states), 7):  # a joint without a state
+            both = np.fromiter(itertools.chain.from_iterable(s[0] + s[1] for s in states), np.float64,
+                               7 * len(states)).reshape(-1, 7)  # (J, 7) x, y, z, w, velocity
+        except ValueError:  # a joint without a state
             raise RuntimeError(f"pybullet returned no state for some chain joints; expected (4 + 3) "
-                               f"numbers for each of {len(states)} spherical joints")
+                               f"numbers for each of {len(states)} spherical joints") from None
         r, tau = np.empty((len(states), 3)), np.empty((len(states), 3))  # rotation vectors (rad), torques (N m)
         springs = self.springs
         over, worst = joint_torques(both, self._limits, springs.gains, springs.blocks, springs.rows, springs.padded,
