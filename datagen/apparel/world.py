@@ -196,7 +196,9 @@ class ApparelWorld:
         self._twist_limits = np.array([j.twist_limit for c in self.chains for j in c.spec.joints], np.float64)
         # (J,) below this rotation angle a joint is within both limits (less a margin for rounding)
         self._limit_floor = np.minimum(self._swing_limits, self._twist_limits) * (1.0 - 1e-9)
-        self._limits = np.stack([self._limit_floor, self._swing_limits, self._twist_limits])  # (3, J) for joint_torques
+        limits = np.stack([self._limit_floor, self._swing_limits, self._twist_limits])  # (3, J)
+        self._kernel_arrays = (limits, self.springs.gains, self.springs.blocks, self.springs.rows, self.springs.padded)
+        self._rotation, self._torques = np.zeros((len(limits[0]), 3)), np.zeros((len(limits[0]), 3))  # joint_torques' out
 
     def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray, offsets=None) -> int:
         hulls = []
@@ -435,25 +437,28 @@ class ApparelWorld:
         except ValueError:  # a joint without a state
             raise RuntimeError(f"pybullet returned no state for some chain joints; expected (4 + 3) "
                                f"numbers for each of {len(states)} spherical joints") from None
-        r, tau = np.empty((len(states), 3)), np.empty((len(states), 3))  # rotation vectors (rad), torques (N m)
-        springs = self.springs
-        over, worst = joint_torques(both, self._limits, springs.gains, springs.blocks, springs.rows, springs.padded,
-                                    r, tau)  # each quaternion turned to w >= 0
-        velocity = both[:, 4:]  # (J, 3) in each child link's frame
+        r, tau = self._rotation, self._torques  # (J, 3) rotation vectors (rad), torques (N m), refilled
+        over, worst = joint_torques(both, *self._kernel_arrays, r, tau)  # each quaternion turned to w >= 0
         if over:
+            velocity = both[:, 4:]  # (J, 3) in each child link's frame
             bend = np.sqrt(np.einsum("ij,ij->i", r[:, :2], r[:, :2]))
             past = np.flatnonzero((bend > self._swing_limits) | (np.abs(r[:, 2]) > self._twist_limits))
             self._project_limits(states, both[:, :4], r, bend, velocity, past)
-            tau = springs.torques(r, velocity)
+            tau = self.springs.torques(r, velocity)
         elif worst > 1.0:
-            tau = springs.within_bounds(r, velocity, tau)
+            tau = self.springs.within_bounds(r, both[:, 4:], tau)
         self._apply_torques(tau)
 
     def _apply_torques(self, torques: np.ndarray) -> None:
-        """Add ``torques`` (J, 3) N m to the joints for the next step (Bullet sums torques until a step)."""
+        """Add ``torques`` (J, 3) N m to the joints for the next step (Bullet sums torques until a step);
+        ``torques`` is kept (not copied) until then."""
         pb, cid = self.pb, self.client
         self._pending = torques
         listed = torques.tolist()
+        if len(self._joint_lists) == 1:
+            body, joints = self._joint_lists[0]
+            pb.setJointMotorControlMultiDofArray(body, joints, pb.TORQUE_CONTROL, forces=listed, physicsClientId=cid)
+            return
         for (body, joints), rows in zip(self._joint_lists, self._joint_slices):
             pb.setJointMotorControlMultiDofArray(body, joints, pb.TORQUE_CONTROL, forces=listed[rows],
                                                  physicsClientId=cid)
@@ -526,10 +531,11 @@ class ApparelWorld:
                                             computeForwardKinematics=1, physicsClientId=cid)]
         if not states:
             return np.zeros((0, 4)), np.zeros((0, 3)), 0.0
-        world = np.array([s[5] for s in states], np.float64)[:, [3, 0, 1, 2]]  # (L, 4) w, x, y, z
-        positions = np.array([s[4] for s in states], np.float64)
-        speed = float(np.linalg.norm(np.array([s[6] for s in states], np.float64), axis=1).max())
-        return world, positions, speed
+        both = np.fromiter(itertools.chain.from_iterable(s[5] + s[4] + s[6] for s in states), np.float64,
+                           10 * len(states)).reshape(-1, 10)  # (L, 10) x, y, z, w, head, velocity
+        world = both[:, [3, 0, 1, 2]]  # (L, 4) w, x, y, z
+        speed = float(np.linalg.norm(both[:, 7:], axis=1).max())
+        return world, both[:, 4:7], speed
 
     def rest_relative(self, world: np.ndarray) -> np.ndarray:
         """Bones' rest-relative rotations (..., L, 4) of links' world orientations ``world`` (..., L, 4)
