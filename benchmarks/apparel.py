@@ -34,47 +34,71 @@ idle machine the wall ratio is the fairer one; on a loaded machine only the CPU 
 
     python benchmarks/apparel.py [--links 10 50 200] [--seconds 2] [--clips 3] [--no-blender]
 
-Measured on an idle machine (2 cores, load 1; simulation version 7, main at 5efe527; three runs,
-the least of each):
+The compiled joint kernels (numba, :mod:`datagen.apparel.joint_kernel`) are imported and called
+once before any figure is timed; that first call (compiling them, or loading numba's cache of
+them) is printed on its own line and is in no per-clip figure.
 
-    links  this stage s/clip, CPU = wall (x real time)   Blender bake s/clip CPU / wall
-       10  0.086 (23x)                                   0.090 / 0.047
-       50  0.213 (9.4x)                                  0.318 / 0.231
-      200  0.805 (2.5x)                                  1.098 / 0.952
+Measured with simulation version 8 (the per-step joint arithmetic compiled; main after d0d2a0b)
+on 2 shared cores under load 4.4-5 from another developer's training, so in CPU seconds only (wall
+seconds are not comparable under that load), the least of 3 runs; "before" is main at d5480f2
+(simulation version 7) run interleaved with "after" under the same load:
 
-Blender / this stage in wall seconds: 0.55-0.57x at 10 links, 1.09-1.12x at 50, 1.12-1.21x at 200
-(in CPU seconds 1.05-1.10x, 1.49-1.57x, 1.29-1.40x). So: faster than Blender at 50 and 200 links
-by about 10-20% of wall time, slower at 10 links (Blender's bake is about twice as fast there);
-10x real time at 50 links is missed (9.4x at best: 0.213 s against 0.2).
+    links  this stage CPU s/clip (x real time)   before (version 7)   Blender bake CPU s/clip
+       10  0.052 (38x)                           0.083                0.047
+       50  0.168 (11.9x)                         0.212                0.226
+      200  0.730 (2.7x)                          0.833                0.961
 
-Measured earlier (simulation version 7 with the output-preserving speed-ups after it; 2 shared cores under
-load 5-6 from other jobs, CPU seconds, the least of 3 runs; runs vary by about 15%):
+Blender / this stage in CPU seconds, run by run: 0.76-0.93x at 10 links, 1.32-1.39x at 50,
+1.30-1.35x at 200 (in wall seconds under this load, where Blender's second thread rarely gets a
+core: 0.95-1.07x, 1.10-1.44x, 1.25-1.34x). Of issue 14's aims: 10x real time at 50 links is met
+(11.9x: 0.168 s a clip against 0.2, under load); faster than Blender is met at 50 and 200 links
+and missed at 10 links by about 10% (0.052 against 0.047 s a clip; Blender's idle wall time
+there was 0.047 s too). First call of the kernels: 0.2-0.6 s wall when numba's cache is present (about
+3 s compiling them into an empty cache); importing numba adds about 0.2-0.4 s to importing the
+stage. Where a clip's CPU seconds go now (under load; "Bullet" is ``stepSimulation``, "joints"
+the per-step joint-state reads, compiled arithmetic and torque calls, "rest" the body and anchor
+moves, the per-frame link reads and the loop), and the set-up a third of which each clip pays:
 
-    links  this stage s/clip (x real time)  version 6   Blender bake s/clip (x real time)
-       10  0.087 (23x)                      0.138       0.048 (42x)
-       50  0.218 (9.2x)                     0.348       0.229 (8.7x)
-      200  0.912 (2.2x)                     1.23        1.113 (1.8x)
+    links  clip    Bullet  joints  rest    set-up
+       10  0.042   0.025   0.010   0.007   0.024
+       50  0.160   0.104   0.042   0.014   0.044
+      200  0.716   0.527   0.149   0.041   0.165
 
-Blender / this stage: 0.55, 1.05, 1.22 (the three runs at 50 links: 1.27, 0.99, 1.10; version 6
-was measured under load 10). Of issue 14's aims, "faster than Blender" holds at 200 links and at
-50 by 5%, less than runs vary (one run of three was 0.99), and not at 10; 10x real time at 50 links (0.2 s a clip) is missed by 0.018 s. Where a 50-link clip's
-0.218 s goes: Bullet's step 0.096 s; per step and multibody one joint-state read and one torque
-call, 0.025 s; the springs 0.021 s (a tree past its torque bound re-solved: 35 a clip, 0.009 s);
-joint rotations to rotation vectors and the limit check, numpy, 0.036 s; reading the links each
-frame 0.009 s; the substep loop, constraint moves and the clip's substep poses about 0.013 s;
-set-up 0.055 s, a third of it per clip. At 10 links Bullet's step is 0.027 s and the same fixed
-per-step Python (about 0.1 ms a step, 480 steps) is the rest, where Blender steps in C. What
-changed since version 6: springs solved per tree of links (version 7), a clip's substep poses
-and anchor placements computed for many frames at once, link rotations made rest-relative once
-per clip, the limit check skipped when no joint is turned as far as its smallest limit, link
-frames remembered per axis at set-up (the same bytes as version 7's first commit, checked on
-zoo seeds 0 and 1 and on this scene). Tried and left out: chains merged up to 30 links a multibody
-instead of 24 (no gain beyond noise); physics at 120 Hz (4 substeps, on both sides, spring gains
-kept per second): Blender's bake halves, but zoo penetration reaches 2.2% of a clip, a seed-1 clip
-explodes and this stage gets slower (0.27 s at 50 links: struck chains need more contact and limit
-work), so the rate stays 240 Hz; solver iterations 10 instead of 30 and a residual threshold do not
-change Bullet's step time here (the solver stops early already); with no collisions at all the
-step costs 0.083 s instead of 0.096, the most any collision filtering could save on this scene.
+So at 10 links Bullet's step alone is half of Blender's whole bake, and the Python left around it
+is the pybullet calls themselves (one ``getJointStatesMultiDof`` is about 6 us for 10 joints, its
+tuples about 0.5 us a joint to turn into an array; the torque call, the piece reset and the
+constraint move 1-3 us each), not arithmetic: the numpy work the compiled kernels replaced was
+0.036 s of a 50-link clip and is now 0.003 s. Closing the last 10% at 10 links needs fewer
+pybullet calls a step or a cheaper Bullet step, both of which change the simulation.
+
+Measured on an idle machine before the kernels (simulation version 7 with the output-preserving
+speed-ups after it, main at 5efe527; three runs, the least of each; this stage on one thread, so
+CPU = wall; Blender CPU / wall, its bake keeps a second thread busy when it has a core):
+
+    links  this stage s/clip (x real time)   Blender bake s/clip CPU / wall
+       10  0.086 (23x)                       0.090 / 0.047
+       50  0.213 (9.4x)                      0.318 / 0.231
+      200  0.805 (2.5x)                      1.098 / 0.952
+
+Earlier history: version 6 took 0.138 / 0.348 / 1.23 s a clip. What changed since: springs solved
+per tree of links (version 7), a clip's substep poses and anchor placements computed for many
+frames at once, link rotations made rest-relative once per clip, the limit check skipped when no
+joint is turned as far as its smallest limit, link frames remembered per axis at set-up, and
+(version 8) the rotation vectors, limit screen, spring torques and re-solves past the torque
+bound compiled. Tried and left out: chains merged up to 30 links a multibody instead of 24 (no
+gain beyond noise); physics at 120 Hz (4 substeps, on both sides, spring gains kept per second):
+Blender's bake halves, but zoo penetration reaches 2.2% of a clip, a seed-1 clip explodes and this
+stage gets slower (0.27 s at 50 links: struck chains need more contact and limit work), so the
+rate stays 240 Hz; solver iterations 10 instead of 30 and a residual threshold do not change
+Bullet's step time here (the solver stops early already); with no collisions at all the step
+costs 0.083 s instead of 0.096 at 50 links, the most any collision filtering could save on this
+scene; Bullet's own spherical joint limits left out of the URDF (the stage projects joints onto
+their limits after every step anyway): Bullet's step 18% cheaper at 50 links and this scene's
+bytes unchanged, but on zoo seed 0 one clip's penetration went from 0.7% to 4.7% (the limits
+act within a step, the projection only after it), so they stay; numba reading pybullet's
+joint-state tuples directly (its list unboxing is far slower than ``numpy.fromiter``). The spherical
+joint motors pybullet adds to every joint cost nothing: with their force set to 0 Bullet makes
+no constraint rows for them.
 """
 from __future__ import annotations
 
@@ -168,6 +192,25 @@ def run_ours(keypoints, parents, yaw, shift, clips: int = CLIPS_PER_CHARACTER) -
     return built - start, (done - built) / clips, (done_wall - built_wall) / clips
 
 
+def first_kernel_call() -> tuple[float, float]:
+    """Wall seconds of importing the compiled joint kernels (numba) and of their first call in this
+    process (compiling them, or loading numba's cache of them beside the module), on the 10-link
+    scene's first frame; once a process, so kept out of every per-clip figure (a stage worker
+    pays it once)."""
+    start = time.perf_counter()
+    from datagen.apparel.simulate import simulate_clip
+    from datagen.apparel.world import ApparelWorld
+
+    imported = time.perf_counter()
+    keypoints, parents, yaw, shift = scene(10, 1.0 / FPS)
+    sim, pieces, chains = stage_chains(keypoints, parents)
+    with ApparelWorld(keypoints, pieces, chains, sim, 1.0 / (FPS * SUBSTEPS)) as world:
+        world.reset()
+        first = time.perf_counter()
+        simulate_clip(world, clip_transforms(keypoints, yaw, shift), SUBSTEPS, 0)
+        return imported - start, time.perf_counter() - first
+
+
 def blender_springs(keypoints, parents) -> tuple[np.ndarray, np.ndarray]:
     """(L, 3) spring stiffness (N m/rad) and damping (N m s/rad) per link and axis (swing x, y,
     twist z): the diagonal K and C of this stage's springs (:mod:`datagen.apparel.springs`)."""
@@ -206,6 +249,9 @@ def main() -> None:
     ap.add_argument("--no-blender", action="store_true", help="time this stage only")
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="mimicbench-apparel-"))
+    imported, first = first_kernel_call()
+    print(f"once a process, not in the figures below: importing the stage {imported:.2f} s, the compiled joint "
+          f"kernels' first call {first:.2f} s (numba compiles them, or loads its cache)")
     print(f"{'links':>6s} {'route':26s} {'set-up s':>9s} {'cpu s/clip':>11s} {'x real time':>12s} {'wall s/clip':>12s}")
     ratios, wall_ratios = [], []
     for n in args.links:
