@@ -160,6 +160,49 @@ def test_a_reset_world_simulates_a_clip_as_a_new_one_does():
             assert again.tobytes() == new[m.name].tobytes(), m.name
 
 
+def test_a_world_on_a_reused_client_simulates_as_one_on_a_new_client(monkeypatch):
+    # a closed world hands its pybullet client to the next world of the process, which empties it
+    # (resetSimulation) instead of connecting anew; the bytes must be those of a world on a
+    # client never used before, whatever the client held (here a world of another character)
+    import dataclasses
+
+    import pybullet
+
+    import datagen.apparel.world as world_module
+    from datagen.apparel.params import params_from_json
+
+    rec = make_character()
+    params = ApparelParams()
+    physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+    turn = make_motion(rec, quick_turn(30, 2), "turn")
+    monkeypatch.setattr(world_module, "_IDLE_CLIENTS", [])
+    monkeypatch.setattr(world_module, "MAX_IDLE_CLIENTS", 0)  # every world on a new client
+    fresh = simulate_motion(rec, physics, turn, params, 240.0, 8)[0].transforms
+    monkeypatch.setattr(world_module, "MAX_IDLE_CLIENTS", 1)
+    # the other character's torso box sits where this one's chain hangs: left in the client, it
+    # would strike the chain
+    shift = np.array([0.25, -0.3, 0.0], np.float32)
+    other_rec = dataclasses.replace(rec, character_id="toy/other", vertices=rec.vertices + shift,
+                                    keypoints=rec.keypoints + shift)
+    other = params_from_json({"kinds": {"skirt": {"swing_limit": 0.3, "strength": 0.0}}})
+    other_physics = character_physics(other_rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, other)
+    with ApparelWorld(other_rec.keypoints, other_physics.pieces, other_physics.chains, other.simulation,
+                      1 / 120) as world:
+        world.reset()
+        simulate_motion(other_rec, other_physics, make_motion(other_rec, quick_turn(30, 2), "turn"), other, 120.0, 4,
+                        world)
+        used = world.client
+    assert world_module._IDLE_CLIENTS == [used]
+    with ApparelWorld(rec.keypoints, physics.pieces, physics.chains, params.simulation, 1 / 240) as world:
+        assert world.client == used and not world_module._IDLE_CLIENTS
+        world.reset()
+        reused = simulate_motion(rec, physics, turn, params, 240.0, 8, world)[0].transforms
+    assert reused.tobytes() == fresh.tobytes()
+    monkeypatch.setattr(world_module, "MAX_IDLE_CLIENTS", 0)
+    ApparelWorld(rec.keypoints, physics.pieces, physics.chains, params.simulation, 1 / 240).close()
+    assert not world_module._IDLE_CLIENTS and not pybullet.isConnected(physicsClientId=used)
+
+
 def test_chain_mass_matrix_predicts_bullets_response_to_joint_torques():
     # the springs' implicit step rests on the chain's joint-space mass matrix: a torque tau on the
     # joints of a still chain (no gravity, springs off) changes their speeds by dt M^-1 tau in one

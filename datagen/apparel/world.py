@@ -51,6 +51,8 @@ BODY_GROUP, BODY_MASK = 0b01, 0b10
 REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
 MAX_MERGED_LINKS = 24  # links of chains joined into one multibody (see merged_by_anchor)
 CLEARING_MARGINS = (0.0, 0.005, 0.01, 0.02)  # metres: hull points this far outside the body are kept
+MAX_IDLE_CLIENTS = 1  # pybullet clients a process keeps for its next worlds
+_IDLE_CLIENTS: list[int] = []  # DIRECT clients of closed worlds, emptied by the next world (resetSimulation)
 
 
 def xyzw(q_wxyz) -> list[float]:
@@ -121,7 +123,7 @@ class ApparelWorld:
         keypoints: (K, 3) rest joint heads, metres.
         pieces: body pieces. chains: apparel chains. sim: scene settings.
         dt: physics step, seconds.
-    Use as a context manager (the client is disconnected on exit).
+    Use as a context manager (the client is handed back on exit, :meth:`close`).
     """
 
     def __init__(self, keypoints: np.ndarray, pieces: list[BodyPiece], chains: list[ChainSpec], sim: SimParams,
@@ -132,9 +134,9 @@ class ApparelWorld:
         self.keypoints = np.asarray(keypoints, np.float64)
         self.pieces = pieces
         self.sim = sim
-        self.client = pybullet.connect(pybullet.DIRECT)
+        self.client = _IDLE_CLIENTS.pop() if _IDLE_CLIENTS else pybullet.connect(pybullet.DIRECT)
         pb, cid = pybullet, self.client
-        pb.resetSimulation(physicsClientId=cid)
+        pb.resetSimulation(physicsClientId=cid)  # an idle client's previous world goes
         pb.setGravity(0.0, -sim.gravity, 0.0, physicsClientId=cid)
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(sim.solver_iterations),
                                      contactERP=float(sim.contact_erp), erp=float(sim.constraint_erp),
@@ -543,8 +545,13 @@ class ApparelWorld:
         return quat_multiply(world, self._rest_frames_inv)
 
     def close(self) -> None:
+        """Hand the client back: kept for the next world of this process (:data:`_IDLE_CLIENTS`, up
+        to :data:`MAX_IDLE_CLIENTS`; a new world empties it first), else disconnected."""
         if self.client is not None:
-            self.pb.disconnect(physicsClientId=self.client)
+            if len(_IDLE_CLIENTS) < MAX_IDLE_CLIENTS and self.pb.isConnected(physicsClientId=self.client):
+                _IDLE_CLIENTS.append(self.client)
+            else:
+                self.pb.disconnect(physicsClientId=self.client)
             self.client = None
 
     def __enter__(self):
