@@ -179,6 +179,7 @@ class ApparelWorld:
         self._built_state = None  # pybullet state id, saved by the first reset()
         self._pending = None  # (J, 3) the torques set for the next step, not yet stepped
         self._joint_lists = [(c.body, list(range(len(c.spec.joints)))) for c in self.chains]
+        self._link_lists = [(c.body, list(range(len(c.spec.links)))) for c in self.chains]
         self._joint_owners = [(c.body, j) for c in self.chains for j in range(len(c.spec.joints))]
         self._child_joints = []  # per joint: (child joint's index, its link frame in this link's frame at rest)
         start = 0
@@ -367,7 +368,8 @@ class ApparelWorld:
         piece_moved = np.any(piece != np.concatenate([self._placed_pieces[None], piece[:-1]]), axis=-1)
         anchor_moved = np.any(anchor != np.concatenate([self._placed_anchors[None], anchor[:-1]]), axis=-1)
         self._placed_pieces, self._placed_anchors = piece[-1], anchor[-1]
-        piece_l, anchor_l = piece.tolist(), anchor.tolist()
+        piece_at, piece_turn = piece[..., :3].tolist(), piece[..., 3:].tolist()  # per step and piece
+        anchor_at, anchor_turn = anchor[..., :3].tolist(), anchor[..., 3:].tolist()  # per step and anchor
         pieces_moved = [[] for _ in range(len(poses))]  # per step: the pieces to re-place
         for s, i in zip(*(a.tolist() for a in np.nonzero(piece_moved))):
             pieces_moved[s].append(i)
@@ -376,15 +378,14 @@ class ApparelWorld:
             anchors_moved[s].append(i)
         reset, change, stepper = pb.resetBasePositionAndOrientation, pb.changeConstraint, pb.stepSimulation
         after, piece_ids, constraints = self._after_step, self.piece_ids, self._anchor_constraints
-        for s in range(len(poses)):
+        for s in range(len(poses)):  # pybullet's client id passed by position where it can be (quicker)
             for i in pieces_moved[s]:
-                p = piece_l[s][i]
-                reset(piece_ids[i], p[:3], p[3:], physicsClientId=cid)
+                reset(piece_ids[i], piece_at[s][i], piece_turn[s][i], cid)
             for i in anchors_moved[s]:
-                a = anchor_l[s][i]
-                change(constraints[i], jointChildPivot=a[:3], jointChildFrameOrientation=a[3:], physicsClientId=cid)
+                change(constraints[i], jointChildPivot=anchor_at[s][i], jointChildFrameOrientation=anchor_turn[s][i],
+                       physicsClientId=cid)
             if step:
-                stepper(physicsClientId=cid)
+                stepper(cid)
                 after()
             if (s + 1) % per_frame == 0:
                 yield (s + 1) // per_frame - 1
@@ -427,10 +428,13 @@ class ApparelWorld:
         (r, the rotation vector, is the same in the parent's and the child's frame; the velocity is
         in the child's). One read of joint states and one torque call per chain.
         """
-        get, cid = self.pb.getJointStatesMultiDof, self.client
-        states = []
-        for body, joints in self._joint_lists:
-            states += get(body, joints, physicsClientId=cid)
+        get, cid, lists = self.pb.getJointStatesMultiDof, self.client, self._joint_lists
+        if len(lists) == 1:
+            states = get(lists[0][0], lists[0][1], cid)
+        else:
+            states = []
+            for body, joints in lists:
+                states += get(body, joints, cid)
         if not states:
             return
         try:
@@ -527,17 +531,16 @@ class ApparelWorld:
     def link_states(self) -> tuple[np.ndarray, np.ndarray, float]:
         """Links' world orientations (L, 4) (w, x, y, z), heads (L, 3) metres, and the fastest
         link speed (m/s), L as in :meth:`read_links`."""
-        pb, cid = self.pb, self.client
-        states = [s for c in self.chains
-                  for s in pb.getLinkStates(c.body, list(range(len(c.spec.links))), computeLinkVelocity=1,
-                                            computeForwardKinematics=1, physicsClientId=cid)]
+        get, cid = self.pb.getLinkStates, self.client
+        states = []
+        for body, links in self._link_lists:
+            states += get(body, links, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=cid)
         if not states:
             return np.zeros((0, 4)), np.zeros((0, 3)), 0.0
         both = np.fromiter(itertools.chain.from_iterable(s[5] + s[4] + s[6] for s in states), np.float64,
                            10 * len(states)).reshape(-1, 10)  # (L, 10) x, y, z, w, head, velocity
-        world = both[:, [3, 0, 1, 2]]  # (L, 4) w, x, y, z
-        speed = float(np.linalg.norm(both[:, 7:], axis=1).max())
-        return world, both[:, 4:7], speed
+        velocity = both[:, 7:]
+        return both[:, [3, 0, 1, 2]], both[:, 4:7], float(np.sqrt(np.einsum("ij,ij->i", velocity, velocity).max()))
 
     def rest_relative(self, world: np.ndarray) -> np.ndarray:
         """Bones' rest-relative rotations (..., L, 4) of links' world orientations ``world`` (..., L, 4)
