@@ -39,28 +39,30 @@ once before any figure is timed; that first call (compiling them, or loading num
 them) is printed on its own line and is in no per-clip figure.
 
 Measured with simulation version 8 (the per-step joint arithmetic compiled) and the output-
-preserving speed-ups after it, on 2 shared cores under load 4-5.6 from another developer's training, so in CPU seconds only
-(wall seconds are not comparable under that load), the least of 3 runs; "before" is main at
-d5480f2 (simulation version 7) run interleaved with "after" under the same load:
+preserving speed-ups after it (main at f752089) on a nearly idle machine (load 0.7-1.7, these
+runs alone), the least of 3 runs; "before" is main at d5480f2 (simulation version 7), measured
+just after; this stage runs on one thread, so its CPU and wall seconds agree:
 
-    links  this stage CPU s/clip (x real time)   before (version 7)   Blender bake CPU s/clip
-       10  0.046 (44x)                           0.081                0.047
-       50  0.162 (12.3x)                         0.214                0.235
-      200  0.739 (2.7x)                          0.856                1.030
+    links  this stage s/clip, wall (x real time)   before (version 7)   Blender bake s/clip, wall (CPU)
+       10  0.045 (44x)                             0.081                0.048 (0.046)
+       50  0.156 (12.8x)                           0.204                0.224 (0.220)
+      200  0.716 (2.8x)                            0.805                0.958 (0.953)
 
-Blender / this stage in CPU seconds, run by run: 1.01x, 1.00x, 1.17x at 10 links; 1.45x, 1.48x,
-1.43x at 50; 1.35x, 1.50x, 1.45x at 200. Of issue 14's aims: 10x real time at 50 links is met
-(12.3x: 0.162 s a clip against 0.2); faster than Blender is met at 50 and 200 links and at 10
-links only just (0.046 against 0.047 s a clip, within run-to-run noise; not yet measured on an
-idle machine, where Blender's wall time was 0.047 s and this stage's wall time equals its CPU
-time). What got 10 links there: the compiled kernels (0.082 -> 0.052), then a closed world's
-pybullet client kept for the next world (a character's set-up 0.024 -> 0.011 s, a third of it
-per clip) and fewer Python steps around pybullet's calls. The first call of the kernels: 0.2-0.3
-s wall when numba's cache is present (about 3 s compiling them into an empty cache); importing
-numba adds about 0.2-0.4 s to importing the stage. Where a clip's CPU seconds go now (under load;
-"Bullet" is ``stepSimulation``, "joints" the per-step joint-state reads, compiled arithmetic and
-torque calls, "rest" the body and anchor moves, the per-frame link reads and the loop), and the
-set-up a third of which each clip pays:
+Blender / this stage in wall seconds, run by run: 1.14x, 1.07x, 1.07x at 10 links; 1.41x, 1.45x,
+1.43x at 50; 1.35x, 1.31x, 1.36x at 200 (in CPU seconds 1.04-1.07x, 1.40-1.43x, 1.31-1.36x). Of
+issue 14's aims: 10x real time at 50 links is met (12.8x: 0.156 s a clip against 0.2), and this
+stage is faster than Blender at every size, at 10 links by 7-14% of wall time (4-7% of CPU time;
+0.045 against 0.048 s a clip). Under load 4-5.6 from another developer's training (CPU seconds, the
+least of 3 runs, "before" interleaved): 0.046 / 0.162 / 0.739 s against 0.081 / 0.214 / 0.856
+before and Blender's 0.047 / 0.235 / 1.030 (at 10 links 1.00-1.17x, run by run). What got 10 links
+there: the compiled kernels (0.082 -> 0.052), then a closed world's pybullet client kept for the
+next world (a character's set-up 0.024 -> 0.011 s, a third of it per clip) and fewer Python steps
+around pybullet's calls. The first call of the kernels: 0.2-0.3 s wall when numba's cache is
+present (about 3 s compiling them into an empty cache); importing numba adds about 0.2-0.4 s to
+importing the stage. Where a clip's CPU seconds go now (under load; "Bullet" is ``stepSimulation``,
+"joints" the per-step joint-state reads, compiled arithmetic and torque calls, "rest" the body and
+anchor moves, the per-frame link reads and the loop), and the set-up a third of which each clip
+pays:
 
     links  clip    Bullet  joints  rest    set-up
        10  0.041   0.024   0.010   0.007   0.011
