@@ -24,11 +24,10 @@ import numpy as np
 
 from baselines.mmdmc.bone_distance import bone_distances, mesh_box
 from baselines.mmdmc.geodesic import geodesic_distances
+from datagen.apparel import SIM_SUFFIX
 from mimicbench.mesh import unique_edges, unit_height_frame
 from mimicbench.skinning import linear_blend_skinning
 from mimicbench.weights import SparseWeights
-
-SIM_SUFFIX = "@sim"
 
 
 @dataclass
