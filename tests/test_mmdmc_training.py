@@ -197,3 +197,52 @@ def test_attachment_options_train_and_skin_apparel_to_its_chains_body_bone(appar
     expected = skin(torch.as_tensor(c.rest), torch.as_tensor(c.keypoints[c.body]), torch.as_tensor(w),
                     torch.as_tensor(kin[:, c.body])).numpy()
     np.testing.assert_allclose(got, expected, atol=1e-5)
+
+
+def test_mesh_stretch_edge_term_is_the_relative_stretch_on_mesh_edges_and_a_few_steps_lower_it(apparel_data, run):
+    """body_edge_loss="mesh_stretch": every pair of the body batch is a mesh edge of the character (matched
+    by rest position), the edge term is the mean of |l_pred / l_truth - 1| over the pairs with both ends on
+    body vertices (weights_on="body"; a naive loop), and a few steps on it lower it."""
+    from collections import defaultdict
+
+    from baselines.mmdmc.body import skin
+    from baselines.mmdmc.data import TrainingData
+
+    cfg = {**tiny_config(), "body_edge_loss": "mesh_stretch", "weights_on": "body", "w_edge": 100.0}
+    ctx = context(apparel_data, run, "body", cfg)
+    st = trainable("mmdmc").stage("body")
+    batch = next(iter(st.batches(cfg, ctx, np.random.default_rng(0))))
+    c = next(iter(TrainingData.load(apparel_data).characters.values()))
+    at = defaultdict(list)
+    for i, p in enumerate(c.rest.tolist()):
+        at[tuple(p)].append(i)
+    mesh = {tuple(sorted(e)) for e in c.edges.tolist()}
+    for b in range(len(batch["rest"])):
+        for a, z in batch["edges"][b]:
+            pa, pz = at[tuple(batch["rest"][b, a].tolist())], at[tuple(batch["rest"][b, z].tolist())]
+            assert any(tuple(sorted((i, j))) in mesh for i in pa for j in pz)
+    torch.manual_seed(0)
+    module = st.build(cfg, ctx)
+    t = {k: torch.as_tensor(v) for k, v in batch.items()}
+
+    def naive() -> float:
+        w = module(t["points"], t["joints"], t["geo"], t["bone"], t["joint_mask"]).detach()
+        total = 0.0
+        for b in range(len(w)):
+            pred = ((skin(t["rest"][b], t["rest_joints"][b], w[b], t["transforms"][b]) - t["centre"][b])
+                    / t["height"][b]).numpy().astype(np.float64)
+            truth = batch["target"][b].astype(np.float64)
+            ratios = [np.linalg.norm(pred[i] - pred[j]) / np.linalg.norm(truth[i] - truth[j])
+                      for i, j in batch["edges"][b] if not batch["apparel"][b, i] and not batch["apparel"][b, j]]
+            total += np.mean(np.abs(np.array(ratios) - 1)) / len(w)
+        return total
+
+    first = float(st.loss(module, t, ctx)["edge"].detach())
+    assert first == pytest.approx(naive(), rel=1e-4) and first > 0
+    opt = torch.optim.AdamW(module.parameters(), lr=3e-3)
+    for _ in range(12):
+        loss = st.loss(module, t, ctx)
+        opt.zero_grad()
+        loss["edge"].backward()
+        opt.step()
+    assert float(st.loss(module, t, ctx)["edge"].detach()) < first

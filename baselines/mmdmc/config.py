@@ -29,6 +29,9 @@ COMMON = {
     "bridge_neighbours": 4,  # geodesic graph: nearest vertices looked at for bridges between mesh pieces
     "knn": 8,                # EdgeConv neighbours, within one connected apparel component
     "neighbours_loss": 6,    # rest-pose neighbours standing in for mesh edges on a vertex subsample
+    "body_edge_loss": "knn",  # ours: f_s's edge term (Eq. 9), "knn" (squared length difference on those
+                              # neighbour pairs, models up to v5) or "mesh_stretch" (|l_pred/l_truth - 1| on real
+                              # mesh edges: the subsample is drawn as the ends of random mesh edges; training.py)
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
     "rest_start": 0.5,       # ours: share of apparel windows started at rest on the body, as at inference
 }

@@ -26,6 +26,16 @@ def edge_length(pred: torch.Tensor, truth: torch.Tensor, edges: torch.Tensor) ->
     return ((lp - lt) ** 2).mean()
 
 
+def edge_stretch(pred: torch.Tensor, truth: torch.Tensor, edges: torch.Tensor) -> torch.Tensor:
+    """Mean relative stretch |l_pred / l_truth - 1| over (E, 2) mesh edges of (..., N, 3) positions: the
+    quantity ELS averages (ELS = 1 - this over all unique edges). Truth lengths are floored at 1e-8."""
+    if edges.numel() == 0:
+        return pred.sum() * 0.0
+    lp = (pred[..., edges[:, 0], :] - pred[..., edges[:, 1], :]).norm(dim=-1)
+    lt = (truth[..., edges[:, 0], :] - truth[..., edges[:, 1], :]).norm(dim=-1)
+    return (lp / lt.clamp_min(1e-8) - 1.0).abs().mean()
+
+
 def weight_smoothness(weights: torch.Tensor, edges: torch.Tensor) -> torch.Tensor:
     """Mean over edges of the L1 difference of the two ends' skinning weights (Eq. 10): (..., N, K), (E, 2)."""
     if edges.numel() == 0:

@@ -47,7 +47,7 @@ from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbou
 from baselines.mmdmc.body import BodySkinning, skin
 from baselines.mmdmc.config import CONFIGS
 from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
-from baselines.mmdmc.losses import edge_length, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
+from baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
 from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, mesh_weights,
                                       rollout_from_body, to_unit)
 from baselines.mmdmc.refine import JointRefiner
@@ -145,8 +145,35 @@ def build_body(config: dict, context: StageContext | None = None) -> torch.nn.Mo
     return BodySkinning(config["body_hidden"])
 
 
+BODY_EDGE_LOSSES = ("knn", "mesh_stretch")
+
+
+def body_edge_loss(config: dict) -> str:
+    """The config's ``body_edge_loss`` (absent in configs up to v5: "knn")."""
+    mode = config.get("body_edge_loss", "knn")
+    if mode not in BODY_EDGE_LOSSES:
+        raise ValueError(f"body_edge_loss: expected one of {BODY_EDGE_LOSSES}, got {mode!r}")
+    return mode
+
+
+def _mesh_edge_subsample(n: int, edges: np.ndarray, points: int, r: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A vertex subsample made of the ends of ``points // 2`` random mesh edges (topped up with random
+    other vertices to ``points``): (P,) sorted vertex rows and those (points // 2, 2) edges as row indices."""
+    picks = edges[r.choice(len(edges), size=min(points // 2, len(edges)), replace=False)]
+    rows = np.unique(picks)
+    short = min(points, n) - len(rows)
+    if short > 0:
+        rest = np.setdiff1d(np.arange(n), rows)
+        rows = np.sort(np.r_[rows, r.choice(rest, size=short, replace=False)])
+    return rows, np.searchsorted(rows, picks).astype(np.int64)
+
+
 def _body_item(c: Prepared, transforms: np.ndarray, config: dict, r: np.random.Generator) -> dict:
-    rows = _subsample(len(c.rest), setting(config, "body", "points"), r)
+    if body_edge_loss(config) == "mesh_stretch":
+        rows, edges = _mesh_edge_subsample(len(c.rest), c.edges, setting(config, "body", "points"), r)
+    else:
+        rows = _subsample(len(c.rest), setting(config, "body", "points"), r)
+        edges = _knn_edges(c.rest[rows], config["neighbours_loss"])
     bw = body_target_weights(c)[rows]
     t_body = transforms[c.body]
     target = skin(torch.as_tensor(c.rest[rows]), torch.as_tensor(c.keypoints[c.body]), torch.as_tensor(bw),
@@ -154,8 +181,7 @@ def _body_item(c: Prepared, transforms: np.ndarray, config: dict, r: np.random.G
     return {"points": c.rest_norm[rows], "joints": c.joints_norm, "geo": c.geo[rows], "bone": c.bone[rows], "rest": c.rest[rows],
             "rest_joints": c.keypoints[c.body], "transforms": t_body, "target": c.norm(target),
             "centre": c.centre.astype(np.float32), "height": np.float32(c.height), "target_weights": bw,
-            "apparel": c.apparel[rows],
-            "edges": _knn_edges(c.rest[rows], config["neighbours_loss"])}
+            "apparel": c.apparel[rows], "edges": edges}
 
 
 def batches_body(config: dict, context: StageContext, rng: np.random.Generator):
@@ -197,11 +223,17 @@ def loss_body(module, batch, context) -> dict:
     terms = {"vertex": 0.0, "edge": 0.0, "smooth": 0.0,
              "weights": ((w - batch["target_weights"]).abs().sum(-1) * on).sum() / on.sum().clamp_min(1.0)}
     b = len(w)
+    stretch = body_edge_loss(context.config) == "mesh_stretch"
     for i in range(b):
         pred = (skin(batch["rest"][i], batch["rest_joints"][i], w[i], batch["transforms"][i]) - batch["centre"][i]) \
             / batch["height"][i]
         terms["vertex"] = terms["vertex"] + vertex_l1(pred, batch["target"][i]) / b
-        terms["edge"] = terms["edge"] + edge_length(pred, batch["target"][i], batch["edges"][i]) / b
+        if stretch:  # on the edges whose two ends the weights term covers (weights_on)
+            e = batch["edges"][i]
+            e = e[(on[i][e[:, 0]] > 0) & (on[i][e[:, 1]] > 0)]
+            terms["edge"] = terms["edge"] + edge_stretch(pred, batch["target"][i], e) / b
+        else:
+            terms["edge"] = terms["edge"] + edge_length(pred, batch["target"][i], batch["edges"][i]) / b
         terms["smooth"] = terms["smooth"] + weight_smoothness(w[i], batch["edges"][i]) / b
     return weighted_total(terms, context.config)
 
