@@ -115,6 +115,30 @@ def joint_torques(states: np.ndarray, limits: np.ndarray, gains: np.ndarray, blo
 
 
 @njit(cache=True)
+def solve_spd_in_place(a: np.ndarray, x: np.ndarray, n: int, columns: int) -> None:
+    """Solve a[:n, :n] y = x[:n, :columns] for y, written over x (a is overwritten too), for a
+    symmetric positive definite a.
+
+    Gaussian elimination without pivoting, loops in a fixed order, no BLAS or LAPACK: their
+    multi-threaded kernels round differently with the number of threads, and the apparel stage's
+    output must not depend on where it runs (a local process or a worker with one thread).
+    """
+    for k in range(n - 1):  # forward elimination
+        for i in range(k + 1, n):
+            f = a[i, k] / a[k, k]
+            for c in range(k + 1, n):
+                a[i, c] -= f * a[k, c]
+            for c in range(columns):
+                x[i, c] -= f * x[k, c]
+    for k in range(n - 1, -1, -1):  # back substitution
+        for c in range(columns):
+            total = 0.0
+            for i in range(k + 1, n):
+                total += a[k, i] * x[i, c]
+            x[k, c] = (x[k, c] - total) / a[k, k]
+
+
+@njit(cache=True)
 def weaker_springs(rotation: np.ndarray, velocity: np.ndarray, gains: np.ndarray, mass_matrices: np.ndarray,
                    sizes: np.ndarray, slots: np.ndarray, dt: float, torques: np.ndarray, system: np.ndarray,
                    solution: np.ndarray) -> int:
@@ -131,8 +155,7 @@ def weaker_springs(rotation: np.ndarray, velocity: np.ndarray, gains: np.ndarray
     Returns:
         the number of trees solved again.
 
-    The linear solve is Gaussian elimination without pivoting (M + dt D' is symmetric positive
-    definite), in a fixed order, no BLAS.
+    The linear solve is :func:`solve_spd_in_place` (M + dt D' is symmetric positive definite).
     """
     n = mass_matrices.shape[1]
     blocks = mass_matrices.shape[0]
@@ -158,19 +181,7 @@ def weaker_springs(rotation: np.ndarray, velocity: np.ndarray, gains: np.ndarray
                 solution[i, c] = mass_matrices[b, i, c]
             a = member[b * n + i]
             system[i, i] += dt * (gains[1, a] * share[b * n + i])
-        for k in range(m - 1):  # forward elimination
-            for i in range(k + 1, m):
-                f = system[i, k] / system[k, k]
-                for c in range(k + 1, m):
-                    system[i, c] -= f * system[k, c]
-                for c in range(m):
-                    solution[i, c] -= f * solution[k, c]
-        for k in range(m - 1, -1, -1):  # back substitution
-            for c in range(m):
-                total = 0.0
-                for i in range(k + 1, m):
-                    total += system[k, i] * solution[i, c]
-                solution[k, c] = (solution[k, c] - total) / system[k, k]
+        solve_spd_in_place(system, solution, m, m)
         for i in range(m):  # tau_i = -sum_c (M + dt D')^-1 M [c, i] x_c
             total = 0.0
             for c in range(m):

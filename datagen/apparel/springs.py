@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from datagen.apparel.chain_spec import ChainSpec
-from datagen.apparel.joint_kernel import spring_torques, weaker_springs
+from datagen.apparel.joint_kernel import solve_spd_in_place, spring_torques, weaker_springs
 from datagen.apparel.urdf import bone_frame, capsule_inertia
 
 
@@ -67,21 +67,11 @@ def chain_mass_matrix(chain: ChainSpec) -> np.ndarray:
 
 
 def solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """x (n, m) with a x = b, for a symmetric positive definite (n, n) and b (n, m).
-
-    Gaussian elimination without pivoting in elementwise numpy (no BLAS or LAPACK): their
-    multi-threaded kernels round differently with the number of threads, and the stage's output
-    must not depend on where it runs (a local process or a worker with one thread).
-    """
+    """x (n, m) with a x = b, for a symmetric positive definite (n, n) and b (n, m)
+    (:func:`datagen.apparel.joint_kernel.solve_spd_in_place`, no BLAS or LAPACK)."""
     a = np.array(a, np.float64)
     x = np.array(b, np.float64)
-    n = len(a)
-    for k in range(n - 1):
-        f = a[k + 1:, k] / a[k, k]  # (n-k-1,)
-        a[k + 1:, k + 1:] -= f[:, None] * a[k, k + 1:][None, :]  # column k is not read again
-        x[k + 1:] -= f[:, None] * x[k][None, :]
-    for k in reversed(range(n)):
-        x[k] = (x[k] - (a[k, k + 1:, None] * x[k + 1:]).sum(axis=0)) / a[k, k]
+    solve_spd_in_place(a, x, len(a), x.shape[1])
     return x
 
 
@@ -132,7 +122,6 @@ class Springs:
         self.blocks = np.zeros((len(blocks), width, width))  # (B, n, n) each tree's matrix, zero-padded
         for i, b in enumerate(blocks):
             self.blocks[i, :len(b), :len(b)] = b
-        self.tree_rows = rows  # per tree: its joint axes' indices in the (3J,) arrays
         order = np.concatenate(rows).astype(int) if rows else np.zeros(0, int)  # (3J,) axes tree by tree
         slots = np.concatenate([i * width + np.arange(len(r)) for i, r in enumerate(rows)]).astype(int) \
             if rows else np.zeros(0, int)  # (3J,) their places in the padded (B * n,)
