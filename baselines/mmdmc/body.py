@@ -43,6 +43,10 @@ from mimicbench.skinning_torch import linear_blend_skinning_torch
 PRIOR_TAU = 0.01
 """Initial temperature of the bone-distance prior on the skinning scores (fraction of the height)."""
 
+PRIORS = ("bone", "piece")
+"""Priors on the skinning scores: ``bone`` (-B / tau everywhere, models up to methods version 5) or
+``piece`` (:mod:`baselines.mmdmc.piece_prior` where a mesh piece wraps a bone, -B / tau elsewhere)."""
+
 
 class BodySkinning(nn.Module):
     """f_s: rest positions (B, N, 3), joints (B, K, 3), G (B, N, K), bone distances (B, N, K) -> weights W (B, N, K).
@@ -50,10 +54,14 @@ class BodySkinning(nn.Module):
     Args:
         hidden: width of the pair features.
         chunk: vertices scored at once (bounds memory to chunk * K * hidden on big meshes).
+        prior: one of :data:`PRIORS`; with ``piece`` :meth:`forward` needs the piece prior.
     """
 
-    def __init__(self, hidden: int = 32, chunk: int = 2048):
+    def __init__(self, hidden: int = 32, chunk: int = 2048, prior: str = "bone"):
         super().__init__()
+        if prior not in PRIORS:
+            raise ValueError(f"body prior: expected one of {PRIORS}, got {prior!r}")
+        self.prior = prior
         self.chunk = chunk
         self.pair = mlp([6, hidden, hidden])
         self.f_m = mlp([1, 16, 1], last_act=False)
@@ -85,7 +93,7 @@ class BodySkinning(nn.Module):
         return torch.softmax(logits, dim=-1)
 
     def forward(self, points: torch.Tensor, joints: torch.Tensor, geo: torch.Tensor, bone: torch.Tensor,
-                joint_mask: torch.Tensor | None = None) -> torch.Tensor:
+                joint_mask: torch.Tensor | None = None, piece: torch.Tensor | None = None) -> torch.Tensor:
         """Skinning weights (B, N, K), rows summing to 1 over the unmasked joints.
 
         Args:
@@ -94,8 +102,14 @@ class BodySkinning(nn.Module):
             geo: (B, N, K) geodesic distances, divided by the rest height.
             bone: (B, N, K) distances to the body bones' segments, divided by the rest height.
             joint_mask: optional (B, K) bool, False for padding joints.
+            piece: (B, N, K) piece prior scores, NaN rows where no piece wraps a bone
+                (:func:`baselines.mmdmc.piece_prior.piece_prior`); needed by, and only read by, the
+                ``piece`` prior.
         """
         b, n, _ = points.shape
+        if self.prior == "piece" and (piece is None or piece.shape != bone.shape):
+            raise ValueError(f"the piece prior needs piece scores shaped like the bone distances {tuple(bone.shape)}, "
+                             f"got {None if piece is None else tuple(piece.shape)}")
         if joints.ndim != 3 or geo.shape != (b, n, joints.shape[1]) or bone.shape != geo.shape:
             raise ValueError(f"joints (B, K, 3), geo and bone (B, N, K) expected; got {tuple(joints.shape)}, "
                              f"{tuple(geo.shape)} and {tuple(bone.shape)} for points {tuple(points.shape)}")
@@ -117,7 +131,11 @@ class BodySkinning(nn.Module):
             h = self.head_pair(torch.cat([e, geo[:, s, :, None]], dim=-1)) + self.head_vertex(per_vertex)[:, :, None]
             # the head corrects the bone distance (unit-height frame) before the prior's temperature,
             # so a correction of a few centimetres already moves the softmax as far as the prior does
-            scores.append(-(bone[:, s] + self.head_out(h)[..., 0]) / self.log_tau.exp())
+            tau = self.log_tau.exp()
+            base = -bone[:, s] / tau
+            if self.prior == "piece":
+                base = torch.where(torch.isnan(piece[:, s]), base, piece[:, s])
+            scores.append(base - self.head_out(h)[..., 0] / tau)
         scores = torch.cat(scores, dim=1)
         if joint_mask is not None:
             scores = scores.masked_fill(~joint_mask[:, None, :], float("-inf"))

@@ -32,6 +32,8 @@ COMMON = {
     "body_edge_loss": "knn",  # ours: f_s's edge term (Eq. 9), "knn" (squared length difference on those
                               # neighbour pairs, models up to v5) or "mesh_stretch" (|l_pred/l_truth - 1| on real
                               # mesh edges: the subsample is drawn as the ends of random mesh edges; training.py)
+    "body_prior": "bone",    # ours: f_s's prior on its scores, "bone" (-B / tau, models up to v5) or "piece" (the
+                             # piece prior where a mesh piece wraps a bone; piece_prior.py, the shipped model's)
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
     "rest_start": 0.5,       # ours: share of apparel windows started at rest on the body, as at inference
 }

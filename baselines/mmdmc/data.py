@@ -24,6 +24,7 @@ import numpy as np
 
 from baselines.mmdmc.bone_distance import bone_distances, mesh_box
 from baselines.mmdmc.geodesic import geodesic_distances
+from baselines.mmdmc.piece_prior import piece_prior
 from datagen.apparel import SIM_SUFFIX
 from mimicbench.mesh import unique_edges, unit_height_frame
 from mimicbench.skinning import linear_blend_skinning
@@ -46,6 +47,8 @@ class Prepared:
         bone: (N, Kb) float32 distance to each body bone's segments, divided by the height
             (:mod:`baselines.mmdmc.bone_distance`).
         edges: (E, 2) int64 unique mesh edges.
+        prior: (N, Kb) float32 piece prior on f_s's scores, NaN rows where no piece wraps a bone
+            (:mod:`baselines.mmdmc.piece_prior`).
         apparel: (N,) bool ground-truth apparel vertices (training data only).
         weights: ground-truth skin weights (training data only).
     """
@@ -61,6 +64,7 @@ class Prepared:
     geo: np.ndarray
     bone: np.ndarray
     edges: np.ndarray
+    prior: np.ndarray
     apparel: np.ndarray | None = None
     weights: SparseWeights | None = None
     cache: dict = field(default_factory=dict, repr=False)
@@ -95,9 +99,10 @@ def prepare(character_id: str, vertices, faces, keypoints, parents, body, bridge
     centre, height = unit_height_frame(v)
     geo = geodesic_distances(v, faces, np.asarray(keypoints)[body], bridge_neighbours) / height
     bone = bone_distances(v, keypoints, parents, body, mesh_box(v)) / height
+    prior = piece_prior((v - centre) / height, faces, bone, parents, body)
     return Prepared(character_id, v, np.array(faces, np.int32), np.array(keypoints, np.float32),
                     np.array(parents, np.int32), body, centre, height, geo.astype(np.float32),
-                    bone.astype(np.float32), unique_edges(faces), None if apparel is None else np.asarray(apparel, bool), weights)
+                    bone.astype(np.float32), unique_edges(faces), prior, None if apparel is None else np.asarray(apparel, bool), weights)
 
 
 @dataclass

@@ -63,16 +63,22 @@ def apparel_probability(seg: torch.nn.Module, prep: Prepared, by_piece: bool = F
     return prep.cache[key]
 
 
+def uses_piece_prior(body: torch.nn.Module) -> bool:
+    """Whether f_s scores with the piece prior (config ``body_prior="piece"``)."""
+    return getattr(body, "prior", "bone") == "piece"
+
+
 @torch.no_grad()
 def skinning_weights(body: torch.nn.Module, prep: Prepared) -> torch.Tensor:
     """(N, Kb) f_s's weights over the body joints (cached)."""
     key = ("weights", id(body))
     if key not in prep.cache:
         dev = device_of(body)
+        piece = {"piece": torch.as_tensor(prep.prior, device=dev)[None]} if uses_piece_prior(body) else {}
         prep.cache[key] = body(torch.as_tensor(prep.rest_norm, device=dev)[None],
                                torch.as_tensor(prep.joints_norm, device=dev)[None],
                                torch.as_tensor(prep.geo, device=dev)[None],
-                               torch.as_tensor(prep.bone, device=dev)[None])[0]
+                               torch.as_tensor(prep.bone, device=dev)[None], **piece)[0]
     return prep.cache[key]
 
 
@@ -84,7 +90,8 @@ def mesh_weights(body: torch.nn.Module, prep: Prepared, mask: np.ndarray | None,
     (:mod:`baselines.mmdmc.chain_attachment`; ``"fs"`` keeps f_s's), then smoothed along the mesh
     ``smoothing`` iterations and then diffused over ``radius`` (a share of the height; both in
     :mod:`baselines.mmdmc.weight_smoothing`), so the seams between body and apparel skinning are
-    smoothed too."""
+    smoothed too. With f_s's ``piece`` prior, vertices outside ``mask`` whose piece the prior wraps
+    keep f_s's weights unsmoothed."""
     if apparel_skinning not in ("fs", "attachment"):
         raise ValueError(f"apparel_skinning: expected 'fs' or 'attachment', got {apparel_skinning!r}")
     w = skinning_weights(body, prep)
@@ -96,8 +103,13 @@ def mesh_weights(body: torch.nn.Module, prep: Prepared, mask: np.ndarray | None,
         out = w.cpu().numpy()
         if mask is not None and apparel_skinning == "attachment":
             out = attached_weights(out, mask, prepared_attachment(prep)[0])
+        raw = out
         out = smooth_weights(out, prep.edges, smoothing)
         out = diffuse_weights(out, prep.rest_norm, prep.faces, radius)
+        if uses_piece_prior(body):
+            # a piece the prior wraps is smooth already (pieces exchange no weight when diffused)
+            keep = ~np.isnan(prep.prior[:, 0]) if mask is None else ~np.isnan(prep.prior[:, 0]) & ~mask
+            out[keep] = raw[keep]
         prep.cache[key] = torch.as_tensor(out, dtype=w.dtype, device=w.device)
     return prep.cache[key]
 
