@@ -18,8 +18,8 @@ from baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMas
 SHIPPED = {
     "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior), "3",
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
-    "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "5",
-              "6b7789637f324065e487ff1e724dd6d38864c3b6b8c109da0723173b1fd7ad96"),
+    "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "6",
+              "01114fd1c6648e3fd42b53c23060596a288267a22acaab2864e9f07d6b361ca0"),
 }
 
 

@@ -99,7 +99,7 @@ def prepare(character_id: str, vertices, faces, keypoints, parents, body, bridge
     centre, height = unit_height_frame(v)
     geo = geodesic_distances(v, faces, np.asarray(keypoints)[body], bridge_neighbours) / height
     bone = bone_distances(v, keypoints, parents, body, mesh_box(v)) / height
-    prior = piece_prior((v - centre) / height, faces, bone, parents, body)
+    prior = piece_prior((v - centre) / height, faces, bone, (np.asarray(keypoints)[body] - centre) / height, parents, body)
     return Prepared(character_id, v, np.array(faces, np.int32), np.array(keypoints, np.float32),
                     np.array(parents, np.int32), body, centre, height, geo.astype(np.float32),
                     bone.astype(np.float32), unique_edges(faces), prior, None if apparel is None else np.asarray(apparel, bool), weights)

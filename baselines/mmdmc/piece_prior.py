@@ -11,19 +11,37 @@ for a vertex i of a piece that wraps bone a, the score of body bone k is
 
 with B_ik the distance to bone k's segments (:mod:`baselines.mmdmc.bone_distance`, unit-height
 frame) and r the piece's mean distance to a (its thickness, so a segment piercing the surface
-grabs no sharp spot). The anchor a of a piece is the body bone nearest on average over its
-vertices; the piece wraps it when at least WRAP_SHARE of its vertices have a or one of its
-skeleton neighbours as their nearest bone. A piece that wraps no bone (a whole body modelled in
-one piece) gets no piece prior: f_s scores it with its bone-distance prior -B / tau, as before.
+grabs no sharp spot).
 
-Measured on the validation zoo (seed 303, 4 characters; LBS of the kinematic clips, every 4th
-frame, with the prior's weights against the dataset's; body vertices and body edges): weight
-error 0.235 of 2 (L1 per vertex) and mean body-edge stretch 0.30%, against 0.50 and 1.06% for the
-shipped f_s of methods version 5 (bone-distance prior, trained 9 epochs, smoothed over 4% of the
-height). Anchoring each vertex at its own nearest bone instead of its piece's gives 0.61 and 2.8%:
-the anchor must not switch inside a piece. The constants are the zoo's own rule for its weights
+- **Anchor.** The body bone nearest on average over the piece's vertices; but a piece whose centre
+  lies beyond a leaf child's joint (seen from that bone) hangs from the leaf (a head beyond the
+  neck, a hand beyond the wrist).
+- **A leaf anchor's segment.** A rig gives a leaf bone a joint and no tail, so its distance is to a
+  point and a head's far side reads nearer the neck. For a piece anchored at a leaf, the leaf's
+  distances are taken to the segment from its joint through the piece, to twice the piece's centre.
+- **Which pieces.** A piece wraps its anchor when it has at least MIN_VERTICES vertices (fewer is a
+  fragment: a flat-shaded mesh's split faces), its bounding box is at most WRAP_EXTENT of the
+  height across, and at least WRAP_SHARE of its vertices have their nearest bone within WRAP_HOPS
+  of the anchor. A piece that wraps no bone (a body modelled in one piece) gets no piece prior:
+  f_s scores it with its bone-distance prior -B / tau, as before.
+
+Measured (weights of the prior alone against the dataset's, body vertices; L1 per vertex, 0 to 2;
+stretch: mean |l/l_ref - 1| of body edges, LBS of the kinematic clips every 4th frame):
+
+| | validation zoo (seed 303) L1 / stretch | CesiumMan L1 | Gene L1 |
+|---|---|---|---|
+| version 5's f_s (bone-distance prior, trained 9 epochs, diffused over 4% of the height) | 0.50 / 1.06% | 0.46 | 1.38 |
+| the prior, anchor by mean distance only | 0.24 / 0.32% | 1.05 | 1.20 |
+| with the leaf anchor | 0.19 / 0.31% | 0.79 | 1.21 |
+| with the leaf anchor and the leaf's segment through its piece (shipped) | 0.13 / 0.26% | 0.56 | 1.22 |
+| each vertex anchored at its own nearest bone | 0.61 / 2.8% | | |
+| anchor's neighbours plus any bone nearest to 15% of the piece | 0.30 / 0.55% | 0.77 | 1.18 |
+
+The anchor must not switch inside a piece. The constants are the zoo's own rule for its weights
 (:mod:`datagen.zoo.skin_weights`), which is also what an artist's limb skinning looks like: its
-bone leads, its neighbours blend in by distance, the rest of the skeleton is left out.
+bone leads, its neighbours blend in by distance, the rest of the skeleton is left out. CesiumMan
+(81% of its body vertices in pieces the prior wraps, some of them whole legs) is skinned further
+than that by its artist: there the prior is 0.56 from its weights, against 0.46 for version 5's f_s.
 """
 from __future__ import annotations
 
@@ -31,24 +49,25 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from datagen.zoo.skin_weights import point_segment_distance
+
 POWER = 4.0        # inverse-distance power of the blend
 SOFT = 0.5         # share of the piece's thickness added to every distance
 OWN = 1.5          # the anchor bone's lead where distances tie
 EPS = 1e-4         # unit-height frame: keeps the log finite on a bone's segment
 OUTSIDE = -50.0    # score of a bone that is neither the anchor nor its neighbour (weight about e^-50 of theirs)
-WRAP_SHARE = 0.5   # share of a piece's vertices whose nearest bone is within WRAP_HOPS of its anchor, for it to wrap the anchor
+WRAP_SHARE = 0.5   # share of a piece's vertices whose nearest bone is within WRAP_HOPS of its anchor
 WRAP_HOPS = 2
 WRAP_EXTENT = 0.6  # largest bounding-box diagonal of a piece that wraps one bone, unit-height frame
-MIN_VERTICES = 24  # fewer vertices make a fragment (a flat-shaded mesh's split faces), not a piece that wraps a bone
+MIN_VERTICES = 24  # fewer vertices make a fragment (a flat-shaded mesh's split faces), not a piece
 
 
-def skeleton_hops(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
-    """(Kb, Kb) float64 links between body bones along the skeleton (inf where none joins them).
-
-    Each body bone links to its nearest body ancestor (apparel bones between them are skipped).
+def body_parents(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """(Kb,) int64 column of each body bone's nearest body ancestor (apparel bones between them
+    skipped), -1 for none.
 
     Args:
-        parents: (K,) int, -1 for a root; body: (K,) bool body bones (their order gives the rows).
+        parents: (K,) int, -1 for a root; body: (K,) bool body bones (their order gives the columns).
     """
     parents = np.asarray(parents, np.int64)
     body = np.asarray(body, bool)
@@ -56,16 +75,22 @@ def skeleton_hops(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
         raise ValueError(f"parents {parents.shape} and body {body.shape}: expected one entry per bone each")
     column = np.full(len(body), -1)
     column[body] = np.arange(int(body.sum()))
-    rows, cols = [], []
+    out = []
     for k in np.flatnonzero(body):
         a, seen = int(parents[k]), 0
         while a >= 0 and not body[a] and seen <= len(parents):
             a, seen = int(parents[a]), seen + 1
-        if a >= 0 and body[a]:
-            rows.append(column[k])
-            cols.append(column[a])
-    n = int(body.sum())
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n)).tocsr()
+        out.append(column[a] if a >= 0 and body[a] else -1)
+    return np.array(out, np.int64)
+
+
+def skeleton_hops(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """(Kb, Kb) float64 links between body bones along the skeleton (:func:`body_parents`; inf where
+    none joins them)."""
+    up = body_parents(parents, body)
+    n = len(up)
+    child = np.flatnonzero(up >= 0)
+    graph = coo_matrix((np.ones(len(child)), (child, up[child])), shape=(n, n)).tocsr()
     return shortest_path(graph, directed=False, unweighted=True)
 
 
@@ -77,38 +102,70 @@ def mesh_pieces(faces: np.ndarray, n: int) -> np.ndarray:
     return apparel_components(np.asarray(faces, np.int64).reshape(-1, 3), np.ones(n, bool))
 
 
-def piece_prior(vertices: np.ndarray, faces: np.ndarray, bone: np.ndarray, parents: np.ndarray,
-                body: np.ndarray) -> np.ndarray:
+def piece_means(label: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(P, C) mean over each piece of ``values`` (N, C), pieces labelled 0..P-1 by ``label`` (N,)."""
+    count = np.bincount(label).astype(np.float64)
+    return np.stack([np.bincount(label, values[:, c], minlength=len(count)) for c in range(values.shape[1])],
+                    1) / count[:, None]
+
+
+def anchors(bone: np.ndarray, label: np.ndarray, centre: np.ndarray, joints: np.ndarray,
+            up: np.ndarray) -> np.ndarray:
+    """(P,) column of each piece's anchor: its nearest bone on average, or a leaf child of that bone
+    whose joint the piece's centre (P, 3) lies beyond.
+
+    Args:
+        bone: (N, Kb) distances; label: (N,) piece of each vertex; joints: (Kb, 3) body joints;
+            up: (Kb,) :func:`body_parents`.
+    """
+    out = piece_means(label, bone).argmin(axis=1)
+    leaf = np.bincount(up[up >= 0], minlength=len(up)) == 0
+    for p, a in enumerate(out.copy()):
+        for c in np.flatnonzero((up == a) & leaf):
+            d = joints[c] - joints[a]
+            if float((centre[p] - joints[a]) @ d) > float(d @ d):
+                out[p] = c
+    return out
+
+
+def piece_prior(vertices: np.ndarray, faces: np.ndarray, bone: np.ndarray, joints: np.ndarray,
+                parents: np.ndarray, body: np.ndarray) -> np.ndarray:
     """(N, Kb) float32 prior scores; rows of vertices whose piece wraps no bone are NaN.
 
     Args:
         vertices: (N, 3) rest positions, unit-height frame.
-        bone: (N, Kb) distances from every vertex to every body bone's segments, unit-height frame.
         faces: (M, 3) int triangles.
+        bone: (N, Kb) distances from every vertex to every body bone's segments, unit-height frame.
+        joints: (Kb, 3) rest body joints, unit-height frame.
         parents: (K,) int; body: (K,) bool (Kb of them true, in ``bone``'s column order).
     """
-    b = np.asarray(bone, np.float64)
-    n, kb = b.shape
-    hops = skeleton_hops(parents, body)
-    if hops.shape != (kb, kb):
-        raise ValueError(f"bone distances have {kb} columns; the rig has {len(hops)} body bones")
+    b = np.array(bone, np.float64)
     v = np.asarray(vertices, np.float64)
+    joints = np.asarray(joints, np.float64)
+    n, kb = b.shape
+    up = body_parents(parents, body)
+    if len(up) != kb or joints.shape != (kb, 3) or v.shape != (n, 3):
+        raise ValueError(f"expected vertices (N, 3), bone distances (N, Kb) and joints (Kb, 3) for the rig's {len(up)} "
+                         f"body bones; got {v.shape}, {b.shape} and {joints.shape}")
+    hops = skeleton_hops(parents, body)
     label = mesh_pieces(faces, n)
-    count = np.bincount(label).astype(np.float64)
-    mean = np.stack([np.bincount(label, b[:, k], minlength=len(count)) for k in range(kb)], 1) / count[:, None]
-    anchor = mean.argmin(axis=1)[label]  # (N,) column of each vertex's piece anchor
+    count = np.bincount(label)
+    centre = piece_means(label, v)
+    piece_anchor = anchors(b, label, centre, joints, up)
+    leaf = np.bincount(up[up >= 0], minlength=kb) == 0
+    for p in np.flatnonzero(leaf[piece_anchor]):  # a leaf's segment runs from its joint through its piece
+        a, rows = piece_anchor[p], np.flatnonzero(label == p)
+        b[rows, a] = point_segment_distance(v[rows], joints[a][None], (2 * centre[p] - joints[a])[None])[:, 0]
+    anchor = piece_anchor[label]  # (N,)
     near = hops[anchor] <= 1  # (N, Kb) the anchor and its skeleton neighbours
     share = np.bincount(label, hops[anchor, b.argmin(axis=1)] <= WRAP_HOPS, minlength=len(count)) / count
-    extent = np.zeros(len(count))
-    for axis in range(3):
-        hi = np.full(len(count), -np.inf)
-        lo = np.full(len(count), np.inf)
-        np.maximum.at(hi, label, v[:, axis])
-        np.minimum.at(lo, label, v[:, axis])
-        extent += (hi - lo) ** 2
-    wraps = ((share >= WRAP_SHARE) & (np.sqrt(extent) <= WRAP_EXTENT) & (count >= MIN_VERTICES))[label]
-    to_anchor = b[np.arange(n), anchor]
-    thickness = (np.bincount(label, to_anchor, minlength=len(count)) / count)[label]
+    lo = np.full((len(count), 3), np.inf)
+    hi = np.full((len(count), 3), -np.inf)
+    np.minimum.at(lo, label, v)
+    np.maximum.at(hi, label, v)
+    extent = np.linalg.norm(hi - lo, axis=1)
+    wraps = ((share >= WRAP_SHARE) & (extent <= WRAP_EXTENT) & (count >= MIN_VERTICES))[label]
+    thickness = piece_means(label, b[np.arange(n), anchor][:, None])[label, 0]
     scores = -POWER * np.log(b + SOFT * thickness[:, None] + EPS)
     scores[np.arange(n), anchor] += np.log(OWN)
     scores = np.where(near, scores, OUTSIDE)
