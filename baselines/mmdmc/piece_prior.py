@@ -153,8 +153,10 @@ def piece_prior(vertices: np.ndarray, faces: np.ndarray, bone: np.ndarray, joint
     centre = piece_means(label, v)
     piece_anchor = anchors(b, label, centre, joints, up)
     leaf = np.bincount(up[up >= 0], minlength=kb) == 0
-    for p in np.flatnonzero(leaf[piece_anchor]):  # a leaf's segment runs from its joint through its piece
-        a, rows = piece_anchor[p], np.flatnonzero(label == p)
+    order = np.argsort(label, kind="stable")
+    start = np.r_[0, np.cumsum(count)]
+    for p in np.flatnonzero(leaf[piece_anchor] & (count >= MIN_VERTICES)):  # a leaf's segment runs through its piece
+        a, rows = piece_anchor[p], order[start[p]:start[p + 1]]
         b[rows, a] = point_segment_distance(v[rows], joints[a][None], (2 * centre[p] - joints[a])[None])[:, 0]
     anchor = piece_anchor[label]  # (N,)
     near = hops[anchor] <= 1  # (N, Kb) the anchor and its skeleton neighbours
