@@ -58,6 +58,17 @@ def context(dataset, run, stage, cfg):
     return StageContext(dataset, torch.device("cpu"), cfg, frozen)
 
 
+def after_steps(st, module, batch, ctx, term: str = "total", lr: float = 3e-3, steps: int = 12) -> dict:
+    """The stage's loss terms (floats) after ``steps`` AdamW steps on ``term`` of one batch."""
+    opt = torch.optim.AdamW(module.parameters(), lr=lr)
+    for _ in range(steps):
+        loss = st.loss(module, batch, ctx)
+        opt.zero_grad()
+        loss[term].backward()
+        opt.step()
+    return {k: float(v.detach()) for k, v in st.loss(module, batch, ctx).items()}
+
+
 @pytest.mark.parametrize("stage", STAGES)
 def test_a_few_steps_lower_each_loss(apparel_data, run, stage):
     cfg = tiny_config()
@@ -67,14 +78,8 @@ def test_a_few_steps_lower_each_loss(apparel_data, run, stage):
     module = st.build(cfg, ctx)
     batch = next(iter(st.batches(cfg, ctx, np.random.default_rng(0))))
     batch = {k: torch.as_tensor(v) if isinstance(v, np.ndarray) else v for k, v in batch.items()}
-    opt = torch.optim.AdamW(module.parameters(), lr=3e-3)
     first = {k: float(v.detach()) for k, v in st.loss(module, batch, ctx).items()}
-    for _ in range(12):
-        loss = st.loss(module, batch, ctx)
-        opt.zero_grad()
-        loss["total"].backward()
-        opt.step()
-    last = {k: float(v.detach()) for k, v in st.loss(module, batch, ctx).items()}
+    last = after_steps(st, module, batch, ctx)
     assert last["total"] < first["total"], (first, last)
     # the term that dominates each stage's total drops too (the body's total starts on the geodesic
     # prior's near-right weights, where the smoothness term leads, so it is judged by its total)
@@ -239,13 +244,7 @@ def test_mesh_stretch_edge_term_is_the_relative_stretch_on_mesh_edges_and_a_few_
 
     first = float(st.loss(module, t, ctx)["edge"].detach())
     assert first == pytest.approx(naive(), rel=1e-4) and first > 0
-    opt = torch.optim.AdamW(module.parameters(), lr=3e-3)
-    for _ in range(12):
-        loss = st.loss(module, t, ctx)
-        opt.zero_grad()
-        loss["edge"].backward()
-        opt.step()
-    assert float(st.loss(module, t, ctx)["edge"].detach()) < first
+    assert after_steps(st, module, t, ctx, "edge")["edge"] < first
 
 
 def test_body_stage_with_the_piece_prior_starts_at_it_and_a_few_steps_lower_its_loss(apparel_data, run):
@@ -271,11 +270,5 @@ def test_body_stage_with_the_piece_prior_starts_at_it_and_a_few_steps_lower_its_
         np.testing.assert_allclose(w[b, rows, :k], expected / expected.sum(1, keepdims=True), atol=1e-5)
     with torch.no_grad():
         module.head_out[-1].weight.normal_(0.0, 0.01)
-    opt = torch.optim.AdamW(module.parameters(), lr=1e-3)
     first = float(st.loss(module, t, ctx)["total"].detach())
-    for _ in range(12):
-        loss = st.loss(module, t, ctx)
-        opt.zero_grad()
-        loss["total"].backward()
-        opt.step()
-    assert float(st.loss(module, t, ctx)["total"].detach()) < first
+    assert after_steps(st, module, t, ctx, lr=1e-3)["total"] < first
