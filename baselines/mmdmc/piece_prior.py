@@ -64,34 +64,38 @@ MIN_VERTICES = 24  # fewer vertices make a fragment (a flat-shaded mesh's split 
 
 def body_parents(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
     """(Kb,) int64 column of each body bone's nearest body ancestor (apparel bones between them
-    skipped), -1 for none.
+    skipped, :func:`baselines.mmdmc.data.attachment_bones`), -1 for none.
 
     Args:
         parents: (K,) int, -1 for a root; body: (K,) bool body bones (their order gives the columns).
     """
+    from baselines.mmdmc.data import attachment_bones  # data imports this module
+
+    attach = attachment_bones(parents, body)  # checks the shapes
     parents = np.asarray(parents, np.int64)
     body = np.asarray(body, bool)
-    if parents.shape != body.shape:
-        raise ValueError(f"parents {parents.shape} and body {body.shape}: expected one entry per bone each")
-    column = np.full(len(body), -1)
-    column[body] = np.arange(int(body.sum()))
-    out = []
-    for k in np.flatnonzero(body):
-        a, seen = int(parents[k]), 0
-        while a >= 0 and not body[a] and seen <= len(parents):
-            a, seen = int(parents[a]), seen + 1
-        out.append(column[a] if a >= 0 and body[a] else -1)
-    return np.array(out, np.int64)
+    column = np.full(len(body) + 1, -1)  # index -1 (no ancestor) reads the last entry, -1
+    column[np.flatnonzero(body)] = np.arange(int(body.sum()))
+    return column[np.where(parents >= 0, attach[np.maximum(parents, 0)], -1)[body]].astype(np.int64)
 
 
-def skeleton_hops(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
-    """(Kb, Kb) float64 links between body bones along the skeleton (:func:`body_parents`; inf where
-    none joins them)."""
-    up = body_parents(parents, body)
+def links_hops(up: np.ndarray) -> np.ndarray:
+    """(Kb, Kb) float64 links between body bones along the skeleton given each one's body parent
+    column ``up`` (Kb,) (:func:`body_parents`); inf where none joins them."""
     n = len(up)
     child = np.flatnonzero(up >= 0)
     graph = coo_matrix((np.ones(len(child)), (child, up[child])), shape=(n, n)).tocsr()
     return shortest_path(graph, directed=False, unweighted=True)
+
+
+def skeleton_hops(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """(Kb, Kb) float64 links between body bones along the skeleton (inf where none joins them)."""
+    return links_hops(body_parents(parents, body))
+
+
+def leaves(up: np.ndarray) -> np.ndarray:
+    """(Kb,) bool: body bones no body bone hangs from, given ``up`` (:func:`body_parents`)."""
+    return np.bincount(up[up >= 0], minlength=len(up)) == 0
 
 
 def mesh_pieces(faces: np.ndarray, n: int) -> np.ndarray:
@@ -119,7 +123,7 @@ def anchors(bone: np.ndarray, label: np.ndarray, centre: np.ndarray, joints: np.
             up: (Kb,) :func:`body_parents`.
     """
     out = piece_means(label, bone).argmin(axis=1)
-    leaf = np.bincount(up[up >= 0], minlength=len(up)) == 0
+    leaf = leaves(up)
     for p, a in enumerate(out.copy()):
         for c in np.flatnonzero((up == a) & leaf):
             d = joints[c] - joints[a]
@@ -147,12 +151,12 @@ def piece_prior(vertices: np.ndarray, faces: np.ndarray, bone: np.ndarray, joint
     if len(up) != kb or joints.shape != (kb, 3) or v.shape != (n, 3):
         raise ValueError(f"expected vertices (N, 3), bone distances (N, Kb) and joints (Kb, 3) for the rig's {len(up)} "
                          f"body bones; got {v.shape}, {b.shape} and {joints.shape}")
-    hops = skeleton_hops(parents, body)
+    hops = links_hops(up)
     label = mesh_pieces(faces, n)
     count = np.bincount(label)
     centre = piece_means(label, v)
     piece_anchor = anchors(b, label, centre, joints, up)
-    leaf = np.bincount(up[up >= 0], minlength=kb) == 0
+    leaf = leaves(up)
     order = np.argsort(label, kind="stable")
     start = np.r_[0, np.cumsum(count)]
     for p in np.flatnonzero(leaf[piece_anchor] & (count >= MIN_VERTICES)):  # a leaf's segment runs through its piece

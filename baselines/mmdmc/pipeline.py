@@ -17,6 +17,7 @@ from baselines.mmdmc.apparel import HISTORY, apparel_components, component_neigh
 from baselines.mmdmc.body import skin
 from baselines.mmdmc.chain_attachment import attached_weights, prepared_attachment
 from baselines.mmdmc.data import Prepared
+from baselines.mmdmc.piece_prior import mesh_pieces
 from baselines.mmdmc.segmentation import segmenter_inputs
 from baselines.mmdmc.weight_smoothing import diffuse_weights, smooth_weights
 
@@ -57,7 +58,7 @@ def apparel_probability(seg: torch.nn.Module, prep: Prepared, by_piece: bool = F
         x = torch.as_tensor(segmenter_inputs(prep, getattr(seg, "channels", 3)), device=device_of(seg))[None]
         p = torch.sigmoid(seg(x))[0].cpu().numpy()
         if by_piece:
-            pieces = apparel_components(prep.faces, np.ones(len(p), bool))
+            pieces = mesh_pieces(prep.faces, len(p))
             p = (np.bincount(pieces, p) / np.bincount(pieces))[pieces].astype(np.float32)
         prep.cache[key] = p
     return prep.cache[key]
