@@ -129,22 +129,33 @@ def test_piece_prior_is_near_the_zoo_weights_the_bone_prior_is_not(tmp_path):
         assert l1_piece < 0.25 and l1_bone > 0.45, (l1_piece, l1_bone)  # validation zoo: 0.13 against 0.57
 
 
-def test_untrained_body_module_with_the_piece_prior_is_that_prior():
+def test_body_module_scores_wrapped_pieces_by_the_prior_alone():
+    """With the piece prior, a vertex of a wrapped piece is scored by the prior (the head cannot move
+    it); any other vertex, and every vertex when no prior is handed in (training), by the learnt path."""
     v, f = two_balls()
     v = np.r_[v, [[0.3, 0.3, 0.3]]]  # a vertex in no face: its own one-vertex piece, no prior
     body = np.ones(4, bool)
     b = bone_distances(v, CHAIN, CHAIN_PARENTS, body)
     p = piece_prior(v, f, b, CHAIN, CHAIN_PARENTS, body)
     assert np.isnan(p[-1]).all() and not np.isnan(p[:-1]).any()
-    torch.manual_seed(0)
-    f_s = BodySkinning(hidden=8, prior="piece")
     t = lambda a: torch.as_tensor(np.asarray(a, np.float32))[None]  # noqa: E731
     geo = np.linalg.norm(v[:, None] - CHAIN[None], axis=-1)
+    torch.manual_seed(0)
+    f_s = BodySkinning(hidden=8, prior="piece")
     w = f_s(t(v), t(CHAIN), t(geo), t(b), piece=t(p))[0].detach().numpy()
     np.testing.assert_allclose(w[:-1], softmax_rows(p[:-1].astype(np.float64)), atol=1e-5)
     np.testing.assert_allclose(w[-1], softmax_rows(-b[-1:].astype(np.float64) / PRIOR_TAU)[0], atol=1e-5)
-    with pytest.raises(ValueError, match="piece prior needs"):
-        f_s(t(v), t(CHAIN), t(geo), t(b))
+    with torch.no_grad():
+        f_s.head_out[-1].weight.normal_(0.0, 0.05)
+    moved = f_s(t(v), t(CHAIN), t(geo), t(b), piece=t(p))[0].detach().numpy()
+    np.testing.assert_array_equal(moved[:-1], w[:-1])  # the head does not reach wrapped pieces
+    assert np.abs(moved[-1] - w[-1]).max() > 1e-3
+    learnt = f_s(t(v), t(CHAIN), t(geo), t(b))[0].detach().numpy()  # no prior handed in: the learnt path
+    bone_mode = BodySkinning(hidden=8)
+    bone_mode.load_state_dict(f_s.state_dict())
+    np.testing.assert_array_equal(learnt, bone_mode(t(v), t(CHAIN), t(geo), t(b))[0].detach().numpy())
+    with pytest.raises(ValueError, match="piece prior scores"):
+        f_s(t(v), t(CHAIN), t(geo), t(b), piece=t(p[:, :3]))
     with pytest.raises(ValueError, match="expected one of"):
         BodySkinning(prior="nearest")
 

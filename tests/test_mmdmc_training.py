@@ -247,11 +247,9 @@ def test_mesh_stretch_edge_term_is_the_relative_stretch_on_mesh_edges_and_a_few_
     assert after_steps(st, module, t, ctx, "edge")["edge"] < first
 
 
-def test_body_stage_with_the_piece_prior_starts_at_it_and_a_few_steps_lower_its_loss(apparel_data, run):
-    """body_prior="piece": the batch carries each vertex's piece-prior scores, an untrained f_s's
-    weights are their softmax where a piece wraps a bone, and training brings a head moved off the
-    prior back towards the target (from the prior itself the toy's loss is nearly flat: 0.078 of 2
-    weight error)."""
+def test_body_stage_with_the_piece_prior_trains_the_learnt_path(apparel_data, run):
+    """body_prior="piece": the body stage hands f_s no piece prior, so it trains the scores that serve
+    one-piece meshes (the prior serves wrapped pieces at inference only), and a few steps lower the loss."""
     cfg = {**tiny_config(), "body_prior": "piece", "weights_on": "body"}
     ctx = context(apparel_data, run, "body", cfg)
     st = trainable("mmdmc").stage("body")
@@ -259,16 +257,7 @@ def test_body_stage_with_the_piece_prior_starts_at_it_and_a_few_steps_lower_its_
     module = st.build(cfg, ctx)
     assert module.prior == "piece"
     batch = next(iter(st.batches(cfg, ctx, np.random.default_rng(0))))
+    assert "piece" not in batch
     t = {k: torch.as_tensor(v) for k, v in batch.items()}
-    w = module(t["points"], t["joints"], t["geo"], t["bone"], t["joint_mask"], t["piece"]).detach().numpy()
-    for b in range(len(w)):
-        k = int(batch["joint_mask"][b].sum())
-        rows = ~np.isnan(batch["piece"][b, :, 0])
-        assert rows.mean() > 0.5  # the zoo's capsules are pieces of their own
-        s = batch["piece"][b, rows, :k].astype(np.float64)
-        expected = np.exp(s - s.max(1, keepdims=True))
-        np.testing.assert_allclose(w[b, rows, :k], expected / expected.sum(1, keepdims=True), atol=1e-5)
-    with torch.no_grad():
-        module.head_out[-1].weight.normal_(0.0, 0.01)
     first = float(st.loss(module, t, ctx)["total"].detach())
-    assert after_steps(st, module, t, ctx, lr=1e-3)["total"] < first
+    assert after_steps(st, module, t, ctx)["total"] < first

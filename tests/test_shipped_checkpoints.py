@@ -19,7 +19,7 @@ SHIPPED = {
     "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior), "3",
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "6",
-              "150ac7d978fb62df87eab8ee13d887fdac41ee795efbe1e2ef953aeec89e9cff"),
+              "91d5b822f8f918ea90243bbfc16d01abd686f4b1055335fddeabc7c11e4f0bea"),
 }
 
 

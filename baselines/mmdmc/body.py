@@ -6,12 +6,15 @@ B_ik the distance from v_i to bone k's segments (:mod:`baselines.mmdmc.bone_dist
 geodesic attention ``M = softmax_k(f_m(G))`` pools the pair features into a vertex context; a
 PointNet over (v_i, context_i) adds local and global shape features; the head scores every pair
 from (pair feature, context, PointNet features, G_ik), the head's score over tau is added to a
-prior (tau learnt) and ``W = softmax_k(scores)``. The prior is -B_ik / tau (``bone``, models up to
-methods version 5) or, with ``piece`` (the shipped f_s since version 6), the piece prior of
-:mod:`baselines.mmdmc.piece_prior` on the vertices of a mesh piece that wraps a bone and -B_ik / tau
-elsewhere. Version 6 (piece prior, 3 epochs, Eq. 9 as edge stretch, ``weights_on="body"``): on
-the validation zoo (seed 303, 120 apparel cases) the full model's ELS rose from 0.9830 to 0.9877
-and its PMD_b fell from 0.29 to 0.08 cm (see the README).
+prior -B_ik / tau (tau learnt) and ``W = softmax_k(scores)``. With ``prior="piece"`` (the shipped
+f_s since methods version 6) the vertices of a mesh piece that wraps one bone are scored by the piece
+prior of :mod:`baselines.mmdmc.piece_prior` instead, wherever the caller hands it in (the pipeline
+at inference); the learnt scores serve every other vertex, and training (which hands in no piece
+prior) shapes them. Why not learn a correction on top of the piece prior: trained 3 epochs that
+way, f_s stayed within 0.001 of the prior on the zoo (its softmax is saturated there), so its
+learnt path saw no training at all and scored one-piece meshes with the bare -B / tau (on the
+shared flat-shaded characters, Dolphin, Farmer, Punk, Rat, Stegosaurus and Triceratops, 0.2-0.4
+further from their artists' weights than version 5).
 
 Our choices where the paper is silent or did not train in minutes (measured on the training zoo,
 seed 101, against the body target's weights; L1 of a weight row, 0 to 2, body vertices):
@@ -59,7 +62,8 @@ class BodySkinning(nn.Module):
     Args:
         hidden: width of the pair features.
         chunk: vertices scored at once (bounds memory to chunk * K * hidden on big meshes).
-        prior: one of :data:`PRIORS`; with ``piece`` :meth:`forward` needs the piece prior.
+        prior: one of :data:`PRIORS`; with ``piece`` :meth:`forward` scores the vertices given a
+            piece prior by that prior alone.
     """
 
     def __init__(self, hidden: int = 32, chunk: int = 2048, prior: str = "bone"):
@@ -107,14 +111,13 @@ class BodySkinning(nn.Module):
             geo: (B, N, K) geodesic distances, divided by the rest height.
             bone: (B, N, K) distances to the body bones' segments, divided by the rest height.
             joint_mask: optional (B, K) bool, False for padding joints.
-            piece: (B, N, K) piece prior scores, NaN rows where no piece wraps a bone
-                (:func:`baselines.mmdmc.piece_prior.piece_prior`); needed by, and only read by, the
-                ``piece`` prior.
+            piece: optional (B, N, K) piece prior scores, NaN rows where no piece wraps a bone
+                (:func:`baselines.mmdmc.piece_prior.piece_prior`); only the ``piece`` prior reads it.
         """
         b, n, _ = points.shape
-        if self.prior == "piece" and (piece is None or piece.shape != bone.shape):
-            raise ValueError(f"the piece prior needs piece scores shaped like the bone distances {tuple(bone.shape)}, "
-                             f"got {None if piece is None else tuple(piece.shape)}")
+        if piece is not None and piece.shape != bone.shape:
+            raise ValueError(f"piece prior scores: expected the bone distances' shape {tuple(bone.shape)}, "
+                             f"got {tuple(piece.shape)}")
         if joints.ndim != 3 or geo.shape != (b, n, joints.shape[1]) or bone.shape != geo.shape:
             raise ValueError(f"joints (B, K, 3), geo and bone (B, N, K) expected; got {tuple(joints.shape)}, "
                              f"{tuple(geo.shape)} and {tuple(bone.shape)} for points {tuple(points.shape)}")
@@ -136,11 +139,10 @@ class BodySkinning(nn.Module):
             h = self.head_pair(torch.cat([e, geo[:, s, :, None]], dim=-1)) + self.head_vertex(per_vertex)[:, :, None]
             # the head corrects the bone distance (unit-height frame) before the prior's temperature,
             # so a correction of a few centimetres already moves the softmax as far as the prior does
-            tau = self.log_tau.exp()
-            base = -bone[:, s] / tau
-            if self.prior == "piece":
-                base = torch.where(torch.isnan(piece[:, s]), base, piece[:, s])
-            scores.append(base - self.head_out(h)[..., 0] / tau)
+            learnt = -(bone[:, s] + self.head_out(h)[..., 0]) / self.log_tau.exp()
+            if self.prior == "piece" and piece is not None:
+                learnt = torch.where(torch.isnan(piece[:, s]), learnt, piece[:, s])
+            scores.append(learnt)
         scores = torch.cat(scores, dim=1)
         if joint_mask is not None:
             scores = scores.masked_fill(~joint_mask[:, None, :], float("-inf"))

@@ -33,7 +33,7 @@ COMMON = {
                               # neighbour pairs, models up to v5) or "mesh_stretch" (|l_pred/l_truth - 1| on real
                               # mesh edges: the subsample is drawn as the ends of random mesh edges; training.py)
     "body_prior": "bone",    # ours: f_s's prior on its scores, "bone" (-B / tau, models up to v5) or "piece" (the
-                             # piece prior where a mesh piece wraps a bone; piece_prior.py, the shipped model's)
+                             # piece prior alone where a mesh piece wraps a bone, at inference; piece_prior.py)
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
     "rest_start": 0.5,       # ours: share of apparel windows started at rest on the body, as at inference
 }

@@ -25,7 +25,7 @@ grabs no sharp spot).
   of the anchor. A piece that wraps no bone (a body modelled in one piece) gets no piece prior:
   f_s scores it with its bone-distance prior -B / tau, as before.
 
-Measured (weights of the prior alone against the dataset's, body vertices; L1 per vertex, 0 to 2;
+Measured (weights of the prior, -B / tau where no piece is wrapped, against the dataset's, body vertices; L1 per vertex, 0 to 2;
 stretch: mean |l/l_ref - 1| of body edges, LBS of the kinematic clips every 4th frame):
 
 | | validation zoo (seed 303) L1 / stretch | CesiumMan L1 | Gene L1 |
@@ -41,7 +41,9 @@ The anchor must not switch inside a piece. The constants are the zoo's own rule 
 (:mod:`datagen.zoo.skin_weights`), which is also what an artist's limb skinning looks like: its
 bone leads, its neighbours blend in by distance, the rest of the skeleton is left out. CesiumMan
 (81% of its body vertices in pieces the prior wraps, some of them whole legs) is skinned further
-than that by its artist: there the prior is 0.56 from its weights, against 0.46 for version 5's f_s.
+than that by its artist: there the prior (with -B / tau on the unwrapped rest) is 0.56 from its
+weights, against 0.46 for version 5's f_s and 0.47 for version 6 (the prior on wrapped pieces, f_s's
+trained scores elsewhere).
 """
 from __future__ import annotations
 

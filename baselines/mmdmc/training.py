@@ -188,8 +188,7 @@ def _body_item(c: Prepared, transforms: np.ndarray, config: dict, r: np.random.G
     t_body = transforms[c.body]
     target = skin(torch.as_tensor(c.rest[rows]), torch.as_tensor(c.keypoints[c.body]), torch.as_tensor(bw),
                   torch.as_tensor(t_body)).numpy()
-    return {"points": c.rest_norm[rows], "joints": c.joints_norm, "geo": c.geo[rows], "bone": c.bone[rows],
-            "piece": c.prior[rows], "rest": c.rest[rows],
+    return {"points": c.rest_norm[rows], "joints": c.joints_norm, "geo": c.geo[rows], "bone": c.bone[rows], "rest": c.rest[rows],
             "rest_joints": c.keypoints[c.body], "transforms": t_body, "target": c.norm(target),
             "centre": c.centre.astype(np.float32), "height": np.float32(c.height), "target_weights": bw,
             "apparel": c.apparel[rows], "edges": edges}
@@ -219,8 +218,6 @@ def batches_body(config: dict, context: StageContext, rng: np.random.Generator):
                     v = np.concatenate([v, np.zeros((pad, 3), np.float32)])
                 elif k in ("geo", "bone"):
                     v = np.concatenate([v, np.ones((len(v), pad), np.float32)], 1)
-                elif k == "piece":  # padding joints are masked out of the softmax
-                    v = np.concatenate([v, np.zeros((len(v), pad), np.float32)], 1)
                 elif k == "transforms":
                     v = np.concatenate([v, ident])
                 out[k].append(v)
@@ -228,7 +225,7 @@ def batches_body(config: dict, context: StageContext, rng: np.random.Generator):
 
 
 def loss_body(module, batch, context) -> dict:
-    w = module(batch["points"], batch["joints"], batch["geo"], batch["bone"], batch["joint_mask"], batch["piece"])
+    w = module(batch["points"], batch["joints"], batch["geo"], batch["bone"], batch["joint_mask"])
     mode = context.config.get("weights_on", "all")
     if mode not in ("body", "all"):
         raise ValueError(f"weights_on: expected 'body' or 'all', got {mode!r}")
