@@ -59,8 +59,17 @@ def _reset() -> None:
     bpy.context.preferences.filepaths.use_scripts_auto_execute = False
 
 
-def _import(path: str, options: dict, scratch: str) -> list[str]:
-    """Import ``path`` into the empty scene; returns notes (clips dropped by the glTF resampling)."""
+def _import(path: str, options: dict, scratch: str) -> tuple[list[str], tuple[float, float]]:
+    """Import ``path`` into the empty scene; returns notes (clips dropped by the glTF resampling)
+    and the file's clock ``(frame_zero, key_rate)``: file time t is Blender frame
+    ``frame_zero + t * key_rate``.
+
+    glTF keys go to frame ``t * fps``; FBX is imported with ``anim_offset=0`` (Blender's default
+    shifts every key one frame late) and its keys go to frame ``t * scene.render.fps``, the whole
+    rate the importer converts with (the scene's own rate, ``fps / fps_base``, may be 29.97); a BVH's
+    frame i goes to Blender frame ``1 + i`` (its importer starts at frame 1 at the least); a .blend
+    keeps Blender's own clock (frame F at ``F / fps``).
+    """
     ext = os.path.splitext(path)[1].lower()
     if ext in (".glb", ".gltf"):
         from datagen.ingest.gltf_resample import load_gltf, resampled_document, write_glb
@@ -78,12 +87,14 @@ def _import(path: str, options: dict, scratch: str) -> list[str]:
         finally:
             os.remove(scratch)
         _fix_bone_children_offsets()
-        return dropped
+        return dropped, (0.0, _scene_fps(scene))
     elif ext == ".fbx":
-        bpy.ops.import_scene.fbx(filepath=path)
+        bpy.ops.import_scene.fbx(filepath=path, anim_offset=0.0)
+        return [], (0.0, float(bpy.context.scene.render.fps))
     elif ext == ".bvh":
-        bpy.ops.import_anim.bvh(filepath=path, global_scale=float(options.get("bvh_scale", 0.01)),
+        bpy.ops.import_anim.bvh(filepath=path, global_scale=float(options.get("bvh_scale", 0.01)), frame_start=1,
                                 update_scene_fps=True, update_scene_duration=True)
+        return [], (1.0, _scene_fps(bpy.context.scene))
     elif ext == ".obj":
         bpy.ops.wm.obj_import(filepath=path)
     elif ext == ".blend":
@@ -91,7 +102,11 @@ def _import(path: str, options: dict, scratch: str) -> list[str]:
         bpy.context.preferences.filepaths.use_scripts_auto_execute = False
     else:
         raise ValueError(f"unsupported file type {ext!r}; expected .glb, .gltf, .fbx, .bvh, .obj or .blend")
-    return []
+    return [], (0.0, _scene_fps(bpy.context.scene))
+
+
+def _scene_fps(scene) -> float:
+    return scene.render.fps / scene.render.fps_base
 
 
 def _fix_bone_children_offsets() -> None:
@@ -234,37 +249,79 @@ def _rest_mesh(objs, bone_names, arm):
 
 
 def _slot_for(action, obj):
-    """The action slot that animates ``obj`` (Blender 4.4+ slotted actions), or None."""
+    """The action slot that animates ``obj`` (Blender 4.4+ slotted actions), or None: the slot
+    Blender already has ``obj`` use, else the one named after ``obj`` (``OB`` + its name, as the
+    glTF importer names them). FBX actions, whose one slot is named after the action, are bound
+    by :func:`_fbx_clips`."""
     slots = getattr(action, "slots", None)
     if not slots:
         return None
     for s in slots:
-        if s.identifier == "OB" + obj.name:
+        if s.target_id_type == obj.id_type and any(u == obj for u in s.users()):
+            return s
+    for s in slots:
+        if s.identifier == obj.id_type[:2] + obj.name:
             return s
     return None
 
 
-def _animates(action, obj) -> bool:
-    slots = getattr(action, "slots", None)
-    if slots is None:  # legacy actions: one ID type
-        return getattr(action, "id_root", "OBJECT") in ("OBJECT", "")
-    return _slot_for(action, obj) is not None or (obj.type == "ARMATURE" and len(slots) == 1
-                                                  and slots[0].target_id_type == "OBJECT")
-
-
-def _bone_curves(action, arm) -> int:
-    """How many F-curves of the action drive pose bones of ``arm``."""
+def _channels(action, slot) -> list:
+    """F-curves of ``action`` that ``slot`` plays (all of them for a legacy action)."""
+    if slot is None or not hasattr(action, "layers"):
+        return list(getattr(action, "fcurves", []))
     curves = []
-    if hasattr(action, "layers") and getattr(action, "slots", None):
-        slot = _slot_for(action, arm) or action.slots[0]
-        for layer in action.layers:
-            for strip in layer.strips:
-                bag = strip.channelbag(slot) if hasattr(strip, "channelbag") else None
-                if bag is not None:
-                    curves.extend(bag.fcurves)
-    else:
-        curves = list(getattr(action, "fcurves", []))
-    return sum(fc.data_path.startswith("pose.bones[") for fc in curves)
+    for layer in action.layers:
+        for strip in layer.strips:
+            bag = strip.channelbag(slot) if hasattr(strip, "channelbag") else None
+            if bag is not None:
+                curves.extend(bag.fcurves)
+    return curves
+
+
+def _fbx_clips(actions, scene) -> list[tuple[str, list]]:
+    """One clip per FBX animation stack: ``(stack name, [(action, object, slot), ...])``.
+
+    Blender's FBX importer makes one action per stack (and layer) and animated object, named
+    ``<object>|<stack>`` (``<object>|<stack>|<layer>``), each with one slot of the object's ID type,
+    and assigns only the first one to each object. The object is the one whose name prefixes the
+    action's (the longest); actions of shape keys, materials or cameras drive no bone and are left
+    out (LBS has no shape keys).
+    """
+    objects = sorted(scene.objects, key=lambda o: -len(o.name))
+    clips: dict[str, list] = {}
+    for action in actions:
+        obj = next((o for o in objects if action.name.startswith(o.name + "|")), None)
+        if obj is None:
+            continue
+        slots = [s for s in getattr(action, "slots", []) if s.target_id_type == "OBJECT"]
+        if getattr(action, "slots", None) is not None and len(slots) != 1:
+            continue
+        clips.setdefault(action.name[len(obj.name) + 1:], []).append((action, obj, slots[0] if slots else None))
+    return list(clips.items())
+
+
+def _action_clips(actions, objs) -> list[tuple[str, list]]:
+    """One clip per action (glTF, .blend, BVH): ``(action name, [(action, object, slot), ...])``
+    for every object the action has a slot for (a legacy action without slots: every object)."""
+    out = []
+    for action in actions:
+        slots = getattr(action, "slots", None)
+        if slots is None:
+            bound = [(action, o, None) for o in objs if getattr(action, "id_root", "OBJECT") in ("OBJECT", "")]
+        else:
+            bound = [(action, o, s) for o in objs for s in [_slot_for(action, o)] if s is not None]
+            ob_slots = [s for s in slots if s.target_id_type == "OBJECT"]
+            arms = [o for o in objs if o.type == "ARMATURE"]
+            if not bound and len(ob_slots) == 1 and len(arms) == 1:  # one object slot named otherwise: the rig's
+                bound = [(action, arms[0], ob_slots[0])]
+        out.append((action.name, bound))
+    return out
+
+
+def _bone_curves(bindings, arm) -> int:
+    """How many F-curves of a clip's bindings drive pose bones of ``arm``."""
+    return sum(fc.data_path.startswith("pose.bones[") for action, obj, slot in bindings if obj == arm
+               for fc in _channels(action, slot))
 
 
 def _stop_animation(scene) -> None:
@@ -337,21 +394,15 @@ def _set_defaults(arm, scene, object_defaults, pose_defaults=None) -> None:
             obj.matrix_basis = object_defaults[obj.name]
 
 
-def _assign(action, objs) -> list:
-    """Let ``action`` drive every object it has a slot for; returns those objects."""
-    driven = []
-    for obj in objs:
-        if not _animates(action, obj):
-            continue
+def _assign(bindings) -> None:
+    """Let each ``(action, object, slot)`` of a clip drive its object (no NLA, full influence)."""
+    for action, obj, slot in bindings:
         ad = obj.animation_data or obj.animation_data_create()
         ad.action = action
-        slot = _slot_for(action, obj)
         if slot is not None:
             ad.action_slot = slot
         ad.use_nla = False
         ad.action_influence = 1.0
-        driven.append(obj)
-    return driven
 
 
 def _object_defaults(scene) -> dict:
@@ -408,31 +459,29 @@ def _set_frame(scene, frame: float) -> None:
     scene.frame_set(int(math.floor(frame)), subframe=frame - math.floor(frame))
 
 
-def _clip_frames(action) -> tuple[float, int]:
-    """First frame (Blender frame, may be fractional) and number of whole frames of an action."""
-    start, end = (float(x) for x in action.frame_range)
+def _clip_frames(bindings, step: float) -> tuple[float, int]:
+    """First frame (Blender frame, may be fractional) of a clip's actions and how many frames,
+    ``step`` Blender frames apart, reach its last key."""
+    ranges = [tuple(float(x) for x in action.frame_range) for action, _, _ in bindings]
+    start, end = min(r[0] for r in ranges), max(r[1] for r in ranges)
     if abs(start - round(start)) < 1e-3:
         start = float(round(start))
-    return start, int(math.floor(end - start + 1e-3)) + 1
+    return start, int(math.floor((end - start) / step + 1e-3)) + 1
 
 
-def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
-    """Import one asset into the (reset) scene and write its arrays to ``out_npz``; returns the
-    result dict that :func:`run_job` writes as JSON."""
-    options = options or {}
+def _load(path: str, options: dict, scratch: str):
+    """Reset Blender, import ``path`` and bring it to the state every clip starts from; returns a
+    dict (``failed`` holds the reason when the file has no skeleton to ingest)."""
     _reset()
-    dropped = _import(path, options, out_npz + ".resampled.glb")
+    dropped, clock = _import(path, options, scratch)
     scene = bpy.context.scene
     arms = [o for o in scene.objects if o.type == "ARMATURE"]
     if not arms:
-        return {"status": "failed", "reason": "no armature: the file has no skeleton to ingest"}
+        return {"failed": "no armature: the file has no skeleton to ingest"}
     arm = max(arms, key=lambda a: sum(b.use_deform for b in a.data.bones))
     bones = _deform_bones(arm)
     if not bones:
-        return {"status": "failed", "reason": f"armature {arm.name!r} has no deform bones"}
-    names = [b.name for b in bones]
-    index = {n: i for i, n in enumerate(names)}
-    parents = np.array([_deform_parent(b, index) for b in bones], np.int32)
+        return {"failed": f"armature {arm.name!r} has no deform bones"}
     _stop_animation(scene)
     object_defaults = _object_defaults(scene)
     _set_defaults(arm, scene, object_defaults)
@@ -440,7 +489,94 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
     pose_defaults, from_file = _default_pose(arm, path)
     meshes = _meshes_of(arm)
     applied = _apply_other_modifiers(meshes)
-    actions = list(bpy.data.actions)
+    return {"failed": "", "scene": scene, "arm": arm, "bones": bones, "dropped": dropped, "clock": clock,
+            "object_defaults": object_defaults, "pose_defaults": pose_defaults, "from_file": from_file,
+            "meshes": meshes, "applied": applied, "actions": list(bpy.data.actions),
+            "animatable": [o for o in scene.objects if o.name in object_defaults]}
+
+
+def _clips_of(st: dict, path: str) -> list[tuple[str, list]]:
+    """The clips of a loaded file: ``(name, [(action, object, slot), ...])`` (see :func:`_fbx_clips`)."""
+    if os.path.splitext(path)[1].lower() == ".fbx" and any("|" in a.name for a in st["actions"]):
+        return _fbx_clips(st["actions"], st["scene"])
+    return _action_clips(st["actions"], st["animatable"])
+
+
+def _start_clip(st: dict, bindings) -> None:
+    """No animation, the file's default pose and objects' transforms, then ``bindings`` drive."""
+    _stop_animation(st["scene"])
+    _set_defaults(st["arm"], st["scene"], st["object_defaults"], st["pose_defaults"])
+    _assign(bindings)
+
+
+def _unplayed_curves(bindings, frame: float) -> int:
+    """F-curves of the clip whose value at ``frame`` is not the value their object shows (a
+    binding Blender does not play): the scene must be at ``frame``."""
+    bad = 0
+    for action, obj, slot in bindings:
+        for fc in _channels(action, slot):
+            try:
+                value = obj.path_resolve(fc.data_path)
+            except ValueError:
+                continue  # a path of another object (a bone this rig lacks)
+            shown = value[fc.array_index] if hasattr(value, "__len__") else value
+            bad += abs(float(shown) - fc.evaluate(frame)) > 1e-4
+    return bad
+
+
+def _reproduce(path: str, options: dict, scratch: str, plan: list, keep: np.ndarray) -> dict:
+    """Blender's own mesh at the evaluation frames of every planned clip, each from a fresh import.
+
+    Args:
+        plan: ``(clip name, [(action name, object name, slot identifier or None)], [Blender frames])``.
+        keep: (N,) bool, the stored vertices among the meshes' vertices.
+
+    Returns:
+        clip name -> ((E, N', 3) evaluated vertices of the kept vertices, F-curves not played), or
+        an error string for the clip.
+    """
+    out = {}
+    for name, refs, frames in plan:
+        try:
+            st = _load(path, options, scratch)
+            if st["failed"]:
+                raise RuntimeError(st["failed"])
+            st["arm"].data.pose_position = "POSE"
+            objects = {o.name: o for o in st["scene"].objects}
+            bindings = []
+            for action_name, obj_name, slot_id in refs:
+                action = bpy.data.actions[action_name]
+                slot = next(s for s in action.slots if s.identifier == slot_id) if slot_id is not None else None
+                bindings.append((action, objects[obj_name], slot))
+            _start_clip(st, bindings)
+            evaluated, unplayed = [], 0
+            for frame in frames:
+                _set_frame(st["scene"], frame)
+                evaluated.append(_evaluated_world_vertices(st["meshes"])[keep])
+                unplayed += _unplayed_curves(bindings, frame)
+            out[name] = (np.stack(evaluated), unplayed)
+        except Exception as exc:  # this clip's check failed; the clip is reported
+            out[name] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
+    """Import one asset into the (reset) scene and write its arrays to ``out_npz``; returns the
+    result dict that :func:`run_job` writes as JSON.
+
+    Every clip is sampled in this scene; Blender's mesh at two of its frames (for
+    ``reproduction_error``) comes from a fresh import of the file per clip (:func:`_reproduce`),
+    where every key curve of the clip must also show on its object, or the clip fails.
+    """
+    options = options or {}
+    scratch = out_npz + ".resampled.glb"
+    st = _load(path, options, scratch)
+    if st["failed"]:
+        return {"status": "failed", "reason": st["failed"]}
+    scene, arm, bones, meshes = st["scene"], st["arm"], st["bones"], st["meshes"]
+    names = [b.name for b in bones]
+    index = {n: i for i, n in enumerate(names)}
+    parents = np.array([_deform_parent(b, index) for b in bones], np.int32)
     arm.data.pose_position = "REST"
     bpy.context.view_layer.update()
     mw = np.array(arm.matrix_world)
@@ -450,64 +586,87 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
     unweighted = 0
     if meshes:
         verts, faces, weights, counts, unweighted = _rest_mesh(meshes, names, arm)
-        loose = weights.sum(axis=1) <= 0  # no deform weight and attached to no bone: the nearest joint
-        if loose.any():
-            nearest = np.argmin(np.linalg.norm(verts[loose, None, :] - keypoints[None], axis=2), axis=1)
-            weights[np.flatnonzero(loose), nearest] = 1.0
     else:
         verts, faces, weights, counts = np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, len(names)), np.float32), []
+    # vertices with no deform weight whose mesh hangs from no bone follow the mesh's object, which
+    # no joint carries: they are left out of the stored mesh, with every face that uses them
+    keep = weights.sum(axis=1) > 0
+    source_vertex = np.concatenate([np.arange(c) for c in counts]) if counts else np.zeros(0, np.int64)
+    owner = np.repeat(np.arange(len(counts)), counts)
+    left_out = int((~keep).sum())
+    if left_out:
+        new_index = np.cumsum(keep) - 1
+        faces = new_index[faces[keep[faces].all(axis=1)]]
+        verts, weights, source_vertex = verts[keep], weights[keep], source_vertex[keep]
+        counts = [int(c) for c in np.bincount(owner[keep], minlength=len(counts))]
     arm.data.pose_position = "POSE"
-    _set_defaults(arm, scene, object_defaults, pose_defaults)
+    _set_defaults(arm, scene, st["object_defaults"], st["pose_defaults"])
     bpy.context.view_layer.update()
     default_keypoints = _bone_matrices(arm, order)[:, :3, 3] @ C.T  # joints in the file's default pose
-    fps = scene.render.fps / scene.render.fps_base
+    fps = _scene_fps(scene)
+    frame_zero, key_rate = st["clock"]
+    step = key_rate / fps  # Blender frames per dataset frame
     arrays = {"vertices": verts, "faces": faces, "weights": weights, "keypoints": keypoints, "parents": parents,
-              "default_keypoints": default_keypoints,
-              "mesh_vertex_counts": np.array(counts, np.int64)}
-    clips = []
-    clip_errors = [{"name": n, "reason": "the clip animates only morph-target weights, no bone"} for n in dropped]
-    animatable = [o for o in scene.objects if o.name in object_defaults]
-    for action in actions:
+              "default_keypoints": default_keypoints, "mesh_vertex_counts": np.array(counts, np.int64),
+              "source_vertex": source_vertex.astype(np.int64)}
+    clips, plan = [], []
+    clip_errors = [{"name": n, "reason": "the clip animates only morph-target weights, no bone"} for n in st["dropped"]]
+    for name, bindings in _clips_of(st, path):
         try:
-            if _bone_curves(action, arm) == 0:
-                clip_errors.append({"name": action.name, "reason": "the action animates no bone of the armature"})
+            if _bone_curves(bindings, arm) == 0:
+                clip_errors.append({"name": name, "reason": "the action animates no bone of the armature"})
                 continue
-            _stop_animation(scene)
-            _set_defaults(arm, scene, object_defaults, pose_defaults)
-            _assign(action, animatable)
-            start, n = _clip_frames(action)
-            eval_at = sorted({n // 2, n - 1})
-            for obj in meshes:  # the deformed meshes are only needed at eval_at
-                obj.hide_viewport = True
+            _start_clip(st, bindings)
+            start, n = _clip_frames(bindings, step)
             posed = np.zeros((n, len(bones), 4, 4))
+            for obj in meshes:  # no mesh is needed to sample the bones
+                obj.hide_viewport = True
             for f in range(n):
-                _set_frame(scene, start + f)
+                _set_frame(scene, start + f * step)
                 posed[f] = _bone_matrices(arm, order)
             for obj in meshes:
                 obj.hide_viewport = False
-            evaluated = []
-            for f in eval_at if meshes else []:
-                _set_frame(scene, start + f)
-                evaluated.append(_evaluated_world_vertices(meshes))
             transforms, stretch = pose_transforms(posed, rest_inverse)
             ci = len(clips)
             arrays[f"clip{ci}_transforms"] = transforms
             identity = np.array([1.0, 1, 1, 0, 0, 0])
             if np.abs(stretch - identity).max() > STRETCH_TOLERANCE:
                 arrays[f"clip{ci}_scale"] = stretch
+            eval_at = sorted({n // 2, n - 1})
             arrays[f"clip{ci}_eval_frames"] = np.array(eval_at)
-            if meshes:
-                arrays[f"clip{ci}_eval_vertices"] = np.stack(evaluated)
-            clips.append({"name": action.name, "frames": n, "fps": fps, "t0": start / fps,
-                          "first_frame": start, "scaled": f"clip{ci}_scale" in arrays})
+            first = start - frame_zero if step == 1 else (start - frame_zero) / step  # the file's frame of frame 0
+            clips.append({"name": name, "frames": n, "fps": fps, "t0": first / fps, "first_frame": first,
+                          "scaled": f"clip{ci}_scale" in arrays})
+            refs = [(a.name, o.name, s.identifier if s is not None else None) for a, o, s in bindings]
+            plan.append((name, refs, [start + f * step for f in eval_at]))
         except Exception as exc:  # one unreadable clip becomes a status row; the others go on
-            clip_errors.append({"name": action.name, "reason": f"{type(exc).__name__}: {exc}"})
+            clip_errors.append({"name": name, "reason": f"{type(exc).__name__}: {exc}"})
     _stop_animation(scene)
+    result = {"status": "ok", "reason": "", "bone_names": names, "blender": bpy.app.version_string,
+              "meshes": [o.name for o in meshes], "applied_modifiers": st["applied"],
+              "unweighted_vertices": unweighted, "fps": fps, "default_pose_bones": st["from_file"]}
+    if left_out:
+        result["left_out_vertices"] = left_out
+    checked = _reproduce(path, options, scratch, plan, keep) if meshes and plan else {}
+    kept_clips = []
+    for ci, clip in enumerate(clips):
+        check = checked.get(clip["name"])
+        if isinstance(check, str) or (check is not None and check[1]):
+            reason = check if isinstance(check, str) else (
+                f"Blender does not play {check[1]} of the clip's key curves in a fresh import")
+            clip_errors.append({"name": clip["name"], "reason": reason})
+            for key in [k for k in arrays if k.startswith(f"clip{ci}_")]:
+                del arrays[key]
+            continue
+        new = len(kept_clips)
+        for key in [k for k in arrays if k.startswith(f"clip{ci}_")]:  # clips are renumbered in order
+            arrays[f"clip{new}_" + key[len(f"clip{ci}_"):]] = arrays.pop(key)
+        if check is not None:
+            arrays[f"clip{new}_eval_vertices"] = check[0]
+        kept_clips.append(clip)
     _save_npz(out_npz, arrays)
-    return {"status": "ok", "reason": "", "bone_names": names, "clips": clips, "clip_errors": clip_errors,
-            "blender": bpy.app.version_string, "meshes": [o.name for o in meshes],
-            "applied_modifiers": applied, "unweighted_vertices": unweighted, "fps": fps,
-            "default_pose_bones": from_file}
+    result.update(clips=kept_clips, clip_errors=clip_errors)
+    return result
 
 
 def _save_npz(out_npz: str, arrays: dict) -> None:
