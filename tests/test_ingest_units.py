@@ -198,6 +198,64 @@ def test_categories_are_inferred_on_the_zoo_and_on_renamed_copies(small_zoo):
     assert infer_category(["a", "b"], [-1, 0], np.array([[0, 0, 0], [0, 0, 1.0]]))[0] == "unknown"
 
 
+def _biped_skeleton(style, arm_drop: float, upright: bool, tail: bool = True):
+    """A two-legged skeleton by hand (Y up, +Z forward; hips 2 m high): names in ``style``
+    (``blender`` ``Thigh.L`` or ``mixamo`` ``mixamorig:LeftUpLeg``), arms hanging from the chest
+    down to ``arm_drop`` m above the ground, the body horizontal (head ahead of the hips) or
+    upright (head above them), and a five-joint tail when ``tail``."""
+    names, parents, points = [], [], []
+
+    def add(name, parent, p):
+        names.append(name)
+        parents.append(-1 if parent is None else names.index(parent))
+        points.append(p)
+
+    mixamo = style == "mixamo"
+    n = (lambda base, side="": f"mixamorig:{side}{base}") if mixamo else (lambda base, side="": base + (f".{side[0]}" if side else ""))
+    spine = [(0, 2.1, 1.0), (0, 2.2, 1.6), (0, 2.5, 2.1), (0, 2.7, 2.6)] if not upright else \
+        [(0, 2.6, 0), (0, 3.1, 0), (0, 3.4, 0), (0, 3.7, 0.1)]
+    add(n("Hips"), None, (0, 2.0, 0))
+    add(n("Spine"), n("Hips"), spine[0])
+    add(n("Chest") if not mixamo else n("Spine1"), n("Spine"), spine[1])
+    chest = names[-1]
+    add(n("Neck"), chest, spine[2])
+    add(n("Head"), n("Neck"), spine[3])
+    if tail:
+        prev = n("Hips")
+        for i in range(1, 6):
+            add(f"Tail.{i:03d}" if not mixamo else f"mixamorig:Tail{i}", prev, (0, 2.0 - 0.05 * i, -0.8 * i))
+            prev = names[-1]
+    for sign, side in ((1, "Left"), (-1, "Right")):
+        x = 0.4 * sign
+        leg = ["UpLeg", "Leg", "Foot", "ToeBase"] if mixamo else ["Thigh", "Shin", "Foot", "Toe"]
+        for j, (base, p) in enumerate(zip(leg, [(x, 1.9, 0.1), (x, 1.0, 0.3), (x, 0.2, -0.1), (x, 0.0, 0.4)])):
+            add(n(base, side), n("Hips") if j == 0 else n(leg[j - 1], side), p)
+        arm = ["Arm", "ForeArm", "Hand"] if mixamo else ["UpperArm", "Forearm", "Hand"]
+        top = spine[1][1] - 0.1
+        for j, base in enumerate(arm):
+            y = top - (top - arm_drop) * j / 2
+            add(n(base, side), chest if j == 0 else n(arm[j - 1], side), (0.3 * sign, y, spine[1][2] + 0.15 * j))
+    return names, np.array(parents), np.array(points, float)
+
+
+@pytest.mark.parametrize("style", ["blender", "mixamo"])
+def test_bipedal_reptiles_are_reptiles_not_quadrupeds(style):
+    """A T-rex or a velociraptor (two legs carrying a horizontal body, small arms, a tail) is a
+    reptile; forelegs named as arms that come down to the ground (the Fox) keep it a quadruped;
+    an upright body with the same small arms stays a humanoid, and without a tail nothing says reptile."""
+    table = [(dict(arm_drop=1.45, upright=False), "reptile", "small arms off the ground"),
+             (dict(arm_drop=0.0, upright=False), "quadruped", "forelegs named as arms"),
+             (dict(arm_drop=1.45, upright=True), "humanoid", "upright"),
+             (dict(arm_drop=1.45, upright=False, tail=False), "quadruped", "forelegs named as arms")]
+    for kwargs, want, rule in table:
+        names, parents, points = _biped_skeleton(style, **kwargs)
+        cat, ev = infer_category(names, parents, points)
+        assert cat == want and rule in ev["rule"], (kwargs, ev)
+        assert ev["legs"] == 2 and ev["arms"] == 2
+    names, parents, points = _biped_skeleton(style, arm_drop=1.45, upright=False)
+    assert infer_category(names, parents, points * 0.2)[0] == "reptile"  # a velociraptor-sized one
+
+
 BVH_HEAD = """HIERARCHY
 ROOT Hips
 {

@@ -36,7 +36,10 @@ def test_ingest_mmd_models_motions_physics_and_bad_files(tmp_path):
     small = chars["assets/small"]
     assert small.meta["mmd"]["motions"]["lift"]["ignored_morph_keys"] == 1
     ik = small.bone_names.index("左足ＩＫ")
+    # the key at VMD frame 4 (4 / 30 s) is frame 4: t0 = 0, the file's own clock
+    assert small.meta["mmd"]["motions"]["lift"]["t0"] == 0 and small.meta["mmd"]["motions"]["lift"]["first_frame"] == 0
     np.testing.assert_allclose(motion.transforms[4, ik, 4:], small.keypoints[ik] + [0, 0.08, 0], atol=1e-6)
+    assert np.abs(motion.transforms[3, ik, 4:] - small.keypoints[ik] - [0, 0.08, 0]).max() > 1e-3
     bodies = read_records(out, "rigid_bodies")
     joints = read_records(out, "joints")
     assert sorted(b.character_id for b in bodies) == ["assets/old", "assets/old", "assets/small", "assets/small"]

@@ -16,8 +16,10 @@ four legs under the body                                    quadruped
 four legs splayed out to the sides (a sprawling gait)       reptile
 two arms and two legs, body upright                         humanoid
   ... and apparel chains (hair, skirt, cape, ...)           apparel
+two arms and two legs, body horizontal, a tail, arms off    reptile
+the ground (a bipedal dinosaur: T-rex, velociraptor)
 two arms and two legs, body horizontal (Fox: forelegs       quadruped
-named as arms)
+named as arms, down to the ground)
 two legs, no arms, a tail                                   reptile
 no legs, most joints in one long chain (a snake)            reptile
 no limb names: feet found on the ground (2 upright,         as above
@@ -139,6 +141,20 @@ def _splayed(keypoints: np.ndarray, groups: list[list[int]]) -> bool | None:
     return None if not votes else bool(np.mean(votes) > 0.5)
 
 
+def _arms_reach_ground(keypoints: np.ndarray, arm_groups: list[list[int]], leg_groups: list[list[int]]) -> bool | None:
+    """True when the arms come down to the feet as forelegs do: their lowest joint is within a
+    quarter of the legs' drop (hip to foot) above the legs' lowest joint. A bipedal dinosaur's
+    small arms hang well above the ground."""
+    if not arm_groups or not leg_groups:
+        return None
+    legs = np.concatenate([keypoints[m] for m in leg_groups])
+    drop = float(np.mean([np.ptp(keypoints[m][:, 1]) for m in leg_groups]))
+    if drop <= 0:
+        return None
+    lowest_arm = min(float(keypoints[m][:, 1].min()) for m in arm_groups)
+    return bool(lowest_arm - float(legs[:, 1].min()) < 0.25 * drop)
+
+
 def _ancestors(parents: np.ndarray, j: int) -> list[int]:
     out = [j]
     while parents[j] >= 0:
@@ -197,6 +213,7 @@ def infer_category(bone_names: Sequence[str], parents: Sequence[int], keypoints:
     wings, fins = len({k[0] for k in limbs["wing"]}), len(limbs["fin"])
     chain = longest_single_chain(parents)
     leg_groups = [m for key, m in members.items() if key[0] == "leg"]
+    arm_groups = [m for key, m in members.items() if key[0] == "arm"]
     evidence = {"legs": legs, "arms": arms, "wings": wings, "fins": fins, "tail": found["tail"],
                 "apparel_bones": found["apparel_bones"], "longest_chain": chain, "from": "names"}
 
@@ -218,6 +235,9 @@ def infer_category(bone_names: Sequence[str], parents: Sequence[int], keypoints:
     if legs == 2 and arms == 2:
         evidence["upright"] = _upright(kp, words)
         if evidence["upright"] is False:
+            if found["tail"] and _arms_reach_ground(kp, arm_groups, leg_groups) is False:
+                evidence["arms_reach_ground"] = False
+                return decide("reptile", "two legs carrying a horizontal body, small arms off the ground, a tail")
             return decide("quadruped", "forelegs named as arms, body horizontal")
         if found["apparel_bones"] >= 3:
             return decide("apparel", "arms, legs, upright, and apparel chains")

@@ -202,6 +202,8 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
     info = {"blender": meta.get("blender"), "meshes": meta.get("meshes"), "clips": meta["clips"],
             "applied_modifiers": meta.get("applied_modifiers", []), "unweighted_vertices": meta.get("unweighted_vertices", 0),
             "default_pose_bones": meta.get("default_pose_bones", 0), "cache_key": key}
+    if meta.get("left_out_vertices"):  # unweighted vertices on no bone: not stored (FORMAT.md)
+        info["left_out_vertices"] = meta["left_out_vertices"]
     if asset.suffix.lower() != ".bvh":
         info["metres_per_unit"] = unit
     if asset.suffix.lower() == ".bvh":

@@ -86,6 +86,7 @@ def sample_channels(vmd: VMDMotion, model: MMDModel, num_frames: int | None = No
         rot[:, bone] = quat_slerp(q[seg - 1], q[seg], w[:, 3])
     report["duplicate_keys"] = duplicates
     report["ignored_morph_keys"] = int(len(vmd.morph_frames))
+    report["t0"], report["first_frame"] = 0.0, 0  # frame f is VMD frame f, at f / 30 s (FORMAT.md)
     return rot, trans, report
 
 
