@@ -488,6 +488,8 @@ def _load(path: str, options: dict, scratch: str):
     bpy.context.view_layer.update()
     pose_defaults, from_file = _default_pose(arm, path)
     meshes = _meshes_of(arm)
+    if os.path.splitext(path)[1].lower() == ".fbx":  # the FBX importer links objects in no fixed order
+        meshes.sort(key=lambda o: o.name)
     applied = _apply_other_modifiers(meshes)
     return {"failed": "", "scene": scene, "arm": arm, "bones": bones, "dropped": dropped, "clock": clock,
             "object_defaults": object_defaults, "pose_defaults": pose_defaults, "from_file": from_file,
@@ -524,11 +526,12 @@ def _unplayed_curves(bindings, frame: float) -> int:
     return bad
 
 
-def _reproduce(path: str, options: dict, scratch: str, plan: list, keep: np.ndarray) -> dict:
+def _reproduce(path: str, options: dict, scratch: str, plan: list, mesh_names: list, keep: np.ndarray) -> dict:
     """Blender's own mesh at the evaluation frames of every planned clip, each from a fresh import.
 
     Args:
         plan: ``(clip name, [(action name, object name, slot identifier or None)], [Blender frames])``.
+        mesh_names: the meshes, in the order of the stored vertices.
         keep: (N,) bool, the stored vertices among the meshes' vertices.
 
     Returns:
@@ -543,6 +546,7 @@ def _reproduce(path: str, options: dict, scratch: str, plan: list, keep: np.ndar
                 raise RuntimeError(st["failed"])
             st["arm"].data.pose_position = "POSE"
             objects = {o.name: o for o in st["scene"].objects}
+            meshes = [objects[n] for n in mesh_names]  # in the first import's order
             bindings = []
             for action_name, obj_name, slot_id in refs:
                 action = bpy.data.actions[action_name]
@@ -552,7 +556,7 @@ def _reproduce(path: str, options: dict, scratch: str, plan: list, keep: np.ndar
             evaluated, unplayed = [], 0
             for frame in frames:
                 _set_frame(st["scene"], frame)
-                evaluated.append(_evaluated_world_vertices(st["meshes"])[keep])
+                evaluated.append(_evaluated_world_vertices(meshes)[keep])
                 unplayed += _unplayed_curves(bindings, frame)
             out[name] = (np.stack(evaluated), unplayed)
         except Exception as exc:  # this clip's check failed; the clip is reported
@@ -647,7 +651,7 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
               "unweighted_vertices": unweighted, "fps": fps, "default_pose_bones": st["from_file"]}
     if left_out:
         result["left_out_vertices"] = left_out
-    checked = _reproduce(path, options, scratch, plan, keep) if meshes and plan else {}
+    checked = _reproduce(path, options, scratch, plan, [o.name for o in meshes], keep) if meshes and plan else {}
     kept_clips = []
     for ci, clip in enumerate(clips):
         check = checked.get(clip["name"])
