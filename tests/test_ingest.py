@@ -191,12 +191,24 @@ def test_mesh_unit_rescales_a_file_in_another_unit_and_its_size_is_warned(ingest
         ingest_assets([fox], tmp_path / "bad", mesh_unit=0.0, progress=False)
 
 
+# the rule that decides each (datagen/ingest/category.py): the Fox's forelegs come down to the ground, so the
+# bipedal-reptile rule (two legs, a horizontal body, small arms off the ground, a tail) does not take it
+RULE = {"Fox": "forelegs named as arms, body horizontal", "Quaternius_Horse": "four legs under the body",
+        "Quaternius_Husky": "four legs under the body", "Quaternius_Rat": "four legs under the body",
+        "Quaternius_Stegosaurus": "four legs under the body", "Quaternius_Triceratops": "four legs under the body",
+        "CesiumMan": "two arms and two legs, upright", "RobotExpressive": "two arms and two legs, upright",
+        "Quaternius_Farmer": "two arms and two legs, upright", "Quaternius_Punk": "two arms and two legs, upright",
+        "CMU_02_01": "two arms and two legs, upright", "Quaternius_Dolphin": "fins and no legs",
+        "Quaternius_MantaRay": "fins and no legs"}
+
+
 @pytest.mark.slow
 def test_skeleton_families_and_inferred_categories(ingested):
     out, _ = ingested
     chars = {c.character_id.split("/")[1]: c for c in read_records(out, "characters")}
     for stem, cat in CATEGORY.items():
         assert chars[stem].category == cat, (stem, chars[stem].meta["category"])
+        assert chars[stem].meta["category"]["evidence"]["rule"] == RULE[stem], (stem, chars[stem].meta["category"])
         source = chars[stem].meta["category"]["source"]
         assert source == ("map" if stem == "Quaternius_MantaRay" else "inferred")
         assert chars[stem].meta["category"]["evidence"]["rule"]
@@ -270,6 +282,17 @@ def test_bvh_becomes_a_skeleton_in_metres(ingested, assets_dir):
     assert 1.2 < np.ptp(char.keypoints[:, 1]) < 1.9  # a person, in metres
     assert char.height is None and len(char.faces) == 0
     assert max(np.ptp(m.transforms[..., 4:].reshape(-1, 3), axis=0).max() for m in motions.values()) < 10
+    # frame f is the file's frame f, at f / fps: t0 = 0 (Blender's importer puts it at frame 1, which is not time 1/fps)
+    clip = char.meta["ingest"]["clips"][0]
+    assert clip["t0"] == 0 and clip["first_frame"] == 0
+    rows = np.array([[float(x) for x in line.split()] for line in
+                     (assets_dir / "bvh" / "CMU_02_01.bvh").read_text().split("Frame Time:")[1].splitlines()[1:]
+                     if line.strip()])
+    (m,) = motions.values()
+    root = char.bone_names.index(names[0])  # root OFFSET 0; channels Xposition Yposition Zposition first
+    assert m.num_frames == len(rows)
+    for f in (0, 1, 100, len(rows) - 1):
+        np.testing.assert_allclose(m.transforms[f, root, 4:], rows[f, :3] * 0.056444, atol=1e-5)
 
 
 @pytest.mark.slow
@@ -396,8 +419,11 @@ def test_non_armature_modifiers_are_applied(assets_dir, tmp_path):
     assert ingest_assets([blend], tmp_path / "out", progress=False)["failed"] == 0
     char = read_records(tmp_path / "out", "characters")[0]
     assert len(char.vertices) > 3273 and any("smooth" in m for m in char.meta["ingest"]["applied_modifiers"])
-    err, _ = _child_error(tmp_path / "out", "CesiumSubsurf")
+    err, meta = _child_error(tmp_path / "out", "CesiumSubsurf")
     assert err < 0.1
+    # a .blend keeps Blender's clock (frame F at F / fps): the clip the glTF importer keyed at t * 24 starts at the glTF's first key
+    t0, _ = GltfReference(assets_dir / "glb" / "CesiumMan.glb").clip_range(0)
+    assert abs(meta["clips"][0]["t0"] - t0) < 1e-4 and abs(meta["clips"][0]["first_frame"] - t0 * 24) < 1e-3
 
 
 @pytest.mark.slow

@@ -26,13 +26,20 @@ file's JSON (:mod:`datagen.ingest.gltf_defaults`) and is the pose of every bone 
 animate. Objects attached to a bone are moved to where the file places them (see
 :func:`_fix_bone_children_offsets`).
 
-Clips: every action, each sampled on its own: before a clip every pose bone goes back to rest
-(the file's default pose), every object to the transform it was imported with, and the action
-drives the armature (and any other object it has a slot for) with no NLA, so a bone the clip
-does not animate holds the default pose whatever clip came before. Frame f of a clip is Blender
-frame ``start + f`` (time ``t0 + f / fps``, ``t0`` the clip's first key). Per frame and bone:
-the rotation and symmetric stretch of the polar decomposition ``M = R U`` of the bone's world
-change from rest, and the posed head position.
+Clips: every action (FBX: every animation stack, whose actions, one per animated object, play
+together: :func:`_fbx_clips`), each sampled on its own: before a clip every pose bone goes back
+to rest (the file's default pose), every object to the transform it was imported with, and the
+clip's actions drive their objects through their own slots with no NLA, so a bone the clip does
+not animate holds the default pose whatever clip came before. Animation of the armature object
+itself is part of every bone's world matrix. Frame f of a clip is at file time ``t0 + f / fps``,
+``t0`` the clip's first key in the file's own clock (:func:`_import`). Per frame and bone: the
+rotation and symmetric stretch of the polar decomposition ``M = R U`` of the bone's world change
+from rest, and the posed head position. Blender's mesh at two frames of each clip, for the
+reproduction error, comes from a fresh import of the file for that clip alone.
+
+Unweighted vertices (no deform-bone weight) of a mesh hung from a bone follow that bone; those of
+a mesh hung from no bone follow an object no joint carries, and are left out with their faces
+(``left_out_vertices``).
 """
 from __future__ import annotations
 
