@@ -127,7 +127,8 @@ def export_glb_as_fbx(glb, fbx) -> Path:
     return Path(fbx)
 
 
-def write_rig_fbx(fbx) -> Path:
-    """Write ``fbx``: the hand-made rig of :data:`RIG` with the stacks of :data:`RIG_STACKS`."""
-    _blender(RIG, fbx)
+def write_rig_fbx(fbx, fps: int = 24, fps_base: float = 1.0) -> Path:
+    """Write ``fbx``: the hand-made rig of :data:`RIG` with the stacks of :data:`RIG_STACKS`, keyed
+    at whole frames of ``fps / fps_base`` (30 / 1.001: the 29.97 fps of video)."""
+    _blender(RIG.replace("scene.render.fps = 24", f"scene.render.fps = {fps}; scene.render.fps_base = {fps_base!r}"), fbx)
     return Path(fbx)

@@ -159,6 +159,21 @@ def test_unweighted_vertices_follow_their_mesh_node_and_are_left_out(ingested, f
 
 
 @pytest.mark.slow
+def test_an_fbx_at_29_97_fps_keeps_its_own_clock(tmp_path):
+    """Blender's importer keys FBX times at 30 frames a second while the scene runs at 29.97: the
+    clips are sampled at the file's 29.97 fps and still match ufbx at t0 + f / fps."""
+    fbx = write_rig_fbx(tmp_path / "HandRig2997.fbx", fps=30, fps_base=1.001)
+    out = tmp_path / "ds"
+    assert ingest_assets([fbx], out, timeout=600, progress=False)["failed_clips"] == 0
+    char, motions, meta, arrays = load(out, "HandRig2997")
+    errors, ref = compare_with_ufbx(fbx, char, motions, meta, arrays)
+    assert abs(ref["fps"] - 29.97) < 0.01 and all(abs(c["fps"] - ref["fps"]) < 1e-3 for c in meta["clips"])
+    assert {c["name"]: c["frames"] for c in meta["clips"]} == RIG_STACKS
+    for name, (mean, mx) in errors.items():
+        assert mean < MEAN_PCT and mx < MAX_PCT, (name, mean, mx)
+
+
+@pytest.mark.slow
 def test_a_clip_blender_does_not_play_fails_instead_of_storing_the_rest_pose(fbx_files, tmp_path, monkeypatch):
     """With every action bound without its slot (the old FBX bug), only the stack the importer
     assigned itself plays: the other clips fail with a status row, found in a fresh import."""
