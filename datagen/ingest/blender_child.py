@@ -292,16 +292,18 @@ def _fbx_clips(actions, scene) -> list[tuple[str, list]]:
     ``<object>|<stack>`` (``<object>|<stack>|<layer>``), each with one slot of the object's ID type,
     and assigns only the first one to each object. The object is the one whose name prefixes the
     action's (the longest); actions of shape keys, materials or cameras drive no bone and are left
-    out (LBS has no shape keys).
+    out (LBS has no shape keys); an object's action whose name starts with no object's becomes a
+    clip of its own that drives nothing (and so fails with a status row).
     """
     objects = sorted(scene.objects, key=lambda o: -len(o.name))
     clips: dict[str, list] = {}
     for action in actions:
         obj = next((o for o in objects if action.name.startswith(o.name + "|")), None)
-        if obj is None:
-            continue
         slots = [s for s in getattr(action, "slots", []) if s.target_id_type == "OBJECT"]
         if getattr(action, "slots", None) is not None and len(slots) != 1:
+            continue
+        if obj is None:  # an object's action named after no object: reported as a clip that drives no bone
+            clips.setdefault(action.name, [])
             continue
         clips.setdefault(action.name[len(obj.name) + 1:], []).append((action, obj, slots[0] if slots else None))
     return list(clips.items())
