@@ -6,6 +6,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 
 from schemas.errors import DatasetError
+from schemas.finite import FINITE_COLUMNS, nonfinite_counts
 from schemas.fingerprint import stale_inputs
 from schemas.integrity import entry_path
 from schemas.manifest import MANIFEST, incomplete_reason, is_complete, load_manifest, sha256_of
@@ -21,7 +22,8 @@ def validate_dataset(root) -> list[str]:
     ``{table}/{split}-{i}-of-{n}.parquet`` inside the folder (no ``..``, absolute path or symlink
     out), exists, has the recorded size and sha256, reads as Parquet with the recorded row count,
     carries a compatible schema version and the contract's column types; no shard file on disk
-    is unlisted; a table derived from other tables of the same dataset (pairs from characters)
+    is unlisted; no NaN or infinite mesh or animation value (:data:`schemas.finite.FINITE_COLUMNS`);
+    a table derived from other tables of the same dataset (pairs from characters)
     still matches the fingerprints they had when it was made.
     """
     root = Path(root)
@@ -76,6 +78,15 @@ def validate_dataset(root) -> list[str]:
                 problems.append(str(exc))
             if meta.num_rows != entry.get("rows"):
                 problems.append(f"{path}: {meta.num_rows} rows, manifest says {entry.get('rows')}")
+            columns = [c for c in FINITE_COLUMNS.get(table, ()) if c in schema.names]
+            if columns:
+                try:
+                    bad = nonfinite_counts(pq.read_table(path, columns=columns), columns)
+                except Exception as exc:
+                    problems.append(f"{path}: columns {', '.join(columns)} unreadable ({exc})")
+                    bad = {}
+                for column, n in sorted(bad.items()):
+                    problems.append(f"{path}: column {column!r} holds {n} NaN or infinite values")
         stale = stale_inputs(root, manifest, table)
         if stale:
             problems.append(stale)

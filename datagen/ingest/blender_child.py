@@ -45,6 +45,7 @@ import bpy  # noqa: I001  (first, before anything that loads another Embree)
 import numpy as np
 
 from datagen.ingest.blender_pool import DONE_MARKER  # standard library only
+from datagen.ingest.clip_length import check_clip_frames  # standard library only
 from mimicbench.quaternion import matrix_to_quat  # numpy only
 
 C = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # Blender Z-up -> Y-up
@@ -71,7 +72,8 @@ def _import(path: str, options: dict, scratch: str) -> list[str]:
                   if any(c["target"].get("path") in ("translation", "rotation", "scale") for c in a["channels"])}
         dropped = [a.get("name", f"animation {i}") for i, a in enumerate(doc.get("animations", []))
                    if a.get("name", f"animation {i}") not in moving]
-        doc, blob = resampled_document(doc, buffers, scene.render.fps / scene.render.fps_base)
+        doc, blob = resampled_document(doc, buffers, scene.render.fps / scene.render.fps_base,
+                                       options.get("max_clip_frames"))
         write_glb(scratch, doc, blob)
         try:
             bpy.ops.import_scene.gltf(filepath=scratch, bone_heuristic="BLENDER", guess_original_bind_pose=True)
@@ -476,6 +478,7 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
             _set_defaults(arm, scene, object_defaults, pose_defaults)
             _assign(action, animatable)
             start, n = _clip_frames(action)
+            n = check_clip_frames(n, f"clip {action.name!r}", options.get("max_clip_frames"))  # before allocating
             eval_at = sorted({n // 2, n - 1})
             for obj in meshes:  # the deformed meshes are only needed at eval_at
                 obj.hide_viewport = True
