@@ -158,6 +158,7 @@ def resampled_document(doc: dict, buffers: list[bytes], fps: float,
 
     Raises:
         ClipTooLong: a clip spans more than ``max_frames`` frames (:func:`frame_times`).
+        ValueError: a key time or value of a clip is NaN or infinite.
     """
     doc = json.loads(json.dumps(doc))
     blob = bytearray()
@@ -189,6 +190,7 @@ def resampled_document(doc: dict, buffers: list[bytes], fps: float,
         samplers = anim["samplers"]
         inputs = {s["input"]: read_accessor(doc, buffers, s["input"])[:, 0] for s in samplers}
         used = [inputs[samplers[c["sampler"]]["input"]] for c in channels]
+        _check_finite(anim, channels, samplers, inputs, doc, buffers)
         if not used:
             anim["channels"], anim["samplers"] = [], []
             continue
@@ -216,6 +218,19 @@ def resampled_document(doc: dict, buffers: list[bytes], fps: float,
 
 
 _TYPES_BY_WIDTH = {1: "SCALAR", 3: "VEC3", 4: "VEC4"}
+
+
+def _check_finite(anim: dict, channels: list, samplers: list, inputs: dict, doc: dict, buffers: list) -> None:
+    """Raise ValueError naming the clip, node and path when a key time or value of one of
+    ``channels`` is NaN or infinite (sampling would spread it over the clip, or Blender would
+    silently replace it)."""
+    for c in channels:
+        s = samplers[c["sampler"]]
+        for what, values in (("key times", inputs[s["input"]]), ("values", read_accessor(doc, buffers, s["output"]))):
+            bad = int(values.size - np.count_nonzero(np.isfinite(values)))
+            if bad:
+                raise ValueError(f"glTF animation {anim.get('name', '?')!r}: {bad} NaN or infinite {what} in the "
+                                 f"{c['target']['path']} of node {c['target']['node']}")
 
 
 def write_glb(path: str | Path, doc: dict, blob: bytes) -> Path:
