@@ -28,17 +28,35 @@ STATUS_HEADER = "missing / failed / not supported"
 
 
 def _fmt(value, key: str = "") -> str:
-    if value is None:
-        return "—"
+    if value is None or isinstance(value, float) and not math.isfinite(value):
+        return "—"  # never "nan": a non-finite mean is no average
     if isinstance(value, float):
         return f"{value:.4f}" if key == "seconds_per_case" else f"{value:.3f}"
     return str(value)
 
 
 def _status(row: dict) -> str:
-    if row["missing"] == row["failed"] == row["not_supported"] == 0:
+    refused = row.get("invalid", 0)
+    if row["missing"] == row["failed"] == row["not_supported"] == refused == 0:
         return "complete"
-    return f"{row['missing']} / {row['failed']} / {row['not_supported']}"
+    text = f"{row['missing']} / {row['failed']} / {row['not_supported']}"
+    return text + (f" + {refused} rows refused" if refused else "")
+
+
+def refused_lines(agg: dict, limit: int = 50) -> list[str]:
+    """Markdown lines listing the result rows that were not averaged, with the reason."""
+    refused = agg.get("refused") or []
+    if not refused:
+        return []
+    lines = ["### Rows not averaged", "", f"{len(refused)} result rows failed the checks (benchmark/result_checks.py) "
+             "and were left out; their methods get no average.", "", "| method | protocol | case | reason |",
+             "|---|---|---|---|"]
+    for r in refused[:limit]:
+        lines.append(f"| {r['method']} v{r['version']} | {r['protocol']} | {_md_cell(r['case_id'] or '—')} "
+                     f"| {_md_cell(_one_line(r['reason']))} |")
+    if len(refused) > limit:
+        lines.append(f"| … | | | {len(refused) - limit} more in leaderboard.json |")
+    return lines + [""]
 
 
 def _one_line(text, limit: int = 120) -> str:
@@ -98,6 +116,7 @@ def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str 
         for s in strips or []:
             if s["protocol"] == protocol:
                 lines += [f"![{s['title']}]({files_dir}/{Path(s['path']).name})", ""]
+    lines += refused_lines(agg)
     methods = agg.get("methods", {})
     if methods:
         lines += ["### Methods", "", "| method | licence | citation | toolkit | dataset fingerprints | from |",
@@ -197,6 +216,15 @@ def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dic
             if s["protocol"] == protocol:
                 parts.append(f"<figure class='strip'>{_img_tag(Path(s['path']).read_bytes(), s['title'])}</figure>")
         parts.append("</section>")
+    refused = agg.get("refused") or []
+    if refused:
+        parts.append(f"<h2>Rows not averaged</h2><p>{len(refused)} result rows failed the checks and were left out; "
+                     "their methods get no average.</p><table class='methods'><tr><th>method</th><th>protocol</th>"
+                     "<th>case</th><th>reason</th></tr>")
+        for r in refused:
+            parts.append(f"<tr><td>{e(r['method'])} v{e(r['version'])}</td><td>{e(r['protocol'])}</td>"
+                         f"<td>{e(str(r['case_id'] or '—'))}</td><td>{e(r['reason'])}</td></tr>")
+        parts.append("</table>")
     methods = agg.get("methods", {})
     if methods:
         parts.append("<h2>Methods</h2><table class='methods'><tr><th>method</th><th>licence</th><th>citation</th>"
@@ -225,6 +253,14 @@ def _els_metric(agg: dict, protocol: str) -> str | None:
     return None
 
 
+def default_out(results) -> Path:
+    """Where ``bench leaderboard RESULTS`` writes by default: ``RESULTS-leaderboard`` beside the
+    results folder, never into it (a leaderboard written into it would change the folder that
+    ``bench run`` wrote and that the leaderboard reads)."""
+    results = Path(results).absolute()
+    return results.with_name(results.name + "-leaderboard")
+
+
 def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str, Path]:
     """Write the leaderboard files into ``out_dir`` (default: the results folder).
 
@@ -236,11 +272,20 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str,
     Returns:
         Paths by kind: ``md``, ``csv``, ``matrix_csv``, ``json``, ``html``, ``files`` (folder).
     """
-    from benchmark.plots import protocol_figure_png
-
     check_results_provenance(results)  # refuses results of different dataset states
     agg = aggregate(results)
     out = Path(out_dir or results)
+    try:
+        return _write_files(results, agg, out, pictures)
+    except OSError as exc:  # a full disk or a read-only folder: name the folder, keep the reason
+        from mimicbench.errors import os_error_at
+
+        raise os_error_at(exc, out) from exc
+
+
+def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Path]:
+    from benchmark.plots import protocol_figure_png
+
     files = out / FILES_DIR
     files.mkdir(parents=True, exist_ok=True)
     plots = {}
