@@ -14,12 +14,14 @@ from __future__ import annotations
 import base64
 import csv
 import html
+import io
 import json
 import math
 from pathlib import Path
 
 from benchmark.aggregate import ALL, aggregate
 from benchmark.provenance import check_results_provenance
+from schemas.manifest import atomic_write_bytes
 
 FILES_DIR = "leaderboard_files"
 COUNT_COLUMNS = (("cases", "cases"), ("ok", "ok"), ("failed", "failed"), ("missing", "missing"),
@@ -253,6 +255,24 @@ def _els_metric(agg: dict, protocol: str) -> str | None:
     return None
 
 
+def _write_text(path: Path, text: str) -> None:
+    """Write a leaderboard file atomically (a full disk leaves the old file, never half a new one)."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+class _CsvFile(io.StringIO):
+    """A text buffer for :mod:`csv` that is written atomically to ``path`` on a clean exit."""
+
+    def __init__(self, path: Path):
+        super().__init__(newline="")
+        self.path = path
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            _write_text(self.path, self.getvalue())
+        return super().__exit__(exc_type, exc, tb)
+
+
 def default_out(results) -> Path:
     """Where ``bench leaderboard RESULTS`` writes by default: ``RESULTS-leaderboard`` beside the
     results folder, never into it (a leaderboard written into it would change the folder that
@@ -292,7 +312,7 @@ def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Pat
     for protocol, matrix in agg["matrix"].items():
         plots[protocol] = protocol_figure_png(protocol, matrix, agg["categories"].get(protocol, []),
                                               _els_metric(agg, protocol))
-        (files / f"plot-{protocol}.png").write_bytes(plots[protocol])
+        atomic_write_bytes(files / f"plot-{protocol}.png", plots[protocol])
     strips, note = [], None
     if pictures:
         from benchmark.leaderboard_strips import build_strips, render_strips
@@ -312,10 +332,10 @@ def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Pat
     for protocol in plots:
         heading = f"### {_title(agg, protocol)}\n"
         md = md.replace(heading, f"{heading}\n![{protocol} per category]({FILES_DIR}/plot-{protocol}.png)\n", 1)
-    paths["md"].write_text("# mimicbench leaderboard\n\n" + (f"_{note}_\n\n" if note else "") + md)
-    paths["json"].write_text(json.dumps(agg, indent=2, default=str) + "\n")
+    _write_text(paths["md"], "# mimicbench leaderboard\n\n" + (f"_{note}_\n\n" if note else "") + md)
+    _write_text(paths["json"], json.dumps(agg, indent=2, default=str) + "\n")
     metrics = agg["metrics"]
-    with open(paths["csv"], "w", newline="") as f:
+    with _CsvFile(paths["csv"]) as f:
         w = csv.writer(f)
         w.writerow(["protocol", "method", "version"] + [k for k, _ in COUNT_COLUMNS] + metrics
                    + ["seconds_per_case", "complete", "first_error"])
@@ -323,7 +343,7 @@ def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Pat
             for x in entries:
                 w.writerow([protocol, x["method"], x["version"]] + [x.get(k) for k, _ in COUNT_COLUMNS]
                            + [x.get(m) for m in metrics] + [x["seconds_per_case"], x["complete"], x["first_error"]])
-    with open(paths["matrix_csv"], "w", newline="") as f:
+    with _CsvFile(paths["matrix_csv"]) as f:
         w = csv.writer(f)
         w.writerow(["protocol", "headline", "method", "version", "category", "value", "cases"])
         for protocol, matrix in agg["matrix"].items():
@@ -331,5 +351,5 @@ def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Pat
                 for c in matrix["columns"]:
                     n = row["counts"].get(c, {}).get("cases") if c != ALL else row["ok"] + row["failed"]
                     w.writerow([protocol, matrix["headline"], row["method"], row["version"], c, row["cells"].get(c), n])
-    paths["html"].write_text(html_page(agg, plots, strips, note))
+    _write_text(paths["html"], html_page(agg, plots, strips, note))
     return paths

@@ -26,8 +26,12 @@ def metric_range_problem(name: str, value) -> str | None:
     for v in values:
         if v is None:
             continue
-        if not isinstance(v, (int, float)) or not math.isfinite(v):
-            return f"{name} = {v!r} is not a finite number"
+        if not isinstance(v, (int, float)):
+            return f"{name} = {v!r} is not a number"
+        if math.isnan(v):
+            return f"{name} is NaN"
+        if math.isinf(v):
+            return f"{name} is {'+' if v > 0 else '-'}infinite"
         if name.startswith("pmd") and v < 0:
             return f"{name} = {v:g} is negative (a PMD is a mean distance, >= 0)"
         if name.startswith("els") and v > 1:
