@@ -14,6 +14,9 @@ from schemas.shards import SHARD_RE, check_schema
 from schemas.tables import RECORD_TYPES, schema_of
 
 
+UNIQUE_IDS = {"characters": "character_id", "motions": "motion_id"}  # one row per ID, across splits
+
+
 def validate_dataset(root) -> list[str]:
     """Problems found in a dataset folder, each naming the file and why; empty when valid.
 
@@ -23,7 +26,7 @@ def validate_dataset(root) -> list[str]:
     out), exists, has the recorded size and sha256, reads as Parquet with the recorded row count,
     carries a compatible schema version and the contract's column types; no shard file on disk
     is unlisted; no NaN or infinite mesh or animation value (:data:`schemas.finite.FINITE_COLUMNS`);
-    a table derived from other tables of the same dataset (pairs from characters)
+    no character or motion ID held by two rows (:data:`UNIQUE_IDS`); a table derived from other tables of the same dataset (pairs from characters)
     still matches the fingerprints they had when it was made.
     """
     root = Path(root)
@@ -38,6 +41,7 @@ def validate_dataset(root) -> list[str]:
     if not is_complete(manifest):
         problems.append(incomplete_reason(root, manifest))
     listed = set()
+    ids: dict[str, dict[str, int]] = {}
     for table, info in sorted(manifest.get("tables", {}).items()):
         if table not in RECORD_TYPES:
             problems.append(f"{mpath}: unknown table {table!r}")
@@ -78,6 +82,14 @@ def validate_dataset(root) -> list[str]:
                 problems.append(str(exc))
             if meta.num_rows != entry.get("rows"):
                 problems.append(f"{path}: {meta.num_rows} rows, manifest says {entry.get('rows')}")
+            id_column = UNIQUE_IDS.get(table)
+            if id_column in schema.names:
+                try:
+                    counts = ids.setdefault(table, {})
+                    for value in pq.read_table(path, columns=[id_column]).column(id_column).to_pylist():
+                        counts[value] = counts.get(value, 0) + 1
+                except Exception as exc:
+                    problems.append(f"{path}: column {id_column!r} unreadable ({exc})")
             columns = [c for c in FINITE_COLUMNS.get(table, ()) if c in schema.names]
             if columns:
                 try:
@@ -93,6 +105,11 @@ def validate_dataset(root) -> list[str]:
         listed_rows = sum(e.get("rows", 0) for e in info.get("shards", []))
         if info.get("rows") is not None and info["rows"] != listed_rows:
             problems.append(f"{mpath}: table {table!r} says {info['rows']} rows, its shards {listed_rows}")
+    for table, counts in sorted(ids.items()):
+        repeated = sorted(k for k, n in counts.items() if n > 1)
+        if repeated:
+            problems.append(f"{root / table}: {len(repeated)} {UNIQUE_IDS[table]} values held by more than one row "
+                            f"({', '.join(map(str, repeated[:5]))}{', ...' if len(repeated) > 5 else ''})")
     for table in RECORD_TYPES:
         folder = root / table
         if not folder.is_dir():

@@ -278,3 +278,39 @@ def test_blender_assets_nan_rotation_far_key_and_a_pmx_beside_a_glb(tmp_path):
     assert chars[_hashed("ok", pmx)] == str(pmx.resolve())
     assert [m.motion_id for m in read_records(out, "motions")] == ["assets/ok/bend"]
     shutil.rmtree(out)
+
+
+@pytest.mark.slow
+def test_an_fbx_clip_longer_than_the_bound_is_a_failed_clip_row(assets_dir, tmp_path):
+    import subprocess
+    import sys
+
+    fbx = tmp_path / "ManFbx.fbx"
+    script = ("import bpy, sys\nbpy.ops.wm.read_factory_settings(use_empty=True)\n"
+              "bpy.ops.import_scene.gltf(filepath=sys.argv[-2])\n"
+              "bpy.ops.export_scene.fbx(filepath=sys.argv[-1], bake_anim=True, add_leaf_bones=False)\n")
+    subprocess.run([sys.executable, "-c", script, str(assets_dir / "glb" / "CesiumMan.glb"), str(fbx)], check=True,
+                   capture_output=True, timeout=300)
+    out = tmp_path / "ds"
+    s = ingest_assets([fbx], out, progress=False, max_clip_frames=10)
+    rows = read_records(out, "status")
+    clip_rows = [r for r in rows if r.asset.startswith(f"{fbx.resolve()}#")]
+    assert clip_rows and all(r.status == "failed" and "exceed the clip length bound of 10 frames" in r.reason
+                             for r in clip_rows)
+    assert s["failed"] == 0 and s["failed_clips"] == len(clip_rows)
+    assert len(read_records(out, "characters")) == 1 and read_records(out, "motions") == []
+    s = ingest_assets([fbx], tmp_path / "ds2", progress=False)  # the default bound takes the clip
+    assert s["failed_clips"] == 0 and len(read_records(tmp_path / "ds2", "motions")) >= 1
+
+
+def test_validate_reports_a_character_id_held_by_two_rows(tmp_path):
+    (tmp_path / "a.pmx").write_bytes(pmx_bytes())
+    out = tmp_path / "ds"
+    ingest_assets([tmp_path / "a.pmx"], out, progress=False)
+    (char,) = read_records(out, "characters")
+    other = "val" if char.split != "val" else "test"
+    twin = read_records(out, "characters")[0]
+    twin.split, twin.source = other, "/elsewhere/a.pmx"
+    write_records(out, "characters", [twin], other)  # the same ID in another split
+    problems = validate_dataset(out)
+    assert any("1 character_id values held by more than one row (assets/a)" in p for p in problems), problems
