@@ -52,10 +52,12 @@ def test_a_second_json_chunk_is_refused_by_the_check_and_the_loader(tmp_path):
     two.write_bytes(_glb(_chunk(b"JSON", harmless), _chunk(b"BIN\0", b"\0" * 4), _chunk(b"JSON", evil)))
     bin_first = folder / "BinFirst.glb"
     bin_first.write_bytes(_glb(_chunk(b"BIN\0", b"\0" * 4), _chunk(b"JSON", evil)))
-    past_end = folder / "PastEnd.glb"
-    past_end.write_bytes(_glb(_chunk(b"JSON", harmless))[:-4] + b"")
+    past_end = folder / "PastEnd.glb"  # a chunk longer than the file the header declares
+    past_end.write_bytes(_glb(struct.pack("<I", 4096) + b"JSON" + harmless))
+    cut = folder / "Cut.glb"  # the header declares more bytes than the file has
+    cut.write_bytes(_glb(_chunk(b"JSON", harmless))[:-4])
     for path, words in ((two, "second JSON chunk"), (bin_first, "first GLB chunk is not JSON"),
-                        (past_end, "runs past the end")):
+                        (past_end, "runs past the end"), (cut, "truncated GLB: the header says")):
         with pytest.raises(ValueError, match=words):
             external_uri_problems(path)
         with pytest.raises(ValueError, match=words):
@@ -66,7 +68,7 @@ def test_a_second_json_chunk_is_refused_by_the_check_and_the_loader(tmp_path):
     st = _status(out)
     assert st["Two.glb"].status == "failed" and "second JSON chunk" in st["Two.glb"].reason
     assert st["BinFirst.glb"].status == "failed" and st["PastEnd.glb"].status == "failed"
-    assert s["failed"] == 3 and [c.character_id for c in read_records(out, "characters")] == ["assets/good"]
+    assert s["failed"] == 4 and [c.character_id for c in read_records(out, "characters")] == ["assets/good"]
 
 
 def test_a_uri_that_is_a_list_and_a_top_level_array_are_failed_rows(tmp_path):

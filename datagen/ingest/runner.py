@@ -35,10 +35,10 @@ from datagen.ingest.uris import external_uri_problems
 from datagen.mmd.frame import MMD_UNIT_METRES
 from datagen.splits import split_of
 from mimicbench.argtypes import MAX_JOBS
+from mimicbench.errors import UserError
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.skinning import linear_blend_skinning
 from mimicbench.weights import SparseWeights
-from mimicbench.errors import UserError
 from schemas.character import CATEGORIES, CharacterRecord
 from schemas.finite import nonfinite_arrays
 from schemas.manifest import MANIFEST, mark_complete, mark_incomplete

@@ -3,9 +3,9 @@ its external resources: a buffer or image ``uri`` that points outside the asset'
 (``../x.bin``, ``/etc/passwd``, ``file:///...``) is refused unless the user allows it, so an
 untrusted asset cannot make ingest read arbitrary files.
 
-GLB (glTF 2.0 section 4.4): a 12-byte header (``glTF``, version, length), then chunks of
-(length, type, data); the first chunk is the JSON, optionally followed by one BIN chunk; other
-chunk types are ignored. A file with a second JSON chunk, a JSON chunk that is not first, a
+GLB (glTF 2.0 section 4.4): a 12-byte header (``glTF``, version, total length), then chunks of
+(length, type, data) up to that length; the first chunk is the JSON, optionally followed by one
+BIN chunk; other chunk types are ignored. A file with a second JSON chunk, a JSON chunk that is not first, a
 second BIN chunk or a chunk running past the end is refused here, so the URI check and the loader
 can never read different documents.
 """
@@ -29,6 +29,10 @@ def parse_glb(data: bytes, where: str = "GLB") -> tuple[bytes, bytes | None]:
     """
     if len(data) < 20:
         raise ValueError(f"{where}: truncated GLB header ({len(data)} bytes, expected at least 20)")
+    total = struct.unpack_from("<I", data, 8)[0]
+    if total > len(data):
+        raise ValueError(f"{where}: truncated GLB: the header says {total} bytes, the file has {len(data)}")
+    data = data[:total]  # bytes after the declared length are not part of the GLB
     offset, doc, blob, index = 12, None, None, 0
     while offset < len(data):
         if offset + 8 > len(data):
