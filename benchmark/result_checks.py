@@ -14,6 +14,9 @@ of distances, finite and >= 0; ``els*`` is 1 - a mean of |ratio - 1|, finite and
 from __future__ import annotations
 
 import math
+import numbers
+
+import numpy as np
 
 from schemas.result import STATUSES
 
@@ -22,11 +25,11 @@ def metric_range_problem(name: str, value) -> str | None:
     """Why ``value`` is not a valid ``name`` metric (None when it is, or when it is null)."""
     if value is None:
         return None
-    values = value if isinstance(value, (list, tuple)) else [value]
+    values = list(np.ravel(value)) if isinstance(value, (list, tuple, np.ndarray)) else [value]  # per-frame lists
     for v in values:
         if v is None:
             continue
-        if not isinstance(v, (int, float)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
             return f"{name} = {v!r} is not a number"
         if math.isnan(v):
             return f"{name} is NaN"

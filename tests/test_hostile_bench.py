@@ -278,3 +278,23 @@ def test_a_read_only_output_folder_is_one_line_in_zoo_ingest_bench_and_leaderboa
         assert main(argv) == 2, argv
         _one_line_error(capsys, str(ro))
     assert not any((ro / n).exists() for n in ("zoo", "ds", "res", "board"))
+
+
+def test_per_frame_metrics_are_range_checked_as_read_back(tmp_path):
+    """Apparel rows carry per-frame lists (read back as arrays): fine values pass, a NaN or a
+    negative frame is refused."""
+    res = tmp_path / "res"
+    rows = []
+    for i, frames in enumerate(([0.5, 0.7], [0.5, float("nan")], [0.5, -0.1], [0.5, 0.6])):
+        r = row(f"c{i}", "a", 0.6)
+        r.protocol, r.pmd_frames, r.els_frames = "apparel", frames, [0.99, 0.98]
+        rows.append(r)
+    rows[3].els_frames = [0.99, 1.5]
+    append_results(res / "a" / "1", rows)
+    write_run_info(res, {"dataset": "nowhere", "protocols": {"apparel": 4}})
+    agg = aggregate(res)
+    reasons = {r["case_id"]: r["reason"] for r in agg["refused"]}
+    assert reasons == {"c1": "pmd_frames is NaN", "c2": "pmd_frames = -0.1 is negative (a PMD is a mean distance, >= 0)",
+                       "c3": "els_frames = 1.5 is above 1 (ELS is 1 - mean |edge ratio - 1|, at most 1)"}
+    entry = agg["protocols"]["apparel"][0]
+    assert (entry["ok"], entry["invalid"], entry["pmd"]) == (1, 3, None)
