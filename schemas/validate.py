@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.errors import DatasetError
@@ -17,7 +18,7 @@ from schemas.tables import RECORD_TYPES, schema_of
 UNIQUE_IDS = {"characters": "character_id", "motions": "motion_id"}  # one row per ID, across splits
 
 
-def validate_dataset(root) -> list[str]:
+def validate_dataset(root, values: bool = False) -> list[str]:
     """Problems found in a dataset folder, each naming the file and why; empty when valid.
 
     Checks: manifest present and parseable with a known schema version; the dataset marked
@@ -25,7 +26,10 @@ def validate_dataset(root) -> list[str]:
     ``{table}/{split}-{i}-of-{n}.parquet`` inside the folder (no ``..``, absolute path or symlink
     out), exists, has the recorded size and sha256, reads as Parquet with the recorded row count,
     carries a compatible schema version and the contract's column types; no shard file on disk
-    is unlisted; no NaN or infinite mesh or animation value (:data:`schemas.finite.FINITE_COLUMNS`);
+    is unlisted; with ``values`` (``mimicbench validate`` asks for it), no NaN or infinite mesh or
+    animation value (:data:`schemas.finite.FINITE_COLUMNS`; this decodes those columns, several
+    times the cost of the checksums, so the stages' own end-of-run checks leave it out: ingest
+    checks every row it adds on the way in);
     no character or motion ID held by two rows (:data:`UNIQUE_IDS`); a table derived from other tables of the same dataset (pairs from characters)
     still matches the fingerprints they had when it was made.
     """
@@ -90,10 +94,13 @@ def validate_dataset(root) -> list[str]:
                         counts[value] = counts.get(value, 0) + 1
                 except Exception as exc:
                     problems.append(f"{path}: column {id_column!r} unreadable ({exc})")
-            columns = [c for c in FINITE_COLUMNS.get(table, ()) if c in schema.names]
+            columns = [c for c in FINITE_COLUMNS.get(table, ()) if c in schema.names] if values else []
             if columns:
                 try:
-                    bad = nonfinite_counts(pq.read_table(path, columns=columns), columns)
+                    bad = {}
+                    for batch in pq.ParquetFile(path).iter_batches(columns=columns):  # one row group's memory
+                        for column, n in nonfinite_counts(pa.Table.from_batches([batch]), columns).items():
+                            bad[column] = bad.get(column, 0) + n
                 except Exception as exc:
                     problems.append(f"{path}: columns {', '.join(columns)} unreadable ({exc})")
                     bad = {}
