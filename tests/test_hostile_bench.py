@@ -120,6 +120,7 @@ HEAD = "[pipeline]\nname = 't'\nworkdir = 'w'\n"
     ("run = 'zoo'\nout = '../../etc'\n", "outside the workdir"),
     ("run = 'zoo'\nout = '/tmp/elsewhere'\n", "outside the workdir"),
     ("run = 'zoo'\nout = 'zoo'\nhelp = true\n", "help = ... is not a step option"),
+    ("run = 'zoo'\nout = 'zoo'\nhel = true\n", "hel = ... is not a step option"),  # argparse's abbreviation
     ("run = 'cases'\ndataset = '../other'\n", "outside the workdir"),
     ("run = 'leaderboard'\nresults = 'r'\nout = 'r'\n", "inside the results folder it reads"),
     ("run = 'leaderboard'\nresults = 'r'\nout = 'r/board'\n", "inside the results folder it reads"),

@@ -79,7 +79,7 @@ STEP_KINDS = {
                             reads=(("results", None),), writes=(("out", None),)),
 }
 ENGINE_KEYS = ("engine", "ray_address", "jobs")  # where, not what: never part of a fingerprint
-REFUSED_KEYS = ("help", "h", "debug", "version")  # argparse actions that print and exit, or a global flag
+HELP = "help"  # --help, or an abbreviation argparse expands to it, prints and runs nothing
 LEADERBOARD_SUFFIX = "-leaderboard"
 
 
@@ -159,8 +159,8 @@ def load_pipeline(path, workdir=None) -> Pipeline:
         for key in ENGINE_KEYS:
             if key in raw:
                 raise ValueError(f"{path}: step {i} ({name}): {key} belongs in [pipeline] (it applies to every step)")
-        for key in REFUSED_KEYS:
-            if key in raw:
+        for key in raw:
+            if key and HELP.startswith(key.replace("_", "-")):
                 raise ValueError(f"{path}: step {i} ({name}): {key} = ... is not a step option (it would print and "
                                  f"run nothing); see `mimicbench {' '.join(STEP_KINDS[kind].command)} --help`")
         allow_outside = raw.pop("allow_outside", False)
