@@ -11,6 +11,10 @@ matrix per protocol.
   headline metric over the cases of that category, plus an ``all`` column. A case's column is its
   target category when both sides are humanoid-like (h2h), else the side that is not humanoid-like
   (cct: ``bird`` holds humanoid->bird and bird->humanoid), else ``source->target``.
+- Every row is checked first (:mod:`benchmark.result_checks`: its folder's method and version,
+  the run's protocols and case IDs, metric ranges, no NaN); a row that fails is listed in
+  ``refused`` with the reason, counted as ``invalid``, never averaged, and its method version gets
+  no average.
 - Method information (licence, citation, toolkit version, fingerprints) comes from
   ``<method>/<version>/meta.json`` when the run wrote one, else from the method registry.
 """
@@ -22,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmark.protocols.base import HUMANOID_LIKE
+from benchmark.result_checks import row_problem
 from benchmark.results import method_versions, read_result_records, read_run_info
 from schemas.result import ResultRecord
 
@@ -86,14 +91,15 @@ def _status_kind(status: str) -> str:
     return status if status in ("ok", "failed") else "not_supported"
 
 
-def _summarise(rows, expected: int | None, metrics: list[str]) -> dict:
+def _summarise(rows, expected: int | None, metrics: list[str], invalid: int = 0) -> dict:
     kinds = [_status_kind(r.status) for r in rows]
     ok = [r for r, k in zip(rows, kinds) if k == "ok"]
     failed, unsupported = kinds.count("failed"), kinds.count("not_supported")
     missing = max(0, (expected if expected is not None else len(rows)) - len(rows))
-    complete = failed == 0 and missing == 0 and unsupported == 0 and len(rows) > 0
+    complete = failed == 0 and missing == 0 and unsupported == 0 and invalid == 0 and len(rows) > 0
     entry = {"cases": len(rows), "ok": len(ok), "failed": failed, "missing": missing, "not_supported": unsupported,
-             "complete": complete, "seconds_per_case": float(np.mean([r.seconds for r in rows])) if rows else None}
+             "invalid": invalid, "complete": complete,
+             "seconds_per_case": float(np.mean([r.seconds for r in rows])) if rows else None}
     for m in metrics:
         vals = [getattr(r, m, None) for r in ok]
         vals = [v for v in vals if v is not None]
@@ -152,10 +158,13 @@ def _matrix(protocol: str, per_method: list[tuple[dict, list]], headline: str) -
             s = _summarise(crow, None, [headline])
             cells[col] = s[headline] if not entry["missing"] else None
             counts[col] = {k: s[k] for k in ("cases", "ok", "failed", "not_supported")}
+            if entry["invalid"]:
+                cells[col] = None
         cells[ALL] = entry[headline]
         out_rows.append({"method": entry["method"], "version": entry["version"], "cells": cells, "counts": counts,
                          "ok": entry["ok"], "failed": entry["failed"], "missing": entry["missing"],
-                         "not_supported": entry["not_supported"], "complete": entry["complete"]})
+                         "not_supported": entry["not_supported"], "invalid": entry["invalid"],
+                         "complete": entry["complete"]})
     return {"headline": headline, "lower_is_better": lower_is_better(headline), "columns": columns + [ALL],
             "rows": out_rows}
 
@@ -168,23 +177,42 @@ def aggregate(results) -> dict:
         method version and matrix column]}, "matrix": {protocol: {"headline", "lower_is_better",
         "columns", "rows"}}, "headline": {protocol: metric}, "titles": {protocol: what it measures},
         "metrics": [metric columns],
-        "methods": {"method/version": method_info}, "run": run.json}``. Each entry: method,
-        version, cases, ok, failed, missing, not_supported, complete, every metric (means; null
+        "methods": {"method/version": method_info}, "run": run.json, "refused": [{"method", "version",
+        "protocol", "case_id", "reason"} per row not averaged]}``. Each entry: method, version,
+        cases, ok, failed, missing, not_supported, invalid, complete, every metric (means; null
         unless complete), seconds_per_case, first_error.
     """
     info = read_run_info(results)
     expected = info.get("protocols", {})
     metrics = metric_columns()
+    checked = metrics + [c.name for c in ResultRecord.COLUMNS if c.kind == "list" and c.dtype.startswith("float")]
+    recorded_ids = {p: set(ids) for p, ids in (info.get("case_ids") or {}).items()}
     out = {"protocols": {}, "categories": {}, "matrix": {}, "headline": {}, "titles": {}, "metrics": metrics,
-           "methods": {}, "run": info}
+           "methods": {}, "run": {k: v for k, v in info.items() if k != "case_ids"}, "refused": []}
     grouped: dict[str, list] = {}
     for method, version in method_versions(results):
         minfo = method_info(results, method, version)
         out["methods"][f"{method}/{version}"] = minfo
-        rows = read_result_records(Path(results) / method / version)
-        for protocol in sorted(set(expected) | {r.protocol for r in rows}):
+        rows, refused = [], {}
+        for r in read_result_records(Path(results) / method / version):
+            problem = row_problem(r, method, version, checked, recorded_ids.get(r.protocol),
+                                  set(expected) if expected else None)
+            if problem is None:
+                rows.append(r)
+                continue
+            refused[r.protocol] = refused.get(r.protocol, 0) + 1
+            out["refused"].append({"method": method, "version": version, "protocol": r.protocol,
+                                   "case_id": r.case_id, "reason": problem})
+        for protocol in sorted(set(expected) | {r.protocol for r in rows} | set(refused)):
             prow = [r for r in rows if r.protocol == protocol]
-            entry = {"method": method, "version": version, **_summarise(prow, expected.get(protocol), metrics)}
+            extra = len(prow) - expected[protocol] if protocol in expected else 0
+            if extra > 0:  # more cases than the run asked for, and no case IDs recorded to tell which
+                refused[protocol] = refused.get(protocol, 0) + extra
+                out["refused"].append({"method": method, "version": version, "protocol": protocol, "case_id": None,
+                                       "reason": f"{len(prow)} rows for the run's {expected[protocol]} {protocol} "
+                                                 f"cases: {extra} not among them"})
+            entry = {"method": method, "version": version,
+                     **_summarise(prow, expected.get(protocol), metrics, refused.get(protocol, 0))}
             supported = minfo.get("protocols")
             if supported is not None and protocol not in supported and not prow:
                 entry.update(not_supported=entry["missing"], missing=0)
@@ -195,7 +223,7 @@ def aggregate(results) -> dict:
                 cats.setdefault(category_column(r.source_category, r.target_category), []).append(r)
             for key, crow in sorted(cats.items()):
                 centry = {"method": method, "version": version, "category": key, **_summarise(crow, None, metrics)}
-                if entry["missing"]:
+                if entry["missing"] or entry["invalid"]:
                     centry.update({m: None for m in metrics}, complete=False)
                 out["categories"].setdefault(protocol, []).append(centry)
     for key in ("protocols", "categories"):

@@ -99,7 +99,9 @@ def register(subparsers) -> None:
                         "a few sampled cases (source, ground truth, every method's prediction) through Blender. "
                         "Methods with failed, missing or unsupported cases show their counts and no average.")
     lb.add_argument("results")
-    lb.add_argument("--out", default=None, help="folder for the files (default: RESULTS)")
+    lb.add_argument("--out", default=None, help="folder for the files (default: RESULTS-leaderboard, beside RESULTS: "
+                                                "never into the folder it reads, so a re-run of bench finds its "
+                                                "results as it left them)")
     lb.add_argument("--no-pictures", action="store_true",
                     help="skip the rendered strips of sampled cases (they need Blender, about 30 s)")
     lb.set_defaults(func=run_leaderboard)
@@ -145,7 +147,9 @@ def run_leaderboard(args) -> int:
     from benchmark.leaderboard import markdown_tables, write_leaderboard
     from benchmark.aggregate import aggregate
 
-    paths = write_leaderboard(args.results, args.out, pictures=not args.no_pictures)
+    from benchmark.leaderboard import default_out
+
+    paths = write_leaderboard(args.results, args.out or default_out(args.results), pictures=not args.no_pictures)
     print(markdown_tables(aggregate(args.results)))
     print("wrote " + ", ".join(str(p) for p in paths.values()))
     return 0

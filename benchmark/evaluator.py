@@ -208,6 +208,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
     try:
         if ctx.rank == 0:
             write_run_info(out, {"dataset": str(dataset), "protocols": {p: len(c) for p, c in cases.items()},
+                                 "case_ids": {p: sorted(x.case_id for x in c) for p, c in cases.items()},
                                  "methods": {m.metadata.name: m.metadata.version for m in instances}})
         for method, meta in zip(instances, metas):
             folder = method_dir(out, method.metadata.name, method.metadata.version)

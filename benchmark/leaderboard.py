@@ -14,12 +14,14 @@ from __future__ import annotations
 import base64
 import csv
 import html
+import io
 import json
 import math
 from pathlib import Path
 
 from benchmark.aggregate import ALL, aggregate
 from benchmark.provenance import check_results_provenance
+from schemas.manifest import atomic_write_bytes
 
 FILES_DIR = "leaderboard_files"
 COUNT_COLUMNS = (("cases", "cases"), ("ok", "ok"), ("failed", "failed"), ("missing", "missing"),
@@ -28,17 +30,35 @@ STATUS_HEADER = "missing / failed / not supported"
 
 
 def _fmt(value, key: str = "") -> str:
-    if value is None:
-        return "—"
+    if value is None or isinstance(value, float) and not math.isfinite(value):
+        return "—"  # never "nan": a non-finite mean is no average
     if isinstance(value, float):
         return f"{value:.4f}" if key == "seconds_per_case" else f"{value:.3f}"
     return str(value)
 
 
 def _status(row: dict) -> str:
-    if row["missing"] == row["failed"] == row["not_supported"] == 0:
+    refused = row.get("invalid", 0)
+    if row["missing"] == row["failed"] == row["not_supported"] == refused == 0:
         return "complete"
-    return f"{row['missing']} / {row['failed']} / {row['not_supported']}"
+    text = f"{row['missing']} / {row['failed']} / {row['not_supported']}"
+    return text + (f" + {refused} rows refused" if refused else "")
+
+
+def refused_lines(agg: dict, limit: int = 50) -> list[str]:
+    """Markdown lines listing the result rows that were not averaged, with the reason."""
+    refused = agg.get("refused") or []
+    if not refused:
+        return []
+    lines = ["### Rows not averaged", "", f"{len(refused)} result rows failed the checks (benchmark/result_checks.py) "
+             "and were left out; their methods get no average.", "", "| method | protocol | case | reason |",
+             "|---|---|---|---|"]
+    for r in refused[:limit]:
+        lines.append(f"| {r['method']} v{r['version']} | {r['protocol']} | {_md_cell(r['case_id'] or '—')} "
+                     f"| {_md_cell(_one_line(r['reason']))} |")
+    if len(refused) > limit:
+        lines.append(f"| … | | | {len(refused) - limit} more in leaderboard.json |")
+    return lines + [""]
 
 
 def _one_line(text, limit: int = 120) -> str:
@@ -98,6 +118,7 @@ def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str 
         for s in strips or []:
             if s["protocol"] == protocol:
                 lines += [f"![{s['title']}]({files_dir}/{Path(s['path']).name})", ""]
+    lines += refused_lines(agg)
     methods = agg.get("methods", {})
     if methods:
         lines += ["### Methods", "", "| method | licence | citation | toolkit | dataset fingerprints | from |",
@@ -197,6 +218,15 @@ def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dic
             if s["protocol"] == protocol:
                 parts.append(f"<figure class='strip'>{_img_tag(Path(s['path']).read_bytes(), s['title'])}</figure>")
         parts.append("</section>")
+    refused = agg.get("refused") or []
+    if refused:
+        parts.append(f"<h2>Rows not averaged</h2><p>{len(refused)} result rows failed the checks and were left out; "
+                     "their methods get no average.</p><table class='methods'><tr><th>method</th><th>protocol</th>"
+                     "<th>case</th><th>reason</th></tr>")
+        for r in refused:
+            parts.append(f"<tr><td>{e(r['method'])} v{e(r['version'])}</td><td>{e(r['protocol'])}</td>"
+                         f"<td>{e(str(r['case_id'] or '—'))}</td><td>{e(r['reason'])}</td></tr>")
+        parts.append("</table>")
     methods = agg.get("methods", {})
     if methods:
         parts.append("<h2>Methods</h2><table class='methods'><tr><th>method</th><th>licence</th><th>citation</th>"
@@ -225,6 +255,32 @@ def _els_metric(agg: dict, protocol: str) -> str | None:
     return None
 
 
+def _write_text(path: Path, text: str) -> None:
+    """Write a leaderboard file atomically (a full disk leaves the old file, never half a new one)."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+class _CsvFile(io.StringIO):
+    """A text buffer for :mod:`csv` that is written atomically to ``path`` on a clean exit."""
+
+    def __init__(self, path: Path):
+        super().__init__(newline="")
+        self.path = path
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            _write_text(self.path, self.getvalue())
+        return super().__exit__(exc_type, exc, tb)
+
+
+def default_out(results) -> Path:
+    """Where ``bench leaderboard RESULTS`` writes by default: ``RESULTS-leaderboard`` beside the
+    results folder, never into it (a leaderboard written into it would change the folder that
+    ``bench run`` wrote and that the leaderboard reads)."""
+    results = Path(results).absolute()
+    return results.with_name(results.name + "-leaderboard")
+
+
 def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str, Path]:
     """Write the leaderboard files into ``out_dir`` (default: the results folder).
 
@@ -236,18 +292,27 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str,
     Returns:
         Paths by kind: ``md``, ``csv``, ``matrix_csv``, ``json``, ``html``, ``files`` (folder).
     """
-    from benchmark.plots import protocol_figure_png
-
     check_results_provenance(results)  # refuses results of different dataset states
     agg = aggregate(results)
     out = Path(out_dir or results)
+    try:
+        return _write_files(results, agg, out, pictures)
+    except OSError as exc:  # a full disk or a read-only folder: name the folder, keep the reason
+        from mimicbench.errors import os_error_at
+
+        raise os_error_at(exc, out) from exc
+
+
+def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Path]:
+    from benchmark.plots import protocol_figure_png
+
     files = out / FILES_DIR
     files.mkdir(parents=True, exist_ok=True)
     plots = {}
     for protocol, matrix in agg["matrix"].items():
         plots[protocol] = protocol_figure_png(protocol, matrix, agg["categories"].get(protocol, []),
                                               _els_metric(agg, protocol))
-        (files / f"plot-{protocol}.png").write_bytes(plots[protocol])
+        atomic_write_bytes(files / f"plot-{protocol}.png", plots[protocol])
     strips, note = [], None
     if pictures:
         from benchmark.leaderboard_strips import build_strips, render_strips
@@ -267,10 +332,10 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str,
     for protocol in plots:
         heading = f"### {_title(agg, protocol)}\n"
         md = md.replace(heading, f"{heading}\n![{protocol} per category]({FILES_DIR}/plot-{protocol}.png)\n", 1)
-    paths["md"].write_text("# mimicbench leaderboard\n\n" + (f"_{note}_\n\n" if note else "") + md)
-    paths["json"].write_text(json.dumps(agg, indent=2, default=str) + "\n")
+    _write_text(paths["md"], "# mimicbench leaderboard\n\n" + (f"_{note}_\n\n" if note else "") + md)
+    _write_text(paths["json"], json.dumps(agg, indent=2, default=str) + "\n")
     metrics = agg["metrics"]
-    with open(paths["csv"], "w", newline="") as f:
+    with _CsvFile(paths["csv"]) as f:
         w = csv.writer(f)
         w.writerow(["protocol", "method", "version"] + [k for k, _ in COUNT_COLUMNS] + metrics
                    + ["seconds_per_case", "complete", "first_error"])
@@ -278,7 +343,7 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str,
             for x in entries:
                 w.writerow([protocol, x["method"], x["version"]] + [x.get(k) for k, _ in COUNT_COLUMNS]
                            + [x.get(m) for m in metrics] + [x["seconds_per_case"], x["complete"], x["first_error"]])
-    with open(paths["matrix_csv"], "w", newline="") as f:
+    with _CsvFile(paths["matrix_csv"]) as f:
         w = csv.writer(f)
         w.writerow(["protocol", "headline", "method", "version", "category", "value", "cases"])
         for protocol, matrix in agg["matrix"].items():
@@ -286,5 +351,5 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str,
                 for c in matrix["columns"]:
                     n = row["counts"].get(c, {}).get("cases") if c != ALL else row["ok"] + row["failed"]
                     w.writerow([protocol, matrix["headline"], row["method"], row["version"], c, row["cells"].get(c), n])
-    paths["html"].write_text(html_page(agg, plots, strips, note))
+    _write_text(paths["html"], html_page(agg, plots, strips, note))
     return paths

@@ -101,13 +101,24 @@ def _read_part(path: Path) -> pa.Table | None:
 
 def read_results(folder: Path) -> pa.Table:
     """All result rows of one method version; when a case appears twice, the row stored last wins
-    (see the module docstring). Unusable parts are reported and skipped."""
+    (see the module docstring). Unusable parts are reported and skipped.
+
+    A row whose ``method``/``method_version`` is not the folder's (``<method>/<version>``: rows
+    copied from another method) never replaces one of the folder's own rows; it is kept only for a
+    case the folder has no own row for, so the leaderboard can show it as refused
+    (:mod:`benchmark.result_checks`)."""
+    folder = Path(folder)
     tables = [t for t in (_read_part(p) for p in part_files(folder)) if t is not None]
     if not tables:
         return schema_of("results").empty_table()
     table = pa.concat_tables(tables)
     ids = table.column("case_id").to_pylist()
-    last = {cid: i for i, cid in enumerate(ids)}
+    own = [m == folder.parent.name and v == folder.name
+           for m, v in zip(table.column("method").to_pylist(), table.column("method_version").to_pylist())]
+    last: dict = {}
+    for i, (cid, mine) in enumerate(zip(ids, own)):
+        if mine or cid not in last or not own[last[cid]]:
+            last[cid] = i
     return table.take(sorted(last.values()))
 
 
@@ -117,9 +128,12 @@ def read_result_records(folder: Path) -> list[ResultRecord]:
 
 def done_case_ids(folder: Path, include_failed: bool = True) -> set[str]:
     """Case IDs that already have a row (``ok``, and ``failed`` unless include_failed is False)."""
+    folder = Path(folder)
     t = read_results(folder)
     ids, status = t.column("case_id").to_pylist(), t.column("status").to_pylist()
-    return {c for c, s in zip(ids, status) if include_failed or s == "ok"}
+    own = [m == folder.parent.name and v == folder.name
+           for m, v in zip(t.column("method").to_pylist(), t.column("method_version").to_pylist())]
+    return {c for c, s, mine in zip(ids, status, own) if mine and (include_failed or s == "ok")}
 
 
 def write_run_info(results, info: dict) -> None:

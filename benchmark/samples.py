@@ -18,9 +18,7 @@ short digest of it (IDs hold ``/``, ``>`` and ``#``).
 from __future__ import annotations
 
 import hashlib
-import os
 import re
-import tempfile
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -72,16 +70,15 @@ def read_sample(method_folder, protocol: str, case_id: str) -> dict[str, np.ndar
 
 
 def _write(path: Path, arrays: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.npz", dir=path.parent)
-    os.close(fd)
-    try:
-        np.savez_compressed(tmp, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    """Write ``arrays`` as a compressed .npz, atomically (built in memory, then renamed into place;
+    a full disk is an OSError naming ``path``)."""
+    import io
+
+    from schemas.manifest import atomic_write_bytes
+
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 class SampleSink:

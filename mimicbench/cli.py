@@ -5,7 +5,8 @@ whose ``func`` default takes the parsed arguments and returns an exit code. Modu
 heavy dependencies inside ``func``, so ``mimicbench --help`` stays fast.
 
 User errors (:class:`~mimicbench.errors.UserError` and its subclasses such as ``DatasetError``,
-a missing file, a ``ValueError`` from an argument check) print ``mimicbench: error: ...`` and exit
+any ``OSError`` (a missing file, a full disk, a read-only folder), a ``ValueError`` from an
+argument check) print ``mimicbench: error: ...`` and exit
 with status 2; ``--debug`` (anywhere on the command line, or ``MIMICBENCH_DEBUG=1``) shows the
 traceback instead. ``--no-verify`` (or ``MIMICBENCH_VERIFY=0``) skips the sha256 check of every
 shard read, for speed on trusted data.
@@ -21,8 +22,9 @@ from mimicbench import __version__
 from mimicbench.errors import UserError
 
 # Exceptions that mean "the user asked for something impossible", not "mimicbench has a bug".
-USER_ERRORS = (UserError, FileNotFoundError, FileExistsError, NotADirectoryError, IsADirectoryError,
-               PermissionError, ValueError)
+# Any OSError (disk full, a read-only folder, a missing file) is the machine's state, not a bug:
+# shown as ``<path>: <reason>``.
+USER_ERRORS = (UserError, OSError, ValueError)
 
 # (group, module): group None puts the command at the top level.
 COMMAND_MODULES = (

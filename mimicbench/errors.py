@@ -10,3 +10,13 @@ from __future__ import annotations
 
 class UserError(Exception):
     """Bad input or a bad request, explained by the message; not a bug in mimicbench."""
+
+
+def os_error_at(exc: OSError, path) -> OSError:
+    """``exc`` as an OSError that names ``path`` (the file being written) when it names none, with
+    the underlying reason kept (pyarrow's disk-full error carries no file name; its text has the
+    "No space left on device")."""
+    if exc.filename is not None:
+        return exc
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    return OSError(exc.errno, reason, str(path))

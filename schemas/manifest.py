@@ -190,9 +190,13 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             os.fsync(f.fileno())
         chmod_like_open(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError):  # a full disk's write error names no file: name the one being written
+            from mimicbench.errors import os_error_at
+
+            raise os_error_at(exc, path) from exc
         raise
 
 

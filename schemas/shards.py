@@ -24,6 +24,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
+from mimicbench.errors import os_error_at
 from schemas.errors import DatasetError
 from schemas.fingerprint import stale_inputs
 from schemas.integrity import entry_path, verify_shard
@@ -174,8 +175,11 @@ def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int,
         pq.write_table(table, tmp, row_group_size=row_group_size, compression="zstd", **encoding)
         fsync_file(tmp)
         chmod_like_open(tmp)
-    except BaseException:
-        os.unlink(tmp)
+    except BaseException as exc:
+        if os.path.exists(tmp):  # pyarrow may already have removed it: never hide the real error behind that
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise os_error_at(exc, final) from exc
         raise
     return tmp
 

@@ -3,9 +3,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.errors import DatasetError
+from schemas.finite import FINITE_COLUMNS, nonfinite_counts
 from schemas.fingerprint import stale_inputs
 from schemas.integrity import entry_path
 from schemas.manifest import MANIFEST, incomplete_reason, is_complete, load_manifest, sha256_of
@@ -13,7 +15,10 @@ from schemas.shards import SHARD_RE, check_schema
 from schemas.tables import RECORD_TYPES, schema_of
 
 
-def validate_dataset(root) -> list[str]:
+UNIQUE_IDS = {"characters": "character_id", "motions": "motion_id"}  # one row per ID, across splits
+
+
+def validate_dataset(root, values: bool = False) -> list[str]:
     """Problems found in a dataset folder, each naming the file and why; empty when valid.
 
     Checks: manifest present and parseable with a known schema version; the dataset marked
@@ -21,7 +26,11 @@ def validate_dataset(root) -> list[str]:
     ``{table}/{split}-{i}-of-{n}.parquet`` inside the folder (no ``..``, absolute path or symlink
     out), exists, has the recorded size and sha256, reads as Parquet with the recorded row count,
     carries a compatible schema version and the contract's column types; no shard file on disk
-    is unlisted; a table derived from other tables of the same dataset (pairs from characters)
+    is unlisted; with ``values`` (``mimicbench validate`` asks for it), no NaN or infinite mesh or
+    animation value (:data:`schemas.finite.FINITE_COLUMNS`; this decodes those columns, several
+    times the cost of the checksums, so the stages' own end-of-run checks leave it out: ingest
+    checks every row it adds on the way in);
+    no character or motion ID held by two rows (:data:`UNIQUE_IDS`); a table derived from other tables of the same dataset (pairs from characters)
     still matches the fingerprints they had when it was made.
     """
     root = Path(root)
@@ -36,6 +45,7 @@ def validate_dataset(root) -> list[str]:
     if not is_complete(manifest):
         problems.append(incomplete_reason(root, manifest))
     listed = set()
+    ids: dict[str, dict[str, int]] = {}
     for table, info in sorted(manifest.get("tables", {}).items()):
         if table not in RECORD_TYPES:
             problems.append(f"{mpath}: unknown table {table!r}")
@@ -76,12 +86,37 @@ def validate_dataset(root) -> list[str]:
                 problems.append(str(exc))
             if meta.num_rows != entry.get("rows"):
                 problems.append(f"{path}: {meta.num_rows} rows, manifest says {entry.get('rows')}")
+            id_column = UNIQUE_IDS.get(table)
+            if id_column in schema.names:
+                try:
+                    counts = ids.setdefault(table, {})
+                    for value in pq.read_table(path, columns=[id_column]).column(id_column).to_pylist():
+                        counts[value] = counts.get(value, 0) + 1
+                except Exception as exc:
+                    problems.append(f"{path}: column {id_column!r} unreadable ({exc})")
+            columns = [c for c in FINITE_COLUMNS.get(table, ()) if c in schema.names] if values else []
+            if columns:
+                try:
+                    bad = {}
+                    for batch in pq.ParquetFile(path).iter_batches(columns=columns):  # one row group's memory
+                        for column, n in nonfinite_counts(pa.Table.from_batches([batch]), columns).items():
+                            bad[column] = bad.get(column, 0) + n
+                except Exception as exc:
+                    problems.append(f"{path}: columns {', '.join(columns)} unreadable ({exc})")
+                    bad = {}
+                for column, n in sorted(bad.items()):
+                    problems.append(f"{path}: column {column!r} holds {n} NaN or infinite values")
         stale = stale_inputs(root, manifest, table)
         if stale:
             problems.append(stale)
         listed_rows = sum(e.get("rows", 0) for e in info.get("shards", []))
         if info.get("rows") is not None and info["rows"] != listed_rows:
             problems.append(f"{mpath}: table {table!r} says {info['rows']} rows, its shards {listed_rows}")
+    for table, counts in sorted(ids.items()):
+        repeated = sorted(k for k, n in counts.items() if n > 1)
+        if repeated:
+            problems.append(f"{root / table}: {len(repeated)} {UNIQUE_IDS[table]} values held by more than one row "
+                            f"({', '.join(map(str, repeated[:5]))}{', ...' if len(repeated) > 5 else ''})")
     for table in RECORD_TYPES:
         folder = root / table
         if not folder.is_dir():

@@ -184,3 +184,67 @@ def test_cli_threads_sets_torch_threads_before_training(data, tmp_path, capsys, 
         assert "--threads" in capsys.readouterr().err and seen == [1]
     finally:
         torch.set_num_threads(before)
+
+
+def _flip(path: Path, offset: int) -> None:
+    data = bytearray(path.read_bytes())
+    data[offset] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def _zip_member_offset(path: Path, suffix: str) -> tuple[int, int]:
+    """(offset, size) of a stored member's data in a zip file, from its local header (APPNOTE 4.3.7)."""
+    import struct
+    import zipfile
+
+    with zipfile.ZipFile(path) as z:
+        info = next(i for i in z.infolist() if i.filename.endswith(suffix))
+    raw = path.read_bytes()
+    name_len, extra_len = struct.unpack_from("<HH", raw, info.header_offset + 26)
+    return info.header_offset + 30 + name_len + extra_len, info.compress_size
+
+
+def test_corrupt_checkpoints_are_refused_before_resume(data, tmp_path):
+    """Issue 31 item 8: a flipped byte in last.safetensors' tensor data, in an optimizer tensor or
+    in the pickle part of state.pt is refused with a one-line error, never resumed from."""
+    import hashlib
+    import json
+    import struct
+
+    run = tmp_path / "run"
+    train_stage("toy", "fit", data, run, config(), epochs=1, seed=1, progress=False)
+    last, state = run / "fit" / "last.safetensors", run / "fit" / "state.pt"
+    for path in (last, state, run / "fit" / "model.safetensors"):  # digest files in sha256sum's format
+        digest = checkpoint.digest_path(path).read_text()
+        assert digest == f"{hashlib.sha256(path.read_bytes()).hexdigest()}  {path.name}\n"
+    pristine = {p: p.read_bytes() for p in (last, state)}
+    header_len = struct.unpack_from("<Q", pristine[last])[0]  # safetensors: 8-byte header length, JSON, data
+    _flip(last, 8 + header_len + 5)
+    with pytest.raises(UserError, match=r"last\.safetensors: sha256 .* does not match last\.safetensors\.sha256"):
+        train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False)
+    last.write_bytes(pristine[last])
+    offset, size = _zip_member_offset(state, "/data/0")  # the first tensor: an optimizer moment
+    _flip(state, offset + size // 2)
+    with pytest.raises(UserError, match=r"state\.pt: sha256 .* does not match"):
+        train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False)
+    # a damaged pickle part whose digest was recomputed still gives one line, not a traceback
+    state.write_bytes(pristine[state])
+    offset, size = _zip_member_offset(state, "data.pkl")
+    _flip(state, offset + 2)
+    checkpoint.digest_path(state).write_text(f"{hashlib.sha256(state.read_bytes()).hexdigest()}  state.pt\n")
+    with pytest.raises(UserError, match=r"state\.pt: not a readable resume state"):
+        train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False)
+    garbled = tmp_path / "garbled.safetensors"
+    garbled.write_bytes(struct.pack("<Q", 40) + b"{not json" + b" " * 31)
+    with pytest.raises(UserError, match="garbled.safetensors: not a readable safetensors checkpoint"):
+        checkpoint.load_checkpoint(garbled)
+    # a missing digest is refused too; the untouched files resume as before
+    state.write_bytes(pristine[state])
+    checkpoint.digest_path(state).unlink()
+    with pytest.raises(UserError, match=r"no state\.pt\.sha256 beside it"):
+        train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False)
+    checkpoint.digest_path(state).write_text(f"{hashlib.sha256(pristine[state]).hexdigest()}  state.pt\n")
+    resumed = weights(train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False))
+    full = weights(train_stage("toy", "fit", data, tmp_path / "full", config(), epochs=2, seed=1, progress=False))
+    assert all(torch.equal(full[k], resumed[k]) for k in full)
+    assert json.loads((run / "config.json").read_text()) == config()

@@ -52,6 +52,7 @@ import bpy  # noqa: I001  (first, before anything that loads another Embree)
 import numpy as np
 
 from datagen.ingest.blender_pool import DONE_MARKER  # standard library only
+from datagen.ingest.clip_length import check_clip_frames  # standard library only
 from mimicbench.quaternion import matrix_to_quat  # numpy only
 
 C = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # Blender Z-up -> Y-up
@@ -87,7 +88,8 @@ def _import(path: str, options: dict, scratch: str) -> tuple[list[str], tuple[fl
                   if any(c["target"].get("path") in ("translation", "rotation", "scale") for c in a["channels"])}
         dropped = [a.get("name", f"animation {i}") for i, a in enumerate(doc.get("animations", []))
                    if a.get("name", f"animation {i}") not in moving]
-        doc, blob = resampled_document(doc, buffers, scene.render.fps / scene.render.fps_base)
+        doc, blob = resampled_document(doc, buffers, scene.render.fps / scene.render.fps_base,
+                                       options.get("max_clip_frames"))
         write_glb(scratch, doc, blob)
         try:
             bpy.ops.import_scene.gltf(filepath=scratch, bone_heuristic="BLENDER", guess_original_bind_pose=True)
@@ -631,6 +633,7 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
                 continue
             _start_clip(st, bindings)
             start, n = _clip_frames(bindings, step)
+            n = check_clip_frames(n, f"clip {name!r}", options.get("max_clip_frames"))  # before allocating
             posed = np.zeros((n, len(bones), 4, 4))
             for obj in meshes:  # no mesh is needed to sample the bones
                 obj.hide_viewport = True

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.argtypes import MAX_JOBS, comma_choices, job_count, positive_float
+from datagen.ingest.clip_length import MAX_CLIP_FRAMES
+from mimicbench.argtypes import MAX_JOBS, comma_choices, job_count, positive_float, positive_int
 from mimicbench.engines import add_engine_arguments
 
 EXPORT_FORMATS = ("obj", "bvh")  # as datagen.ingest.runner.EXPORT_FORMATS (kept here so --help stays fast)
@@ -78,6 +79,9 @@ def register(subparsers) -> None:
                        help="JSON mapping split name to a list of character IDs (others: hashed split)")
     p.add_argument("--allow-external-uris", action="store_true",
                    help="let glTF buffers and images point outside the asset's folder (refused by default)")
+    p.add_argument("--max-clip-frames", type=positive_int, default=MAX_CLIP_FRAMES, metavar="N",
+                   help=f"the most frames a clip may have, checked before it is sampled, for every format (default "
+                        f"{MAX_CLIP_FRAMES}: 20 minutes at 30 fps); a longer clip becomes a failed status row")
     p.add_argument("--motions", default=None, metavar="DIR",
                    help="folder of .vmd motions to play on every MMD model of the run (besides <stem>_<clip>.vmd)")
     add_engine_arguments(p)
@@ -107,7 +111,7 @@ def run(args) -> int:
     s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, args.export, not args.quiet,
                       bvh_scale=args.bvh_scale, allow_external_uris=args.allow_external_uris, split=args.split,
                       split_file=args.split_file, mmd_unit=args.mmd_unit, engine=engine_from_args(args),
-                      mesh_unit=args.mesh_unit)
+                      mesh_unit=args.mesh_unit, max_clip_frames=args.max_clip_frames)
     print(summarize_statuses([x for x in s["statuses"] if x.status != "skipped"]))
     for w in s["warnings"]:
         print(f"warning: {w}")

@@ -29,22 +29,12 @@ _FRAME_EPS = 1e-3  # frames: a clip spanning n - 1 + 0.999 frames has n samples
 
 def load_gltf(path: str | Path) -> tuple[dict, list[bytes]]:
     """(JSON document, bytes of each buffer) of a .glb or .gltf file (``data:`` or relative URIs)."""
+    from datagen.ingest.uris import gltf_document, resource_uris
+
     path = Path(path)
-    data = path.read_bytes()
-    if data[:4] == b"glTF":
-        offset, doc, blob = 12, None, b""
-        while offset + 8 <= len(data):
-            size, kind = struct.unpack_from("<II", data, offset)
-            chunk = data[offset + 8: offset + 8 + size]
-            if kind == 0x4E4F534A:
-                doc = json.loads(chunk.decode("utf-8"))
-            elif kind == 0x004E4942:
-                blob = bytes(chunk)
-            offset += 8 + size
-        if doc is None:
-            raise ValueError(f"{path}: a GLB without a JSON chunk")
-    else:
-        doc, blob = json.loads(data.decode("utf-8")), b""
+    doc, blob = gltf_document(path)  # the one GLB chunk parser, shared with the URI check
+    blob = blob or b""
+    resource_uris(doc, str(path))  # buffers a list of objects, each uri a string
     buffers = []
     for i, b in enumerate(doc.get("buffers") or []):
         uri = b.get("uri")
@@ -145,15 +135,31 @@ def sample(times: np.ndarray, values: np.ndarray, interpolation: str, t: np.ndar
     return out
 
 
-def frame_times(t0: float, t1: float, fps: float) -> np.ndarray:
-    """Sample times ``t0 + f / fps`` for f = 0 .. floor((t1 - t0) fps) (n, seconds)."""
-    n = int(math.floor((t1 - t0) * fps + _FRAME_EPS)) + 1
+def frame_times(t0: float, t1: float, fps: float, max_frames: int | None = None) -> np.ndarray:
+    """Sample times ``t0 + f / fps`` for f = 0 .. floor((t1 - t0) fps) (n, seconds).
+
+    Raises:
+        ClipTooLong: more than ``max_frames`` samples (default
+            :data:`datagen.ingest.clip_length.MAX_CLIP_FRAMES`), or a non-finite key time;
+            checked before any array is allocated.
+    """
+    from datagen.ingest.clip_length import check_clip_frames
+
+    span = (t1 - t0) * fps + _FRAME_EPS
+    what = f"glTF clip with keys from t = {t0:.6g} s to {t1:.6g} s at {fps:g} fps"
+    n = check_clip_frames(math.floor(span) + 1 if math.isfinite(span) else span, what, max_frames)
     return t0 + np.arange(n) / fps
 
 
-def resampled_document(doc: dict, buffers: list[bytes], fps: float) -> tuple[dict, bytes]:
+def resampled_document(doc: dict, buffers: list[bytes], fps: float,
+                       max_frames: int | None = None) -> tuple[dict, bytes]:
     """A copy of ``doc`` whose animations are LINEAR keys at every frame, with one new buffer
-    (the old buffers first, then the new keys). Returns (document, buffer bytes)."""
+    (the old buffers first, then the new keys). Returns (document, buffer bytes).
+
+    Raises:
+        ClipTooLong: a clip spans more than ``max_frames`` frames (:func:`frame_times`).
+        ValueError: a key time or value of a clip is NaN or infinite.
+    """
     doc = json.loads(json.dumps(doc))
     blob = bytearray()
     starts = []
@@ -184,10 +190,11 @@ def resampled_document(doc: dict, buffers: list[bytes], fps: float) -> tuple[dic
         samplers = anim["samplers"]
         inputs = {s["input"]: read_accessor(doc, buffers, s["input"])[:, 0] for s in samplers}
         used = [inputs[samplers[c["sampler"]]["input"]] for c in channels]
+        _check_finite(anim, channels, samplers, inputs, doc, buffers)
         if not used:
             anim["channels"], anim["samplers"] = [], []
             continue
-        times = frame_times(min(t.min() for t in used), max(t.max() for t in used), fps)
+        times = frame_times(min(t.min() for t in used), max(t.max() for t in used), fps, max_frames)
         time_acc = add(times[:, None])
         new_samplers, new_channels = [], []
         for c in channels:
@@ -211,6 +218,19 @@ def resampled_document(doc: dict, buffers: list[bytes], fps: float) -> tuple[dic
 
 
 _TYPES_BY_WIDTH = {1: "SCALAR", 3: "VEC3", 4: "VEC4"}
+
+
+def _check_finite(anim: dict, channels: list, samplers: list, inputs: dict, doc: dict, buffers: list) -> None:
+    """Raise ValueError naming the clip, node and path when a key time or value of one of
+    ``channels`` is NaN or infinite (sampling would spread it over the clip, or Blender would
+    silently replace it)."""
+    for c in channels:
+        s = samplers[c["sampler"]]
+        for what, values in (("key times", inputs[s["input"]]), ("values", read_accessor(doc, buffers, s["output"]))):
+            bad = int(values.size - np.count_nonzero(np.isfinite(values)))
+            if bad:
+                raise ValueError(f"glTF animation {anim.get('name', '?')!r}: {bad} NaN or infinite {what} in the "
+                                 f"{c['target']['path']} of node {c['target']['node']}")
 
 
 def write_glb(path: str | Path, doc: dict, blob: bytes) -> Path:

@@ -29,15 +29,18 @@ from datagen.ingest import blender_pool
 from datagen.ingest.asset_paths import BLENDER_SUFFIXES, FOLDER_SUFFIXES, expand_asset_paths
 from datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_rest_height
 from datagen.ingest.category import infer_category
+from datagen.ingest.clip_length import MAX_CLIP_FRAMES, check_clip_frames
 from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
 from datagen.ingest.uris import external_uri_problems
 from datagen.mmd.frame import MMD_UNIT_METRES
 from datagen.splits import split_of
 from mimicbench.argtypes import MAX_JOBS
+from mimicbench.errors import UserError
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.skinning import linear_blend_skinning
 from mimicbench.weights import SparseWeights
 from schemas.character import CATEGORIES, CharacterRecord
+from schemas.finite import nonfinite_arrays
 from schemas.manifest import MANIFEST, mark_complete, mark_incomplete
 from schemas.motion import MotionRecord
 from schemas.shards import has_table, read_records, write_records
@@ -66,6 +69,7 @@ class IngestOptions:
     category_map: dict = field(default_factory=dict)
     mmd_unit: float = MMD_UNIT_METRES
     mesh_unit: float = 1.0
+    max_clip_frames: int = MAX_CLIP_FRAMES
 
     def check(self) -> None:
         """Raise ValueError naming the option and the allowed range."""
@@ -85,6 +89,10 @@ class IngestOptions:
                 or not math.isfinite(self.mesh_unit) or not self.mesh_unit > 0:
             raise ValueError(f"--mesh-unit: expected metres per unit of the imported scene, a finite number greater "
                              f"than 0 (1: glTF's metres; 0.01 for a file authored in centimetres), got {self.mesh_unit!r}")
+        if isinstance(self.max_clip_frames, bool) or not isinstance(self.max_clip_frames, int) \
+                or self.max_clip_frames < 1:
+            raise ValueError(f"--max-clip-frames: expected a whole number of frames of at least 1 (default "
+                             f"{MAX_CLIP_FRAMES}), got {self.max_clip_frames!r}")
         if not isinstance(self.assets_per_process, int) or self.assets_per_process < 1:
             raise ValueError(f"assets_per_process: expected at least 1, got {self.assets_per_process!r}")
         unknown = [x for x in self.export if x not in EXPORT_FORMATS]
@@ -100,8 +108,12 @@ class IngestOptions:
             raise ValueError(f"--split: expected train, val or test, got {self.split!r}")
 
     def child_options(self, asset: Path) -> dict:
-        """The options that change what a child writes for ``asset`` (part of its cache key)."""
-        return {"bvh_scale": self.bvh_scale_for(asset)[0]} if asset.suffix.lower() == ".bvh" else {}
+        """The options that change what a child writes for ``asset`` (part of its cache key); the
+        clip length bound only when it is not the default (so default cache keys stay as they were)."""
+        out = {"bvh_scale": self.bvh_scale_for(asset)[0]} if asset.suffix.lower() == ".bvh" else {}
+        if self.max_clip_frames != MAX_CLIP_FRAMES:
+            out["max_clip_frames"] = int(self.max_clip_frames)
+        return out
 
     def bvh_scale_for(self, asset: Path) -> tuple[float, dict]:
         """Metres per unit of the BVH file ``asset`` and how it was chosen (``--bvh-scale``)."""
@@ -253,11 +265,58 @@ def _existing(out_dir: Path, table: str) -> list:
     return read_records(out_dir, table, allow_incomplete=True)
 
 
+def check_output_folder(out_dir: Path) -> None:
+    """Refuse an output folder that holds files but no ``manifest.json``: its shards would be
+    left unlisted and a fresh manifest would claim the dataset holds only this run's rows.
+
+    Raises:
+        UserError: ``out_dir`` is a non-empty folder (besides the ingest cache) without a manifest.
+    """
+    if not out_dir.is_dir() or (out_dir / MANIFEST).is_file():
+        return
+    present = sorted(p.name for p in out_dir.iterdir() if p.name != CACHE)
+    if present:
+        raise UserError(f"{out_dir}: not empty ({', '.join(present[:5])}{', ...' if len(present) > 5 else ''}) but has "
+                        f"no {MANIFEST}; ingest adds to a dataset folder or fills an empty one (restore the "
+                        f"manifest, or give another --out)")
+
+
+def asset_of_row(row_asset: str, assets: set[str]) -> str | None:
+    """The asset of ``assets`` a status row belongs to: the row's own path, or for a clip row
+    ``<asset>#<clip>`` the asset it starts with (a path may itself hold ``#``); None if neither."""
+    if row_asset in assets:
+        return row_asset
+    cut = row_asset.find("#")
+    while cut >= 0:
+        if row_asset[:cut] in assets:
+            return row_asset[:cut]
+        cut = row_asset.find("#", cut + 1)
+    return None
+
+
+def _replace_status(statuses: list, asset: str, row: StatusRecord) -> list:
+    """``statuses`` with the rows of ``asset`` itself (not its clips) replaced by ``row``."""
+    return [s for s in statuses if s.asset != asset] + [row]
+
+
+def bvh_declared_frames(path: Path) -> int | None:
+    """The ``Frames:`` count of a BVH file's MOTION section (None when the file has none)."""
+    with open(path, "rb") as f:
+        for raw in f:
+            line = raw.strip()
+            if line.upper().startswith(b"FRAMES:"):
+                try:
+                    return int(line.split(b":", 1)[1].strip())
+                except ValueError:
+                    raise ValueError(f"{path}: BVH 'Frames:' line is not a whole number: {line[:60]!r}") from None
+    return None
+
+
 def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, category_map: dict | None = None,
                   export=(), progress: bool = True, bvh_scale: float = DEFAULT_BVH_SCALE,
                   allow_external_uris: bool = False, split: str | None = None, split_file: str | None = None,
                   assets_per_process: int = 50, mmd_unit: float = MMD_UNIT_METRES, engine=None,
-                  mesh_unit: float = 1.0) -> dict:
+                  mesh_unit: float = 1.0, max_clip_frames: int = MAX_CLIP_FRAMES) -> dict:
     """Ingest assets into ``out_dir`` (keeping what earlier runs put there); returns a summary.
 
     Args:
@@ -283,18 +342,25 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task of 1 CPU and
             3 GiB with its worker's own Blender process (:mod:`datagen.ingest.engine_task`); None
             or a local engine keeps ``jobs`` Blender processes here. The output is the same.
+        max_clip_frames: the most frames a clip may have (:mod:`.clip_length`), checked for every
+            format before a clip is sampled; a longer clip is a failed status row.
+
+    A character or clip with a NaN or infinite value (vertex, joint, transform, stretch) is not
+    stored: the asset (mesh or joints) or the clip (``<asset>#<clip>``) gets a failed status row.
 
     Raises:
         ValueError: an option out of range (the message says what is allowed).
+        UserError: ``out_dir`` holds files but no manifest (:func:`check_output_folder`).
     """
     from datagen.splits import load_split_file
 
     opts = IngestOptions(jobs, timeout, bvh_scale, allow_external_uris, tuple(export), split, split_file,
-                         assets_per_process, dict(category_map or {}), mmd_unit, mesh_unit)
+                         assets_per_process, dict(category_map or {}), mmd_unit, mesh_unit, max_clip_frames)
     opts.check()
     split_map = load_split_file(split_file) if split_file else {}
     start = time.perf_counter()
     out_dir = Path(out_dir)
+    check_output_folder(out_dir)
     cache = out_dir / CACHE
     cache.mkdir(parents=True, exist_ok=True)
     old_chars, old_motions, old_status = (_existing(out_dir, t) for t in ("characters", "motions", "status"))
@@ -313,11 +379,21 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
             problem = "file not found"
         elif a.suffix.lower() not in SUPPORTED:
             problem = f"unsupported file type {a.suffix!r}; expected one of {', '.join(SUPPORTED)}"
-        elif a.suffix.lower() in (".gltf", ".glb") and not allow_external_uris:
-            uris = external_uri_problems(a)
-            if uris:
+        elif a.suffix.lower() in (".gltf", ".glb"):
+            try:
+                uris = external_uri_problems(a)  # also refuses a malformed GLB or JSON (one parser with the loader)
+            except (ValueError, OSError) as exc:
+                uris, problem = [], str(exc)
+            if uris and not allow_external_uris:
                 problem = ("refused: " + "; ".join(uris) + " (resources outside the asset's folder are read only with "
                            "--allow-external-uris)")
+        elif a.suffix.lower() == ".bvh":
+            try:
+                declared = bvh_declared_frames(a)
+                if declared is not None:
+                    check_clip_frames(declared, f"{a}: BVH 'Frames: {declared}'", opts.max_clip_frames)
+            except (ValueError, OSError) as exc:
+                problem = str(exc)
         if problem:
             statuses.append(StatusRecord(str(a), "ingest", "failed", problem, 0.0))
             continue
@@ -374,12 +450,27 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         sp = split or split_map.get(cid) or split_of(cid)
         c, m = records_from_cache(a, cache, key, cid, sp, category_map,
                                  opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None, mesh_unit)
-        chars.append(c)
-        motions.extend(m)
+        bad = nonfinite_arrays(c, ("vertices", "keypoints", "weight_values"))
+        if bad:
+            statuses = _replace_status(statuses, str(a), StatusRecord(
+                str(a), "ingest", "failed", f"non-finite values (NaN or inf) in {', '.join(bad)}: not stored", 0.0))
+            continue
         for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
             statuses.append(StatusRecord(f"{a}#{e['name']}", "ingest", "failed", f"clip {e['name']!r}: {e['reason']}", 0.0))
+        kept = []
+        for rec in m:
+            bad = nonfinite_arrays(rec, ("transforms", "scale"))
+            if bad:
+                statuses.append(StatusRecord(f"{a}#{rec.name}", "ingest", "failed",
+                                             f"clip {rec.name!r}: non-finite values (NaN or inf) in {', '.join(bad)}: "
+                                             f"not stored", 0.0))
+            else:
+                kept.append(rec)
+        chars.append(c)
+        motions.extend(kept)
     mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), scale=float(opts.mmd_unit),
-                     progress=progress and bool(mmd_assets), out_dir=out_dir)
+                     progress=progress and bool(mmd_assets), out_dir=out_dir, taken=taken,
+                     max_frames=opts.max_clip_frames)
     for c in mmd.characters:
         c.split = split or split_map.get(c.character_id) or c.split
     mmd_split = {c.character_id: c.split for c in mmd.characters}
@@ -404,7 +495,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     motions = [m for m in old_motions if m.character_id not in new_ids] + motions
     this_run = ({str(a) for a in assets} | {str(a) for a in mmd_assets} | {s.asset for s in mmd.statuses}
                 | set(empty_folders))
-    statuses = [s for s in old_status if s.asset.split("#")[0] not in this_run] + statuses
+    statuses = [s for s in old_status if asset_of_row(s.asset, this_run) is None] + statuses
     config = {"stage": "ingest", "timeout": timeout, "category_map": opts.category_map, "bvh_scale": bvh_scale,
               "allow_external_uris": allow_external_uris, "mesh_unit": mesh_unit, "split": split, "split_file": split_file,
               "cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"}
@@ -425,9 +516,10 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     problems = validate_dataset(out_dir)
     if problems:
         raise RuntimeError("ingest wrote an invalid dataset:\n" + "\n".join(problems))
-    run_status = [s for s in statuses if s.asset.split("#")[0] in this_run]
+    run_status = [s for s in statuses if asset_of_row(s.asset, this_run) is not None]
+    is_clip = [asset_of_row(s.asset, this_run) != s.asset for s in run_status]
     return {"assets": len(assets) + len(mmd_assets), "ingested": sum(s.status == "ok" for s in run_status), "skipped": skipped,
-            "failed": sum(s.status == "failed" and "#" not in s.asset for s in run_status),
-            "failed_clips": sum(s.status == "failed" and "#" in s.asset for s in run_status),
+            "failed": sum(s.status == "failed" and not c for s, c in zip(run_status, is_clip)),
+            "failed_clips": sum(s.status == "failed" and c for s, c in zip(run_status, is_clip)),
             "characters": len(chars), "motions": len(motions), "seconds": time.perf_counter() - start,
             "statuses": run_status, "character_ids": {str(a): plan[a][1] for a in plan}, "warnings": warnings}

@@ -1,6 +1,7 @@
 """The ``datagen ingest`` path for MMD files: no Blender, the bounded readers of this package.
 
-A .pmx/.pmd file becomes a character (``assets/<stem>``) with its rigid bodies and joints
+A .pmx/.pmd file becomes a character (``assets/<stem>``, or ``assets/<stem>-<path hash>`` when
+another source file already holds that ID: :func:`datagen.ingest.identity.character_id_for`) with its rigid bodies and joints
 (tables ``rigid_bodies`` and ``joints``). Motions: a .vmd beside a model named ``<stem>.vmd`` or
 ``<stem>_<clip>.vmd`` plays on that model, and so does a .vmd given on the command line with such
 a name; any other .vmd given on the command line (or found in ``--motions DIR``) plays on every
@@ -66,7 +67,7 @@ def motions_for(model: Path, models: list[Path], given: list[Path]) -> list[tupl
 
 
 def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progress: bool = False,
-               out_dir=None) -> MMDIngest:
+               out_dir=None, taken: dict | None = None, max_frames: int | None = None) -> MMDIngest:
     """Read MMD models and their motions into records.
 
     Args:
@@ -75,7 +76,13 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
             standard humanoid bones are present).
         scale: metres per MMD unit (default 0.08).
         out_dir: when given, the ``rigid_bodies`` and ``joints`` tables are written there (per split).
+        taken: character ID -> source path already holding it (the dataset's and this run's other
+            formats); updated with the IDs given here, so no two sources share an ID.
+        max_frames: the most frames a motion may have (default
+            :data:`datagen.ingest.clip_length.MAX_CLIP_FRAMES`); a longer one is a failed row.
     """
+    from datagen.ingest.identity import character_id_for
+
     from tqdm.auto import tqdm
 
     from datagen.mmd.motion import motion_from_vmd
@@ -87,7 +94,9 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
     given = [Path(p) for p in paths if Path(p).suffix.lower() in MOTION_SUFFIXES]
     for path in tqdm(models, desc="ingest mmd", unit="model", disable=not progress):
         start = time.perf_counter()
-        cid = f"assets/{path.stem}"
+        taken = {} if taken is None else taken
+        cid = character_id_for(path, taken)
+        taken[cid] = str(path)
         try:
             model = read_model(path)
             category = category_for(path) if category_for else "unknown"
@@ -106,7 +115,8 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
         for vmd_path, name in motions_for(path, models, given):
             start = time.perf_counter()
             try:
-                rec, report = motion_from_vmd(read_vmd(vmd_path), model, char, name, str(vmd_path), scale)
+                rec, report = motion_from_vmd(read_vmd(vmd_path), model, char, name, str(vmd_path), scale,
+                                              max_frames=max_frames)
             except (ValueError, OSError) as e:
                 out.statuses.append(StatusRecord(str(vmd_path), "ingest", "failed", _reason(e, vmd_path),
                                                  time.perf_counter() - start))

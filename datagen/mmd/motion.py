@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from datagen.ingest.clip_length import check_clip_frames
 from datagen.mmd import frame
 from datagen.mmd.bezier import bezier_weight, control_points
 from datagen.mmd.model import MMDModel
@@ -49,11 +50,12 @@ def match_bones(track_names: list[str], model: MMDModel) -> tuple[dict[str, int]
     return out, {"matched": len(out), "matched_by_prefix": by_prefix, "unmatched": missing}
 
 
-def sample_channels(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None):
+def sample_channels(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None, max_frames: int | None = None):
     """Animated local rotations (F, K, 4) (w, x, y, z) and translations (F, K, 3) of the model's
     bones (file order, file frame, MMD units) at frames 0..F-1, and the matching report."""
     k = len(model.bones)
     f = (vmd.last_frame + 1) if num_frames is None else num_frames
+    f = check_clip_frames(f, f"VMD motion (last key at frame {vmd.last_frame})", max_frames)
     rot = np.zeros((f, k, 4))
     rot[..., 0] = 1.0
     trans = np.zeros((f, k, 3))
@@ -111,10 +113,11 @@ def ik_switches(vmd: VMDMotion, model: MMDModel, num_frames: int) -> tuple[np.nd
     return on, {"ik_keys": int(len(vmd.ik_frames)), "ik_off_frames": off, "ik_unmatched": sorted(unmatched)}
 
 
-def pose_clip(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None, chunk: int = 512):
+def pose_clip(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None, chunk: int = 512,
+              max_frames: int | None = None):
     """Global rotations (F, K, 3, 3) and bone heads (F, K, 3) in the file's frame, and the report
     (frames posed ``chunk`` at a time; IK bones switched off by show/IK keys do not solve)."""
-    rot, trans, report = sample_channels(vmd, model, num_frames)
+    rot, trans, report = sample_channels(vmd, model, num_frames, max_frames)
     ik_on, ik_report = ik_switches(vmd, model, len(rot))
     report.update(ik_report)
     poser = MMDPoser(model)
@@ -126,10 +129,15 @@ def pose_clip(vmd: VMDMotion, model: MMDModel, num_frames: int | None = None, ch
 
 
 def motion_from_vmd(vmd: VMDMotion, model: MMDModel, character, name: str, source: str = "",
-                    scale: float = frame.MMD_UNIT_METRES) -> tuple[MotionRecord, dict]:
+                    scale: float = frame.MMD_UNIT_METRES, max_frames: int | None = None) -> tuple[MotionRecord, dict]:
     """The motion record of ``vmd`` on ``character`` (the record of ``model``; bones in its order),
-    in the dataset frame, and the matching report."""
-    R, t, report = pose_clip(vmd, model)
+    in the dataset frame, and the matching report.
+
+    Raises:
+        ClipTooLong: the clip (frames 0 to the last key) has more than ``max_frames`` frames
+            (default :data:`datagen.ingest.clip_length.MAX_CLIP_FRAMES`); checked before sampling.
+    """
+    R, t, report = pose_clip(vmd, model, max_frames=max_frames)
     order = np.asarray(character.meta["mmd"]["file_bone_index"])
     q = frame.quat(matrix_to_quat(R[:, order]))
     p = frame.point(t[:, order], scale)

@@ -12,7 +12,8 @@ def register(subparsers) -> None:
         "sha256 as recorded, readable Parquet with the recorded rows, a known schema version and the "
         "contract's column types; the dataset marked complete (not left half-written by a killed stage); "
         "tables derived from other tables of DIR (pairs from characters) still matching their "
-        "fingerprints; no unlisted shard on disk. Exits 1 and names each bad file and why.",
+        "fingerprints; no unlisted shard on disk; no NaN or infinite mesh or animation value; no character or "
+        "motion ID held by two rows. Exits 1 and names each bad file and why.",
     )
     p.add_argument("dataset", help="dataset folder (holds manifest.json)")
     p.set_defaults(func=run)
@@ -22,7 +23,7 @@ def run(args: argparse.Namespace) -> int:
     from schemas.manifest import load_manifest
     from schemas.validate import validate_dataset
 
-    problems = validate_dataset(args.dataset)
+    problems = validate_dataset(args.dataset, values=True)
     if problems:
         for p in problems:
             print(f"INVALID {p}")

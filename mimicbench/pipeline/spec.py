@@ -13,7 +13,12 @@ characters = 16
 ```
 
 Every other key of a step is the command's option with ``_`` for ``-`` (``all_pairs = true`` is
-``--all-pairs``; a list is joined with commas). :data:`STEP_KINDS` says, per kind, which keys are
+``--all-pairs``; a list is joined with commas); ``help`` is refused (it would print the help and
+run nothing). The folders a step writes must lie inside the workdir (``../../etc`` or an absolute
+path elsewhere is refused) unless the step says ``allow_outside = true``. A leaderboard step
+without ``out`` writes beside its results, into ``<results>-leaderboard``, never into the
+results folder it reads (that would change the bench step's output and its own input, so a
+finished pipeline would redo both on every run). :data:`STEP_KINDS` says, per kind, which keys are
 the command's folders (positional arguments or ``--out``), which tables of which folder the step
 reads (its fingerprint) and what it writes (checked before a step is skipped).
 """
@@ -74,6 +79,8 @@ STEP_KINDS = {
                             reads=(("results", None),), writes=(("out", None),)),
 }
 ENGINE_KEYS = ("engine", "ray_address", "jobs")  # where, not what: never part of a fingerprint
+HELP = "help"  # --help, or an abbreviation argparse expands to it, prints and runs nothing
+LEADERBOARD_SUFFIX = "-leaderboard"
 
 
 @dataclass
@@ -83,6 +90,7 @@ class Step:
     name: str
     kind: str
     options: dict = field(default_factory=dict)
+    allow_outside: bool = False
 
     @property
     def spec(self) -> StepKind:
@@ -91,8 +99,8 @@ class Step:
     def folder(self, key: str, workdir: Path) -> list[Path]:
         """The folders (or files) of ``key``, resolved against ``workdir`` ([] when unset)."""
         value = self.options.get(key)
-        if value is None and key == "out" and self.kind == "leaderboard":
-            value = self.options.get("results")
+        if value is None and key == "out" and self.kind == "leaderboard" and self.options.get("results") is not None:
+            value = str(self.options["results"]).rstrip("/\\") + LEADERBOARD_SUFFIX
         if value is None:
             return []
         values = value if isinstance(value, list) else [value]
@@ -151,7 +159,14 @@ def load_pipeline(path, workdir=None) -> Pipeline:
         for key in ENGINE_KEYS:
             if key in raw:
                 raise ValueError(f"{path}: step {i} ({name}): {key} belongs in [pipeline] (it applies to every step)")
-        steps.append(Step(name, kind, raw))
+        for key in raw:
+            if key and HELP.startswith(key.replace("_", "-")):
+                raise ValueError(f"{path}: step {i} ({name}): {key} = ... is not a step option (it would print and "
+                                 f"run nothing); see `mimicbench {' '.join(STEP_KINDS[kind].command)} --help`")
+        allow_outside = raw.pop("allow_outside", False)
+        if not isinstance(allow_outside, bool):
+            raise ValueError(f"{path}: step {i} ({name}): allow_outside = {allow_outside!r}; expected true or false")
+        steps.append(Step(name, kind, raw, allow_outside))
     engine = head.get("engine", "local")
     if engine not in ("local", "ray"):
         raise ValueError(f"{path}: [pipeline] engine = {engine!r}; expected \"local\" or \"ray\"")
@@ -159,7 +174,30 @@ def load_pipeline(path, workdir=None) -> Pipeline:
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"{path}: [pipeline] jobs = {jobs!r}; expected an integer >= 1")
     root = Path(workdir if workdir is not None else head.get("workdir", "."))
+    for i, step in enumerate(steps, 1):
+        _check_step_folders(path, i, step, root)
     return Pipeline(str(head.get("name", path.stem)), root, steps, engine, head.get("ray_address"), jobs, path)
+
+
+def _check_step_folders(path: Path, i: int, step: Step, workdir: Path) -> None:
+    """Refuse a step that writes outside ``workdir`` (unless ``allow_outside``), and a leaderboard
+    that writes into (or under) the results folder it reads."""
+    where = f"{path}: step {i} ({step.name})"
+    root = workdir.resolve()
+    if not step.allow_outside:
+        for key, _ in step.spec.writes:
+            for folder in step.folder(key, workdir):
+                if not folder.resolve().is_relative_to(root):
+                    raise ValueError(f"{where}: {key} = {str(step.options.get(key, folder))!r} resolves to "
+                                     f"{folder.resolve()}, outside the workdir {root}; a step writes inside the "
+                                     f"workdir (add allow_outside = true to the step to write there on purpose)")
+    if step.kind == "leaderboard":
+        results = [f.resolve() for f in step.folder("results", workdir)]
+        for out in step.folder("out", workdir):
+            if any(out.resolve().is_relative_to(r) for r in results):
+                raise ValueError(f"{where}: out = {str(step.options.get('out'))!r} is inside the results folder it "
+                                 f"reads; give another folder (the default is beside it: "
+                                 f"<results>{LEADERBOARD_SUFFIX})")
 
 
 def step_argv(step: Step, pipeline: Pipeline) -> list[str]:
@@ -168,7 +206,10 @@ def step_argv(step: Step, pipeline: Pipeline) -> list[str]:
     argv = list(spec.command)
     for key in spec.positional:
         argv += [str(p) for p in step.folder(key, pipeline.workdir)]
-    for key, value in step.options.items():
+    options = dict(step.options)
+    if step.kind == "leaderboard" and "out" not in options:
+        options["out"] = str(step.folder("out", pipeline.workdir)[0])  # beside the results, not into them
+    for key, value in options.items():
         if key in spec.positional:
             continue
         flag = "--" + key.replace("_", "-")

@@ -5,6 +5,12 @@ under the metadata key ``mimicbench``, a JSON header: ``model``, ``stage``, ``co
 model config the module was built from), ``epoch`` (epochs trained), ``dataset`` (its folder
 name, schema version and table fingerprints from manifest.json) and provenance (toolkit and torch
 versions, UTC time; no git). Loading never unpickles anything.
+
+Every file written here gets a digest file beside it, ``<name>.sha256`` (``sha256sum`` format:
+``<hex>  <name>``). :func:`verify_digest` checks a file against it; training verifies the
+checkpoint and the resume state before resuming, so a flipped byte is refused, never trained on.
+Any checkpoint or resume state that cannot be read is a :class:`~mimicbench.errors.UserError`
+naming the file (one line, no traceback).
 """
 from __future__ import annotations
 
@@ -16,7 +22,10 @@ from typing import Callable
 
 import torch
 
+from mimicbench.errors import UserError
+
 HEADER_KEY = "mimicbench"
+DIGEST_SUFFIX = ".sha256"
 
 
 def dataset_provenance(dataset: str | os.PathLike) -> dict:
@@ -44,10 +53,53 @@ def provenance() -> dict:
             "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
+def digest_path(path: str | os.PathLike) -> Path:
+    """The digest file beside ``path``: ``<name>.sha256``."""
+    path = Path(path)
+    return path.with_name(path.name + DIGEST_SUFFIX)
+
+
 def _atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` and its sha256 to :func:`digest_path` (each atomically)."""
+    import hashlib
+
     from schemas.manifest import atomic_write_bytes
 
     atomic_write_bytes(path, data)
+    atomic_write_bytes(digest_path(path), f"{hashlib.sha256(data).hexdigest()}  {path.name}\n".encode())
+
+
+def verify_digest(path: str | os.PathLike, again: str = "use --no-resume to start this stage over") -> None:
+    """Check ``path`` against its digest file (:func:`digest_path`).
+
+    Raises:
+        UserError: the file or its digest file is missing or unreadable, or the digests differ
+            (the message names the file and says how to start over).
+    """
+    from schemas.manifest import sha256_of
+
+    path = Path(path)
+    dpath = digest_path(path)
+    try:
+        text = dpath.read_text(encoding="ascii")
+    except FileNotFoundError:
+        raise UserError(f"{path}: no {dpath.name} beside it, so it cannot be verified; {again}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{dpath}: unreadable digest file ({exc}); {again}") from None
+    want = text.split()[0].lower() if text.split() else ""
+    if len(want) != 64 or any(c not in "0123456789abcdef" for c in want):
+        raise UserError(f"{dpath}: expected '<64 hex>  {path.name}', got {text[:80]!r}; {again}")
+    if not path.is_file():
+        raise UserError(f"{path}: missing (its digest file {dpath.name} is there); {again}")
+    have = sha256_of(path)
+    if have != want:
+        raise UserError(f"{path}: sha256 {have[:12]}... does not match {dpath.name} ({want[:12]}...): the file "
+                        f"changed or is corrupt; {again}")
+
+
+def _unreadable(path, what: str, exc: BaseException) -> UserError:
+    first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:200]
+    return UserError(f"{path}: not a readable {what} ({type(exc).__name__}: {first})")
 
 
 def save_checkpoint(path: str | os.PathLike, state_dict: dict[str, torch.Tensor], header: dict) -> Path:
@@ -72,12 +124,18 @@ def read_header(path: str | os.PathLike) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint (expected a .safetensors file written by "
                                 f"`mimicbench train`)")
-    with safe_open(str(path), framework="pt") as f:
-        meta = f.metadata() or {}
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            meta = f.metadata() or {}
+    except Exception as exc:  # safetensors' own error types: a truncated or garbled header
+        raise _unreadable(path, "safetensors checkpoint", exc) from None
     if HEADER_KEY not in meta:
         raise ValueError(f"{path}: a safetensors file without the {HEADER_KEY!r} header, so not a "
                          f"mimicbench checkpoint")
-    return json.loads(meta[HEADER_KEY])
+    try:
+        return json.loads(meta[HEADER_KEY])
+    except ValueError as exc:
+        raise _unreadable(path, "checkpoint header", exc) from None
 
 
 def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu") -> tuple[dict, dict]:
@@ -85,7 +143,10 @@ def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu")
     from safetensors.torch import load_file
 
     header = read_header(path)
-    return load_file(str(path), device=str(device)), header
+    try:
+        return load_file(str(path), device=str(device)), header
+    except Exception as exc:
+        raise _unreadable(path, "safetensors checkpoint", exc) from None
 
 
 def load_module(path: str | os.PathLike, build: Callable[[dict], torch.nn.Module],
@@ -127,5 +188,13 @@ def save_state(path: str | os.PathLike, state: dict) -> Path:
 
 
 def load_state(path: str | os.PathLike) -> dict:
-    """Read what :func:`save_state` wrote (``weights_only=True``: no arbitrary unpickling)."""
-    return torch.load(str(path), map_location="cpu", weights_only=True)
+    """Read what :func:`save_state` wrote (``weights_only=True``: no arbitrary unpickling).
+
+    Raises:
+        UserError: the file is not a readable resume state (a damaged pickle or zip part, or a
+            pickle that ``weights_only`` refuses), one line naming the file.
+    """
+    try:
+        return torch.load(str(path), map_location="cpu", weights_only=True)
+    except Exception as exc:  # UnpicklingError, RuntimeError from the zip reader, EOFError, ...
+        raise _unreadable(path, "resume state", exc) from None

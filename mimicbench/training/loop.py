@@ -8,6 +8,8 @@ Files under ``OUT`` (rank 0 writes):
 - ``OUT/<stage>/loss.csv`` (one row a step: epoch, step, every loss key, averaged over ranks) and
   ``OUT/<stage>/loss.png``.
 - ``OUT/<stage>/model.safetensors``: the final weights; ``OUT/config.json``: the config.
+- ``<file>.sha256`` beside each checkpoint and resume state; both are verified before a resume
+  (a changed byte is refused with a one-line error, never trained on).
 
 Repeatability: torch, numpy and ``random`` are seeded from ``seed`` before the module is built,
 and again from (seed, epoch, rank) at the start of every epoch; each epoch's batch order comes
@@ -102,6 +104,8 @@ def load_frozen(model_name: str, stage: TrainStage, out: Path, context: StageCon
         need_stage = model.stage(need)
         ctx = StageContext(context.dataset, context.device, context.config, dict(frozen), context.rank,
                            context.world_size)
+        if checkpoint.digest_path(path).is_file():  # written by this version: verified before use
+            checkpoint.verify_digest(path, f"train stage {need!r} again (--stage {need} --no-resume)")
         module = checkpoint.load_module(path, lambda cfg, s=need_stage, c=ctx: s.build(cfg, c), context.device)
         for p in module.parameters():
             p.requires_grad_(False)
@@ -170,6 +174,8 @@ def train_stage_result(model_name: str, stage_name: str, dataset, out, config: d
 
         start_epoch = 0
         if resume and state_path.is_file() and last_path.is_file():
+            checkpoint.verify_digest(state_path)  # a flipped byte is refused, never resumed from
+            checkpoint.verify_digest(last_path)
             state = checkpoint.load_state(state_path)
             if state.get("config_json") != config_json or state.get("seed") != seed:
                 raise UserError(f"{stage_dir} holds a run of stage {stage.name!r} with another config or seed "
