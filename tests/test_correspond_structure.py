@@ -134,7 +134,7 @@ def test_dustbin_sinkhorn_matches_the_core_solver_on_the_augmented_problem():
 def test_methods_by_name_and_their_record():
     assert get_method("text") == METHODS["text"] and not METHODS["text"].uses_structure
     s = get_method("structure", no_match=0.3, temperature=0.2)
-    assert s.no_match == 0.3 and s.temperature == 0.2 and len(s.feature_weights()) == len(FEATURES)
+    assert s.no_match == pytest.approx(0.3) and s.temperature == pytest.approx(0.2) and len(s.feature_weights()) == len(FEATURES)
     assert '"no_match": 0.3' in s.params_json() and '"name": "structure"' in s.params_json()
     with pytest.raises(ValueError, match="expected one of"):
         get_method("structur")

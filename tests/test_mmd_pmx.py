@@ -120,7 +120,7 @@ def test_spec_fixture_pmx(kw):
     assert m.deform.tolist() == [0, 1, 2, 4 if kw.get("qdef") else 3]
     np.testing.assert_allclose(m.weight_values[1, :2], [0.25, 0.75])
     assert [b.name for b in m.bones] == ["センター", "左足", "左足ＩＫ"]
-    assert m.bones[1].grant_rotation and m.bones[1].grant_ratio == 0.5
+    assert m.bones[1].grant_rotation and m.bones[1].grant_ratio == pytest.approx(0.5)
     ik = m.bones[2].ik
     assert (ik.target, ik.loop, ik.limit_angle, ik.links[0].bone) == (1, 40, 2.0, 1)
     np.testing.assert_array_equal(ik.links[0].limit_min, [-1, 0, 0])
@@ -149,7 +149,7 @@ def test_spec_fixture_pmd_agrees_with_pymeshio():
     np.testing.assert_allclose(m.weight_values[1, :2], [0.3, 0.7], rtol=1e-6)
     assert m.deform.tolist() == [0, 1, 0] and m.weight_bones[2, 0] == 1
     ik = m.bones[2].ik
-    assert ik.limit_angle == 2.0 and ik.links[0].limit_min is not None  # knee: 4 x 0.5 rad, knee limit
+    assert ik.limit_angle == pytest.approx(2.0) and ik.links[0].limit_min is not None  # knee: 4 x 0.5 rad, knee limit
     # PMD body positions are offsets from the bone; bone -1 means bone 0 (at y=10), not the origin
     np.testing.assert_allclose(m.rigid_bodies[0].position, [0, 11, 0])
     np.testing.assert_allclose(m.rigid_bodies[1].position, [1, 4, 0])
