@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmark.protocols.base import HUMANOID_LIKE
+from schemas.character import HUMANOID_LIKE
 from benchmark.results import method_versions, read_result_records, read_run_info
 from schemas.result import ResultRecord
 

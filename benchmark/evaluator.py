@@ -10,7 +10,7 @@ for the fingerprints that keep results, cases and dataset together.
 
 The evaluator knows no protocol by name: each protocol module (:mod:`benchmark.protocols`) builds
 its requests and scores, and calls the method only through the ``call`` it is handed here
-(:func:`_call`). A method whose metadata does not list a protocol gets ``not_supported`` rows.
+(:func:`benchmark.batch.evaluate_batch`). A method whose metadata does not list a protocol gets ``not_supported`` rows.
 """
 from __future__ import annotations
 
@@ -20,20 +20,18 @@ from typing import Sequence
 
 from tqdm.auto import tqdm
 
+from benchmark.batch import evaluate_batch
 from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
 from benchmark.protocols.base import EvalData
 from benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
                                   dataset_fingerprints, method_meta, write_method_meta)
-from benchmark.registry import get_method
-from benchmark.request import MotionRequest, TransferRequest
-from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.ray_runner import evaluate_on_engine, ray_path
+from benchmark.registry import get_method
+from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.samples import SampleSink
-from benchmark.scoring import check_prediction
-from benchmark.worker import InProcessRunner, open_runner
-from schemas.result import APPAREL_METRICS, NOT_SUPPORTED, ResultRecord
+from benchmark.worker import open_runner
+from schemas.result import NOT_SUPPORTED
 from schemas.shards import has_table, read_records
-
 
 
 @dataclass
@@ -78,75 +76,6 @@ def load_cases(dataset, protocols: Sequence[str]):
             raise FileNotFoundError(f"{dataset}: no {p} cases; run `mimicbench bench cases {dataset}` first")
         out[p] = read_records(dataset, "cases", p)
     return out
-
-
-def _call(method, requests: list[TransferRequest], sizes: list):
-    """Run a batch through a runner (:mod:`benchmark.worker`; a bare method runs in process); on a
-    failure retry one by one. Returns [(array | None, error | None, seconds)]. ``sizes`` holds each
-    answer's vertex count, or its whole shape ((F, N, 3) for a :class:`MotionRequest`)."""
-    runner = method if hasattr(method, "run_batch") else InProcessRunner(method, setup=False)
-    outcome = runner.run_batch(requests)
-    error = outcome.error
-    if error is None and len(outcome.outputs) != len(requests):
-        error = f"method returned {len(outcome.outputs)} outputs for {len(requests)} requests"
-    if error is not None:
-        if len(requests) == 1:
-            return [(None, error, outcome.seconds)]
-        results = []
-        for req, n in zip(requests, sizes):
-            results.extend(_call(runner, [req], [n]))
-        return results
-    per = outcome.seconds / len(requests)
-    results = []
-    for out, n in zip(outcome.outputs, sizes):
-        try:
-            results.append((check_prediction(out, n), None, per))
-        except ValueError as exc:
-            results.append((None, str(exc), per))
-    return results
-
-
-def _row(case, method, status, error, seconds, metrics=None) -> ResultRecord:
-    m = metrics or {}
-    return ResultRecord(case.case_id, case.protocol, method.metadata.name, method.metadata.version, status, error,
-                        float(seconds), m.get("pmd"), m.get("pmd_squared"), m.get("els"), m.get("els_forward"),
-                        case.source_category, case.target_category, pmd_height=m.get("pmd_height"),
-                        pmd_extent=m.get("pmd_extent"), pmd_aligned=m.get("pmd_aligned"),
-                        **{k: m.get(k) for k in APPAREL_METRICS})
-
-
-def supports(method, protocol: str) -> bool:
-    """Whether the method's metadata lists ``protocol``."""
-    return protocol in getattr(method.metadata, "protocols", DEFAULT_PROTOCOLS)
-
-
-def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> list[ResultRecord]:
-    """Score one batch of cases of one protocol (a :class:`BenchmarkProtocol` or its name);
-    ``samples`` (a :class:`benchmark.samples.SampleSink`) keeps the predictions of the sampled
-    cases for pictures.
-
-    A method whose metadata does not list the protocol gets ``not_supported`` rows and is not
-    called.
-    """
-    if isinstance(protocol, str):
-        protocol = get_protocol(protocol)
-    if not supports(method, protocol.name):
-        reason = f"{method.metadata.name} does not support the {protocol.name} protocol (metadata.protocols)"
-        return [_row(c, method, NOT_SUPPORTED, reason, 0.0) for c in cases]
-
-    def call(requests):
-        return _call(method, list(requests), [r.expected_shape if isinstance(r, MotionRequest) else
-                                              len(r.target.vertices) for r in requests])
-
-    call.method_tags = tuple(getattr(method.metadata, "tags", ()))  # e.g. an ablation that reads the GT mask
-
-    outcomes = protocol.evaluate(cases, data, call)
-    if samples is not None:  # predictions of a few sampled cases, for the leaderboard's pictures
-        for leg in ("forward", "returned"):
-            kept = [o for o in outcomes if leg in o.outputs]
-            if kept:
-                samples.keep([o.case for o in kept], [o.outputs[leg] for o in kept], leg=leg)
-    return [_row(o.case, method, o.status, o.error, o.seconds, o.metrics) for o in outcomes]
 
 
 def check_run_options(methods: Sequence[str], batch_size: int, case_timeout: float) -> None:

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Sequence
 
 from mimicbench import __version__ as TOOLKIT_VERSION
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 from schemas.fingerprint import digest_of, stage_config, stale_inputs, table_fingerprint
 from schemas.manifest import atomic_write_bytes, load_manifest
 

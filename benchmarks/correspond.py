@@ -51,7 +51,7 @@ def zoo_features(n: int, k: int = 80) -> list[np.ndarray]:
     from datagen.zoo.build import build_skeleton, naming_style
     from datagen.zoo.naming import bone_names
     from datagen.zoo.plan import plan_zoo
-    from datagen.zoo.templates import HUMANOID_LIKE
+    from schemas.character import HUMANOID_LIKE
 
     out = []
     for spec in plan_zoo(n, seed=0):

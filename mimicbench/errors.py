@@ -1,12 +1,10 @@
 """The exception type for errors the user can fix (bad input, a wrong folder, a bad option value).
 
-The CLI prints these as ``mimicbench: error: <message>`` and exits with status 2 (``--debug``
-shows the traceback); anything else is a bug and keeps its traceback. Raise :class:`UserError`
-(or a subclass such as :class:`schemas.errors.DatasetError`) with a message that says what was
-expected and what was found.
+Defined in :mod:`schemas.errors` (the lowest layer, so the data contract can raise it too) and
+offered here under its public name: plug-in methods and scripts raise ``mimicbench.errors.UserError``.
 """
 from __future__ import annotations
 
+from schemas.errors import UserError
 
-class UserError(Exception):
-    """Bad input or a bad request, explained by the message; not a bug in mimicbench."""
+__all__ = ["UserError"]

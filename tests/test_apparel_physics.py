@@ -15,7 +15,7 @@ from datagen.apparel.simulate import SimulationExploded
 from datagen.apparel.springs import chain_mass_matrix
 from datagen.apparel.urdf import chain_urdf, hull_obj
 from datagen.apparel.world import ApparelWorld
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 from tests.apparel_toys import LINK, LINKS, make_character, make_motion, quick_turn
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from baselines.body_only import BodyOnly
 from baselines.lbs_kinematic import LbsKinematic
-from benchmark.evaluator import evaluate_batch
+from benchmark.batch import evaluate_batch
 from benchmark.normalisation import RestFrame
 from benchmark.protocols import get_protocol
 from benchmark.protocols.apparel import apparel_scores

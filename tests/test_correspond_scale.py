@@ -25,7 +25,7 @@ def _zoo_skeleton(character_id: str):
     from datagen.zoo.build import build_skeleton, naming_style
     from datagen.zoo.naming import bone_names
     from datagen.zoo.plan import plan_zoo
-    from datagen.zoo.templates import HUMANOID_LIKE
+    from schemas.character import HUMANOID_LIKE
 
     spec = next(s for s in plan_zoo(975, seed=0) if s.character_id == character_id)
     skel, _ = build_skeleton(spec)

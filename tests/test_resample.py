@@ -12,7 +12,7 @@ from datagen.resample.closest_point import closest_points, closest_points_brute_
 from datagen.resample.quality import transfer_error_percent
 from datagen.resample.reskin import nearest_vertex_weights
 from mimicbench.cli import main
-from mimicbench.weights import SparseWeights
+from schemas.weights import SparseWeights
 from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 from schemas.shards import read_records, write_records

@@ -45,7 +45,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mmdmc.segmentation import mlp
+from baselines.mmdmc.nn import mlp
 from mimicbench.skinning_torch import linear_blend_skinning_torch
 
 PRIOR_TAU = 0.01

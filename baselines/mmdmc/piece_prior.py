@@ -51,7 +51,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from datagen.zoo.skin_weights import point_segment_distance
+from baselines.mmdmc.rig import attachment_bones
+from mimicbench.segments import point_segment_distance
 
 POWER = 4.0        # inverse-distance power of the blend
 SOFT = 0.5         # share of the piece's thickness added to every distance
@@ -66,13 +67,11 @@ MIN_VERTICES = 24  # fewer vertices make a fragment (a flat-shaded mesh's split 
 
 def body_parents(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
     """(Kb,) int64 column of each body bone's nearest body ancestor (apparel bones between them
-    skipped, :func:`baselines.mmdmc.data.attachment_bones`), -1 for none.
+    skipped, :func:`baselines.mmdmc.rig.attachment_bones`), -1 for none.
 
     Args:
         parents: (K,) int, -1 for a root; body: (K,) bool body bones (their order gives the columns).
     """
-    from baselines.mmdmc.data import attachment_bones  # data imports this module
-
     attach = attachment_bones(parents, body)  # checks the shapes
     parents = np.asarray(parents, np.int64)
     body = np.asarray(body, bool)

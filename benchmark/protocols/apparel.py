@@ -27,7 +27,7 @@ from benchmark.metrics import els, pmd
 from benchmark.normalisation import RestFrame
 from benchmark.protocols.base import BenchmarkProtocol, Call, CaseDraw, CasePool, EvalData, Outcome
 from benchmark.request import MotionRequest
-from datagen.apparel import SIM_SUFFIX
+from schemas.motion import SIM_SUFFIX
 from schemas.case import CaseRecord
 
 WINDOW = 16

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datagen.apparel import SIM_SUFFIX
+from schemas.motion import SIM_SUFFIX
 from datagen.apparel.body_shapes import BodyPiece, body_pieces
 from datagen.apparel.chain_spec import ChainSpec
 from datagen.apparel.chains import build_chains

@@ -19,14 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.apparel import SIM_SUFFIX
+from schemas.motion import SIM_SUFFIX
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
 from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage, summarize_statuses
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
 from schemas.manifest import MANIFEST, load_manifest_for_write, mark_complete, mark_incomplete

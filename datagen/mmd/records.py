@@ -19,7 +19,7 @@ from datagen.mmd.apparel import apparel_bones, apparel_chains, apparel_vertex_ma
 from datagen.mmd.errors import MMDFormatError
 from datagen.mmd.model import DEFORM_NAMES, MMDModel
 from datagen.mmd.names import english_name
-from mimicbench.weights import SparseWeights
+from schemas.weights import SparseWeights
 from schemas.character import CharacterRecord
 
 # Bones every MMD humanoid has (standard bone set): their presence makes the category humanoid

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from datagen.resample.character import resample_character
-from datagen.resample.command import MAX_FACES, MIN_FACES
+from datagen.resample import MAX_FACES, MIN_FACES
 from mimicbench.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 from mimicbench.training import checkpoint, loss_log
 from mimicbench.training.distributed import barrier, gather_objects, init_distributed
 from mimicbench.training.registry import trainable

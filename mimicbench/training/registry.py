@@ -12,7 +12,7 @@ import difflib
 import importlib
 from dataclasses import dataclass
 
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 from mimicbench.training.stage import TrainStage
 
 BUILTIN = {
