@@ -26,7 +26,7 @@ from benchmark.protocols.base import EvalData
 from benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
                                   dataset_fingerprints, method_meta, write_method_meta)
 from benchmark.ray_runner import evaluate_on_engine, ray_path
-from benchmark.registry import get_method
+from benchmark.registry import LoadError, check_method_names, get_method
 from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.samples import SampleSink
 from benchmark.worker import open_runner
@@ -107,13 +107,23 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         engine: a :class:`mimicbench.engines.RayEngine` runs each batch as a Ray task
             (:mod:`benchmark.ray_runner`); None or a local engine keeps the worker processes.
 
+    A method whose entry cannot be imported (:class:`~mimicbench.registry.LoadError`, e.g. a plug-in
+    missing a module) is not run: the summary's ``unavailable`` maps its name to the reason.
+
     Raises:
-        ValueError: an option out of range, or an unknown protocol.
+        UnknownName: a method or protocol name no entry has (before anything is loaded or written).
+        ValueError: an option out of range.
         ProvenanceError: the cases were built from another state of the dataset, or ``out``
             holds rows made from another dataset state (nothing is written then).
     """
     check_run_options(methods, batch_size, case_timeout)
-    instances = [get_method(m) for m in methods]  # fail fast on unknown names
+    check_method_names(methods)  # fail fast on unknown names
+    instances, unavailable = [], {}
+    for name in methods:  # a method that cannot be imported (a broken plug-in) is left out, the others run
+        try:
+            instances.append(get_method(name))
+        except LoadError as exc:
+            unavailable[name] = str(exc)
     check_cases_current(dataset)  # before the reader refuses stale cases, to name the fix
     cases = load_cases(dataset, protocols)
     fingerprints = dataset_fingerprints(dataset, list(cases))
@@ -173,7 +183,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         ctx.barrier()
     finally:
         ctx.close()
-    summary = {"rank": ctx.rank, "world_size": ctx.world_size, **counts}
+    summary = {"rank": ctx.rank, "world_size": ctx.world_size, **counts, "unavailable": unavailable}
     if ctx.rank == 0:
         from benchmark.aggregate import aggregate
 

@@ -19,11 +19,11 @@ cases of its batch with Ray's error.
 """
 from __future__ import annotations
 
-import importlib
 from functools import partial
 from typing import Sequence
 
 from benchmark.protocols import get_protocol
+from mimicbench.registry import load_target
 
 _RUNNERS: dict = {}  # per Ray worker process: (import path, device, timeout, in process) -> runner
 _DATA: dict = {}  # per Ray worker process: dataset folder -> EvalData
@@ -35,11 +35,7 @@ def _runner(path: str, device: str, case_timeout: float, in_process: bool):
 
     key = (path, device, case_timeout, in_process)
     if key not in _RUNNERS:
-        module, qualname = path.split(":", 1)
-        obj = importlib.import_module(module)
-        for part in qualname.split("."):
-            obj = getattr(obj, part)
-        method = obj()
+        method = load_target(path)()
         _RUNNERS[key] = (InProcessRunner(method, device) if in_process
                          else WorkerRunner(method, path, device, case_timeout=case_timeout))
     return _RUNNERS[key]

@@ -63,7 +63,7 @@ from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_
 from baselines.mmdmc.refine import JointRefiner
 from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
-from mimicbench.training.registry import register_trainable
+from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage
 
 _DATA: dict = {}
@@ -367,4 +367,4 @@ STAGES = [
 ]
 BUILDERS = {s.name: s.build for s in STAGES}
 
-register_trainable("mmdmc", STAGES, CONFIGS)
+TRAINABLE = make_trainable("mmdmc", STAGES, CONFIGS)
