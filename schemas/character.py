@@ -5,8 +5,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from schemas.weights import MAX_INFLUENCES, SparseWeights
 from schemas.columns import Column
+from schemas.weights import MAX_INFLUENCES, SparseWeights
 
 TABLE = "characters"
 

@@ -5,9 +5,8 @@ import pytest
 from benchmark.method import PoseTransferMethod
 from benchmark.registry import UnknownName, available_methods, get_method, register
 from mimicbench.cli import main
-from tests.bench_fixtures import make_bench_dataset
+from tests.bench_fixtures import FlakyMethod, make_bench_dataset
 from tests.test_registry import fake_distribution
-from tests.bench_fixtures import FlakyMethod
 
 
 def test_bundled_methods_load_lazily_with_metadata():

@@ -13,7 +13,6 @@ positions: the same limb segment, the same trunk bone. Where a chain has no clea
 from __future__ import annotations
 
 import json
-import re
 import struct
 from pathlib import Path
 

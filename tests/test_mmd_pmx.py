@@ -50,7 +50,7 @@ def test_gene_agrees_with_pymeshio_field_by_field(gene, gene_path):
         if b.grant_parent >= 0:
             assert (b.grant_parent, np.float32(b.grant_ratio)) == (rb.effect_index, np.float32(rb.effect_factor))
         if b.ik is not None:
-            assert (b.ik.target, b.ik.loop, [l.bone for l in b.ik.links]) == (rb.ik.target_index, rb.ik.loop, [l.bone_index for l in rb.ik.link])
+            assert (b.ik.target, b.ik.loop, [link.bone for link in b.ik.links]) == (rb.ik.target_index, rb.ik.loop, [link.bone_index for link in rb.ik.link])
     for r, rr in zip(gene.rigid_bodies, ref.rigidbodies):
         assert (r.name, r.bone, r.group, r.mask, r.shape, r.mode) == (rr.name, rr.bone_index, rr.collision_group, rr.no_collision_group & 0xFFFF, rr.shape_type, rr.mode)
         np.testing.assert_array_equal(np.r_[r.size, r.position, r.rotation],

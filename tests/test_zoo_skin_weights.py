@@ -4,8 +4,8 @@ import numpy as np
 from datagen.zoo.mesh_builder import build_mesh
 from datagen.zoo.skeleton import SkeletonBuilder
 from datagen.zoo.skin_weights import skin_weights
-from mimicbench.segments import point_segment_distance
 from mimicbench.mesh import unique_edges
+from mimicbench.segments import point_segment_distance
 
 
 def _naive_distance(p, a, b):

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from schemas.errors import UserError
 from mimicbench.quaternion import quat_to_matrix
+from schemas.errors import UserError
 
 SPLITS = ("train", "val", "test", "all")
 

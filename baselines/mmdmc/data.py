@@ -26,9 +26,9 @@ from baselines.mmdmc.bone_distance import bone_distances, mesh_box
 from baselines.mmdmc.geodesic import geodesic_distances
 from baselines.mmdmc.piece_prior import piece_prior
 from baselines.mmdmc.rig import attachment_bones
-from schemas.motion import SIM_SUFFIX
 from mimicbench.mesh import unique_edges, unit_height_frame
 from mimicbench.skinning import linear_blend_skinning
+from schemas.motion import SIM_SUFFIX
 from schemas.weights import SparseWeights
 
 

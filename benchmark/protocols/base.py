@@ -19,13 +19,12 @@ import numpy as np
 from benchmark.normalisation import RestFrame
 from benchmark.request import TransferRequest
 from benchmark.rigs import CharacterData
-from schemas.motion import SIM_SUFFIX
 from mimicbench.skinning import linear_blend_skinning
 from schemas.case import CaseRecord
 from schemas.errors import DatasetError
+from schemas.motion import SIM_SUFFIX
 from schemas.shard_stream import checked_parquet_file, read_row_group
 from schemas.shards import has_table, read_records, read_table, readable_entries
-
 
 Call = Callable[[Sequence[TransferRequest]], list]
 """The evaluator's call site: requests in, ``[(array | None, error | None, seconds)]`` out."""

@@ -20,8 +20,8 @@ from datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch,
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
 from datagen.correspond.structure import skeleton_features
-from mimicbench.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage
+from mimicbench.engines import Engine, TaskResources
 from schemas.errors import DatasetError
 from schemas.fingerprint import stage_config, tables_fingerprint
 from schemas.manifest import atomic_write_bytes

@@ -37,13 +37,13 @@ from datagen.splits import split_of
 from mimicbench.argtypes import MAX_JOBS
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.skinning import linear_blend_skinning
-from schemas.weights import SparseWeights
 from schemas.character import CATEGORIES, CharacterRecord
 from schemas.manifest import MANIFEST, mark_complete, mark_incomplete
 from schemas.motion import MotionRecord
 from schemas.shards import has_table, read_records, write_records
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
+from schemas.weights import SparseWeights
 
 CACHE = ".ingest"
 SUPPORTED = BLENDER_SUFFIXES

@@ -70,7 +70,7 @@ def solve_ik(poser, ik_bone: int) -> None:
         poser.update_global(link.bone)
     plane_angle = np.zeros((f, len(links)))
     best = np.full(f, np.inf)
-    saved = [poser.ik_rot[:, l.bone].copy() for l in links]
+    saved = [poser.ik_rot[:, link.bone].copy() for link in links]
     active = np.ones(f, bool)
     for it in range(chain.loop):
         if not active.any():
@@ -80,14 +80,14 @@ def solve_ik(poser, ik_bone: int) -> None:
         improved = active & (dist < best)
         best = np.where(improved, dist, best)
         stop = active & ~improved
-        for n, l in enumerate(links):
-            saved[n] = np.where(improved[:, None], poser.ik_rot[:, l.bone], saved[n])
+        for n, link in enumerate(links):
+            saved[n] = np.where(improved[:, None], poser.ik_rot[:, link.bone], saved[n])
             if stop.any():  # frames that stopped improving go back to their best rotations
-                poser.ik_rot[stop, l.bone] = saved[n][stop]
-                poser.update_local(l.bone)
+                poser.ik_rot[stop, link.bone] = saved[n][stop]
+                poser.update_local(link.bone)
         active = improved
-    for l in reversed(links):  # links run from the effector up: refresh from the top link down
-        poser.update_global(l.bone)
+    for link in reversed(links):  # links run from the effector up: refresh from the top link down
+        poser.update_global(link.bone)
 
 
 def _iterate(poser, ik_bone: int, chain, target: int, plane_angle: np.ndarray, it: int, active: np.ndarray) -> None:

@@ -16,9 +16,21 @@ import numpy as np
 
 from datagen.mmd.binary import BoundedReader, check_indices
 from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.model import (BONE_EXTERNAL_PARENT, BONE_FIXED_AXIS, BONE_GRANT_ROTATION, BONE_GRANT_TRANSLATION,
-                               BONE_IK, BONE_LOCAL_AXIS, BONE_TAIL_IS_BONE, IKChain, IKLink, MMDBone, MMDJoint,
-                               MMDModel, MMDRigidBody)
+from datagen.mmd.model import (
+    BONE_EXTERNAL_PARENT,
+    BONE_FIXED_AXIS,
+    BONE_GRANT_ROTATION,
+    BONE_GRANT_TRANSLATION,
+    BONE_IK,
+    BONE_LOCAL_AXIS,
+    BONE_TAIL_IS_BONE,
+    IKChain,
+    IKLink,
+    MMDBone,
+    MMDJoint,
+    MMDModel,
+    MMDRigidBody,
+)
 
 MAGIC = b"PMX "
 _SIGNED = {1: "b", 2: "h", 4: "i"}
@@ -151,7 +163,7 @@ def parse_pmx(data: bytes, name: str = "<pmx>") -> MMDModel:
     for i, b in enumerate(bones):
         check_indices([b.parent, b.tail_bone, b.grant_parent], nb, f"bone {i} ({b.name}) parent/tail/grant", name)
         if b.ik is not None:
-            check_indices([b.ik.target] + [l.bone for l in b.ik.links], nb, f"bone {i} ({b.name}) IK", name,
+            check_indices([b.ik.target] + [link.bone for link in b.ik.links], nb, f"bone {i} ({b.name}) IK", name,
                           allow_minus_one=False)
         if b.parent == i:
             raise MMDFormatError(f"{name}: bone {i} ({b.name}) is its own parent")
