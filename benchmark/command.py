@@ -145,8 +145,8 @@ def run_run(args) -> int:
 
 
 def run_leaderboard(args) -> int:
-    from benchmark.aggregate import aggregate
     from benchmark.leaderboard import markdown_tables, write_leaderboard
+    from benchmark.aggregate import aggregate
 
     paths = write_leaderboard(args.results, args.out, pictures=not args.no_pictures)
     print(markdown_tables(aggregate(args.results)))

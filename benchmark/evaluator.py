@@ -23,14 +23,8 @@ from tqdm.auto import tqdm
 from benchmark.batch import evaluate_batch
 from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
 from benchmark.protocols.base import EvalData
-from benchmark.provenance import (
-    check_cases_current,
-    check_method_folder,
-    check_results_folder,
-    dataset_fingerprints,
-    method_meta,
-    write_method_meta,
-)
+from benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
+                                  dataset_fingerprints, method_meta, write_method_meta)
 from benchmark.ray_runner import evaluate_on_engine, ray_path
 from benchmark.registry import LoadError, check_method_names, get_method
 from benchmark.results import append_results, done_case_ids, method_dir, write_run_info

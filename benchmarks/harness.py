@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", default=None, help="folder for the data (default: a temporary folder)")

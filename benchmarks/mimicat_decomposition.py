@@ -75,14 +75,8 @@ def variant(name: str, use_h: bool, matches: str, checkpoint: Path):
 
 def nearest_joint_variant(name: str, eq3_translation: bool, identity_unmatched: bool):
     """`nearest_joint` with its translation or unmatched-bone step replaced by the initialisation's."""
-    from baselines.posing import (
-        carried_translations,
-        inherit_unmatched,
-        pose_target,
-        pose_target_local,
-        size_ratio,
-        source_pose,
-    )
+    from baselines.posing import (carried_translations, inherit_unmatched, pose_target, pose_target_local,
+                                  size_ratio, source_pose)
     from benchmark.method import MethodMetadata, PoseTransferMethod
     from mimicbench.kinematics import forward_kinematics, local_from_global
 

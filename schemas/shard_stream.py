@@ -19,17 +19,11 @@ from typing import Any, Iterable, Iterator
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
-from schemas.errors import DatasetError
 from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import load_manifest_for_write, save_manifest, sha256_of
-from schemas.shards import (
-    _unlink_stale,
-    _write_parquet_temp,
-    check_schema,
-    read_checked_shard,
-    readable_entries,
-    shard_name,
-)
+from schemas.errors import DatasetError
+from schemas.shards import (_unlink_stale, _write_parquet_temp, check_schema, read_checked_shard, readable_entries,
+                            shard_name)
 from schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
 
 

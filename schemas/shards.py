@@ -27,16 +27,8 @@ from schemas.columns import records_to_table, table_to_records
 from schemas.errors import DatasetError
 from schemas.fingerprint import stale_inputs
 from schemas.integrity import entry_path, verify_shard
-from schemas.manifest import (
-    chmod_like_open,
-    fsync_file,
-    incomplete_reason,
-    is_complete,
-    load_manifest,
-    load_manifest_for_write,
-    save_manifest,
-    sha256_of,
-)
+from schemas.manifest import (chmod_like_open, fsync_file, incomplete_reason, is_complete, load_manifest,
+                              load_manifest_for_write, save_manifest, sha256_of)
 from schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
 from schemas.version import METADATA_KEY, SCHEMA_VERSION, is_compatible
 

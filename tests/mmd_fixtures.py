@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import struct
 
+
 SDEF_C_R0_R1 = (0.5, 1.0, 0.25, 1.0, 1.0, -1.0, 0.0, 2.0, 2.0)  # the SDEF vertex's C, R0, R1 (MMD units)
 
 

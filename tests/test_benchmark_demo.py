@@ -24,6 +24,7 @@ def test_demo_prints_a_leaderboard_with_five_methods_and_two_protocols(tmp_path,
     # lbs_kinematic moves body vertices exactly as the ground truth does (PMD_b = 0) but not apparel
     from benchmark.aggregate import aggregate
     from benchmark.demo import BUNDLED_APPAREL
+
     from benchmark.registry import get_method
 
     for name in BUNDLED_APPAREL:  # each row names the method's version (the shipped weights' for mmdmc)

@@ -5,7 +5,8 @@ import pytest
 from benchmark.method import PoseTransferMethod
 from benchmark.registry import UnknownName, available_methods, get_method, register
 from mimicbench.cli import main
-from tests.bench_fixtures import FlakyMethod, make_bench_dataset
+from tests.bench_fixtures import make_bench_dataset
+from tests.bench_fixtures import FlakyMethod
 from tests.test_registry import fake_distribution
 
 

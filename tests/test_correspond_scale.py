@@ -37,10 +37,10 @@ def test_a_pair_whose_relaxed_sweeps_overflow_is_redone_with_classic_sweeps():
     """apparel-0006 (81 bones) -> apparel-0047 (240) of the full-size zoo: the over-relaxed sweeps
     (w = 1.7) overflow to NaN; that failed its whole block of 2,048 pairs before. Now the pair is
     solved by classic sweeps and meets the marginals (rows at most 1, columns at most K1/K2 or 1)."""
-    from datagen.correspond.batched import feature_penalty
     from datagen.correspond.encoders import get_encoder
     from datagen.correspond.methods import get_matcher
     from datagen.correspond.structure import skeleton_features
+    from datagen.correspond.batched import feature_penalty
 
     (na, pa, ka), (nb, pb, kb) = _zoo_skeleton("zoo/apparel-0006"), _zoo_skeleton("zoo/apparel-0047")
     enc = get_encoder("minilm")

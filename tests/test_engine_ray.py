@@ -20,12 +20,12 @@ ray = pytest.importorskip("ray")
 import cloudpickle  # noqa: E402  (ships with ray)
 
 from datagen.correspond.stage import correspond_dataset  # noqa: E402
+from mimicbench.engines import TaskResources, get_engine  # noqa: E402
+from mimicbench.engines.ray_engine import RayEngine  # noqa: E402
 from datagen.resample.stage import resample_dataset  # noqa: E402
 from datagen.stage_runner import run_stage  # noqa: E402
 from datagen.zoo import build_zoo  # noqa: E402
 from mimicbench.cli import main  # noqa: E402
-from mimicbench.engines import TaskResources, get_engine  # noqa: E402
-from mimicbench.engines.ray_engine import RayEngine  # noqa: E402
 from schemas.shards import read_records  # noqa: E402
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the test's task functions travel by value

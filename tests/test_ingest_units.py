@@ -18,6 +18,7 @@ from mimicbench.skinning_torch import linear_blend_skinning_torch
 from tests.gltf_edit import add_accessor, write_glb
 from tests.gltf_reference import GltfReference, _interpolate, slerp
 
+
 # --- the reference evaluator, by hand ----------------------------------------------------------
 
 def test_slerp_cubic_and_step_samplers_by_hand():

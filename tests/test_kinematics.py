@@ -2,11 +2,7 @@ import numpy as np
 import pytest
 
 from mimicbench.kinematics import (
-    array_to_transforms,
-    forward_kinematics,
-    local_from_global,
-    rest_transforms,
-    transforms_to_array,
+    array_to_transforms, forward_kinematics, local_from_global, rest_transforms, transforms_to_array,
 )
 from mimicbench.quaternion import quat_angle, quat_normalize, quat_to_matrix
 

@@ -7,14 +7,8 @@ import torch
 from scipy.spatial.transform import Rotation
 from scipy.special import logsumexp
 
-from baselines.mimicat.matrix_fisher import (
-    log_normaliser,
-    log_normaliser_of_singular_values,
-    mean_rotation,
-    mode,
-    negative_log_likelihood,
-    proper_svd,
-)
+from baselines.mimicat.matrix_fisher import (log_normaliser, log_normaliser_of_singular_values, mean_rotation, mode,
+                                             negative_log_likelihood, proper_svd)
 
 
 @pytest.fixture(scope="module")

@@ -165,9 +165,9 @@ def test_attachment_options_train_and_skin_apparel_to_its_chains_body_bone(appar
     from baselines.mmdmc.apparel import ApparelDynamics
     from baselines.mmdmc.body import skin
     from baselines.mmdmc.data import TrainingData
+    from baselines.mmdmc.rig import attachment_bones
     from baselines.mmdmc.method import load_modules
     from baselines.mmdmc.pipeline import apparel_probability, predict, skinning_weights
-    from baselines.mmdmc.rig import attachment_bones
 
     cfg = {**tiny_config(), "seg_inputs": "bones", "apparel_skinning": "attachment", "mask_by_piece": True}
     for s in STAGES:

@@ -2,10 +2,10 @@
 from __future__ import annotations
 
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
-import tomllib
 
 from mimicbench.registry import LoadError, NameCollision, Registry, UnknownName, load_target, parse_target
 from schemas.errors import UserError

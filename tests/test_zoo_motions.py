@@ -4,7 +4,7 @@ import pytest
 
 from datagen.zoo.build import build_skeleton, clip_list
 from datagen.zoo.clips import generator
-from datagen.zoo.motions import clip_transforms, ramp, random_poses, rotvec_to_quat
+from datagen.zoo.motions import clip_transforms, random_poses, ramp, rotvec_to_quat
 from datagen.zoo.plan import plan_zoo
 from mimicbench.kinematics import array_to_transforms, local_from_global, rest_transforms
 from mimicbench.quaternion import quat_angle, quat_identity

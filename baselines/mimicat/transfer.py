@@ -25,8 +25,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mimicat.corr_data import KEYPOINT_FEATURES
 from baselines.mimicat.correspondence import mlp, transformer
+from baselines.mimicat.corr_data import KEYPOINT_FEATURES
 from baselines.mimicat.initialisation import initial_pose
 from baselines.mimicat.transfer_data import CharacterTensors, pad
 from mimicbench.skinning_torch import linear_blend_skinning_torch

@@ -27,7 +27,8 @@ import torch
 from baselines.mimicat.corr_data import read_pairs
 from baselines.mimicat.correspondence import CorrespondenceTransformer, correspondence_loss
 from baselines.mimicat.transfer import PoseTransferTransformer, correspondences, pose_mesh, transfer_batch
-from baselines.mimicat.transfer_data import CharacterTensors, correspondence_inputs, read_transfer_pool, shape_tokens
+from baselines.mimicat.transfer_data import (CharacterTensors, correspondence_inputs, read_transfer_pool,
+                                             shape_tokens)
 
 CORR_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size": 8, "points": 512, "split": "all",
                  "sinkhorn_iters": 50}

@@ -20,6 +20,7 @@ import numpy as np
 from mimicbench.segments import point_segment_distance
 from mimicbench.validation import check_shape
 
+
 BOX_MARGIN = 0.1  # share of the mesh's largest extent by which :func:`mesh_box` grows its box
 
 

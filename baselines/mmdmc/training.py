@@ -47,26 +47,13 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, apparel_components, component_neighbours
+from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbours, apparel_components
 from baselines.mmdmc.body import BodySkinning, skin
 from baselines.mmdmc.config import CONFIGS
 from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
-from baselines.mmdmc.losses import (
-    edge_length,
-    edge_stretch,
-    l2_regulariser,
-    vertex_l1,
-    weight_smoothness,
-    weighted_total,
-)
-from baselines.mmdmc.pipeline import (
-    apparel_layout,
-    apparel_probability,
-    body_states,
-    mesh_weights,
-    rollout_from_body,
-    to_unit,
-)
+from baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
+from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, mesh_weights,
+                                      rollout_from_body, to_unit)
 from baselines.mmdmc.refine import JointRefiner
 from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches

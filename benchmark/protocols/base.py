@@ -26,6 +26,7 @@ from schemas.motion import SIM_SUFFIX
 from schemas.shard_stream import checked_parquet_file, read_row_group
 from schemas.shards import has_table, read_records, read_table, readable_entries
 
+
 Call = Callable[[Sequence[TransferRequest]], list]
 """The evaluator's call site: requests in, ``[(array | None, error | None, seconds)]`` out."""
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from mimicbench.argtypes import float_in, nonnegative_int, positive_int
 from mimicbench.engines import add_engine_arguments
+from mimicbench.argtypes import float_in, nonnegative_int, positive_int
 
 MIN_PHYSICS_FPS = 30.0
 
@@ -54,8 +54,8 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from datagen.apparel.params import load_params
-    from datagen.apparel.stage import simulate_dataset
     from mimicbench.engines import engine_from_args
+    from datagen.apparel.stage import simulate_dataset
 
     params = load_params(args.params)
     if args.gravity is not None:

@@ -630,8 +630,9 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     from datagen.apparel.body_shapes import body_pieces
     from datagen.apparel.quality import clip_quality
     from datagen.apparel.selection import dominant_bone
+    from schemas.motion import SIM_SUFFIX
     from datagen.apparel.setup import substeps_for
-    from schemas.motion import SIM_SUFFIX, MotionRecord
+    from schemas.motion import MotionRecord
 
     steps = substeps_for(physics_fps, motion.fps)
     unit = float(((record.meta or {}).get("mmd") or {}).get("metres_per_unit", 0.08))

@@ -15,7 +15,8 @@ from datagen.apparel.selection import dominant_bone
 from datagen.apparel.simulate import simulate_clip
 from datagen.apparel.world import ApparelWorld
 from schemas.character import CharacterRecord
-from schemas.motion import SIM_SUFFIX, MotionRecord
+from schemas.motion import SIM_SUFFIX
+from schemas.motion import MotionRecord
 
 SIM_VERSION = "8"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits

@@ -14,6 +14,7 @@ from datagen.apparel.relax import relax_frames, substep_poses
 from datagen.apparel.world import ApparelWorld
 from mimicbench.kinematics import rest_transforms
 
+
 CHUNK_FRAMES = 64  # frames whose substep poses are computed at once (memory: frames x substeps x bones)
 
 

@@ -25,7 +25,8 @@ from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
 from datagen.stage_runner import run_stage, summarize_statuses
 from mimicbench.engines import Engine
-from schemas.errors import DatasetError, UserError
+from schemas.errors import UserError
+from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
 from schemas.manifest import MANIFEST, load_manifest_for_write, mark_complete, mark_incomplete
 from schemas.motion import SIM_SUFFIX

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.argtypes import MAX_JOBS, job_count, nonnegative_int, positive_float, positive_int
 from mimicbench.engines import add_engine_arguments
+from mimicbench.argtypes import MAX_JOBS, job_count, nonnegative_int, positive_float, positive_int
 
 
 def register(subparsers) -> None:

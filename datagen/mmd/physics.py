@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from datagen.mmd import frame
-from datagen.mmd.model import MODE_NAMES, SHAPE_NAMES, MMDModel
+from datagen.mmd.model import MMDModel, MODE_NAMES, SHAPE_NAMES
 from schemas.joint import KINDS, JointRecord
 from schemas.rigid_body import RigidBodyRecord
 

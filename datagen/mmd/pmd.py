@@ -21,22 +21,9 @@ import numpy as np
 
 from datagen.mmd.binary import BoundedReader, check_indices
 from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.model import (
-    BONE_FIXED_AXIS,
-    BONE_GRANT_ROTATION,
-    BONE_IK,
-    BONE_MOVABLE,
-    BONE_OPERABLE,
-    BONE_ROTATABLE,
-    BONE_TAIL_IS_BONE,
-    BONE_VISIBLE,
-    IKChain,
-    IKLink,
-    MMDBone,
-    MMDJoint,
-    MMDModel,
-    MMDRigidBody,
-)
+from datagen.mmd.model import (BONE_FIXED_AXIS, BONE_GRANT_ROTATION, BONE_IK, BONE_MOVABLE, BONE_OPERABLE,
+                               BONE_ROTATABLE, BONE_TAIL_IS_BONE, BONE_VISIBLE, IKChain, IKLink, MMDBone, MMDJoint,
+                               MMDModel, MMDRigidBody)
 
 MAGIC = b"Pmd"
 KNEE_MIN = np.array([-np.pi, 0.0, 0.0], np.float32)

@@ -16,21 +16,9 @@ import numpy as np
 
 from datagen.mmd.binary import BoundedReader, check_indices
 from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.model import (
-    BONE_EXTERNAL_PARENT,
-    BONE_FIXED_AXIS,
-    BONE_GRANT_ROTATION,
-    BONE_GRANT_TRANSLATION,
-    BONE_IK,
-    BONE_LOCAL_AXIS,
-    BONE_TAIL_IS_BONE,
-    IKChain,
-    IKLink,
-    MMDBone,
-    MMDJoint,
-    MMDModel,
-    MMDRigidBody,
-)
+from datagen.mmd.model import (BONE_EXTERNAL_PARENT, BONE_FIXED_AXIS, BONE_GRANT_ROTATION, BONE_GRANT_TRANSLATION,
+                               BONE_IK, BONE_LOCAL_AXIS, BONE_TAIL_IS_BONE, IKChain, IKLink, MMDBone, MMDJoint,
+                               MMDModel, MMDRigidBody)
 
 MAGIC = b"PMX "
 _SIGNED = {1: "b", 2: "h", 4: "i"}

@@ -36,8 +36,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from datagen.resample.stage import resample_dataset
     from mimicbench.engines import engine_from_args
+    from datagen.resample.stage import resample_dataset
 
     s = resample_dataset(args.in_dataset, args.out_dataset, args.faces, args.backend, args.jobs, not args.quiet,
                          engine=engine_from_args(args))

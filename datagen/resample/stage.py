@@ -27,21 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.resample import MAX_FACES, MIN_FACES
 from datagen.resample.character import resample_character
-from datagen.stage_runner import run_stage, summarize_statuses
+from datagen.resample import MAX_FACES, MIN_FACES
 from mimicbench.engines import Engine, TaskResources
+from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
 from schemas.integrity import entry_path, verify_shard
-from schemas.manifest import (
-    MANIFEST,
-    chmod_like_open,
-    fsync_file,
-    load_manifest_for_write,
-    mark_incomplete,
-    save_manifest,
-)
+from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_incomplete,
+                              save_manifest)
 from schemas.shard_stream import ShardStream, checked_parquet_file, iter_records, iter_row_groups, read_row_group
 from schemas.shards import has_table, readable_entries, remove_split, splits_of, write_records
 from schemas.status import StatusRecord

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonnegative_int
 from mimicbench.engines import add_engine_arguments
+from mimicbench.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonnegative_int
 
 MAX_CHARACTERS = 100_000
 MAX_CLIPS = 100
@@ -56,8 +56,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from datagen.zoo import build_zoo
     from mimicbench.engines import engine_from_args
+    from datagen.zoo import build_zoo
 
     cats = [c.strip() for arg in args.categories for c in arg.split(",") if c.strip()] if args.categories else None
     s = build_zoo(args.out, args.characters, seed=args.seed, categories=cats,

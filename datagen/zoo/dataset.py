@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage
 from datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
 from datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries
@@ -15,7 +16,6 @@ from datagen.zoo.export_obj import write_obj
 from datagen.zoo.motions import FPS, MAX_FRAMES, NUM_FRAMES, RAMP_FRAMES
 from datagen.zoo.plan import assign_splits, plan_zoo
 from datagen.zoo.templates.humanoid import H2H_SKELETON_ID
-from mimicbench.engines import Engine
 from schemas.errors import DatasetError
 from schemas.fingerprint import stage_config
 from schemas.manifest import MANIFEST, atomic_write_bytes, load_manifest_for_write, mark_complete, mark_incomplete

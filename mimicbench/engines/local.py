@@ -13,6 +13,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from mimicbench.engines.base import Engine, Outcome, TaskResources, call_chunk, call_item, chunks_of
 
+
 _WORKER_FN = None  # in a pool worker: the per-item function it was started with
 
 
