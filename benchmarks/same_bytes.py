@@ -3,8 +3,9 @@
 Runs the CLI (``python -m mimicbench``, so the code under test is whatever ``PYTHONPATH`` puts
 first) on a small zoo (zoo, resample, correspond, cases, bench run, apparel) and on shared real
 assets (glTF through Blender, Gene.pmx with its VMD through the MMD reader), then writes
-``OUT/digests.json``: the sha256 of every Parquet shard, and of every results table with its
-timing column dropped (``seconds`` differs run to run). Compare two runs with ``--compare``:
+``OUT/digests.json``: the sha256 of every Parquet shard, and of the rows of every status table
+and results folder with the timing column dropped (``seconds`` and part names differ run to run).
+Compare two runs' folders with ``--compare``:
 
     PYTHONPATH=/path/to/old/tree python benchmarks/same_bytes.py /tmp/old
     PYTHONPATH=$PWD python benchmarks/same_bytes.py /tmp/new
@@ -48,27 +49,42 @@ def build(out: Path, assets: Path, blender: bool) -> None:
                    "--out", str(out / "assets"), "--quiet")
 
 
-def table_digest(path: Path) -> str:
-    """sha256 of a Parquet file, or of its rows without timing columns for a results table."""
-    if "results" not in path.parts:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
+def rows_digest(paths: list[Path]) -> str:
+    """sha256 of the rows of Parquet files (sorted, timing columns dropped): for tables whose file
+    names or ``seconds`` differ from run to run (results parts, status rows)."""
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
-    table = pq.read_table(path)
+    table = pa.concat_tables([pq.read_table(p) for p in paths])
     table = table.drop([c for c in TIMING_COLUMNS if c in table.column_names])
-    return hashlib.sha256(json.dumps(table.to_pylist(), sort_keys=True, default=str).encode()).hexdigest()
+    rows = sorted(json.dumps(r, sort_keys=True, default=str) for r in table.to_pylist())
+    return hashlib.sha256("\n".join(rows).encode()).hexdigest()
 
 
 def digests(out: Path) -> dict[str, str]:
-    return {str(p.relative_to(out)): table_digest(p) for p in sorted(out.rglob("*.parquet"))}
+    """Per dataset shard its sha256; per status table and per results folder the digest of its rows."""
+    found: dict[str, str] = {}
+    parts: dict[str, list[Path]] = {}
+    for p in sorted(out.rglob("*.parquet")):
+        rel = p.relative_to(out)
+        if rel.parts[0] == "results":
+            parts.setdefault(str(rel.parent) + "/*.parquet", []).append(p)
+        elif "status" in rel.parts:
+            found[str(rel) + " (rows)"] = rows_digest([p])
+        else:
+            found[str(rel)] = hashlib.sha256(p.read_bytes()).hexdigest()
+    found.update({name: rows_digest(ps) for name, ps in parts.items()})
+    return found
 
 
 def compare(a: Path, b: Path) -> int:
-    da, db = (json.loads((p / "digests.json").read_text()) for p in (a, b))
+    """Print what differs between two runs' outputs; the last line counts the identical ones."""
+    da, db = digests(a), digests(b)
     names = sorted(set(da) | set(db))
     differ = [n for n in names if da.get(n) != db.get(n)]
     for n in differ:
-        print(f"differs: {n} ({'missing in ' + str(a) if n not in da else 'missing in ' + str(b) if n not in db else 'bytes'})")
+        why = f"missing in {a}" if n not in da else f"missing in {b}" if n not in db else "differs"
+        print(f"{why}: {n}")
     print(f"identical: {len(names) - len(differ)} / {len(names)}")
     return 1 if differ else 0
 
