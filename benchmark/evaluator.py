@@ -31,7 +31,7 @@ from benchmark.results import append_results, done_case_ids, method_dir, write_r
 from benchmark.samples import SampleSink
 from benchmark.worker import open_runner
 from schemas.result import NOT_SUPPORTED
-from schemas.shards import has_table, read_records
+from schemas.dataset import Dataset
 
 
 @dataclass
@@ -68,13 +68,15 @@ class DistributedContext:
 
 
 def load_cases(dataset, protocols: Sequence[str]):
-    """Cases of each protocol, in stored order; raises if ``bench cases`` has not been run."""
+    """Cases of each protocol, in stored order; raises if ``bench cases`` has not been run.
+    ``dataset``: a :class:`~schemas.dataset.Dataset` or its path."""
+    dataset = Dataset.of(dataset)
     out = {}
     for p in protocols:
         get_protocol(p)  # raises on an unknown name
-        if not has_table(dataset, "cases", p):
+        if not dataset.has_table("cases", p):
             raise FileNotFoundError(f"{dataset}: no {p} cases; run `mimicbench bench cases {dataset}` first")
-        out[p] = read_records(dataset, "cases", p)
+        out[p] = dataset.records("cases", p)
     return out
 
 
@@ -125,6 +127,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         except LoadError as exc:
             unavailable[name] = str(exc)
     check_cases_current(dataset)  # before the reader refuses stale cases, to name the fix
+    dataset = Dataset.of(dataset)  # the manifest read once for cases, fingerprints and the evaluation data
     cases = load_cases(dataset, protocols)
     fingerprints = dataset_fingerprints(dataset, list(cases))
     check_results_folder(out, fingerprints)
