@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTEST_ARGS ?=
 
-.PHONY: setup test test-fast demo clean
+.PHONY: setup lint test test-fast demo clean
 
 $(VENV)/.installed: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -14,10 +14,13 @@ $(VENV)/.installed: pyproject.toml constraints.txt
 
 setup: $(VENV)/.installed  ## create .venv with every extra, versions from constraints.txt
 
-test: setup  ## the full suite, slow end-to-end tests included (what CI runs)
+lint: setup  ## ruff (rules in pyproject.toml)
+	$(VENV)/bin/ruff check .
+
+test: lint  ## ruff, then the full suite, slow end-to-end tests included (what CI runs)
 	$(PY) -m pytest $(PYTEST_ARGS)
 
-test-fast: setup  ## the suite without the slow end-to-end tests
+test-fast: lint  ## ruff, then the suite without the slow end-to-end tests
 	$(PY) -m pytest -m "not slow" $(PYTEST_ARGS)
 
 demo: setup  ## build a small zoo, run every bundled method, print the leaderboard

@@ -12,7 +12,7 @@ import numpy as np
 
 from benchmark.method import MethodMetadata, PoseTransferMethod
 from mimicbench.skinning import linear_blend_skinning
-from mimicbench.weights import SparseWeights, as_dense
+from schemas.weights import SparseWeights, as_dense
 
 
 def nearest_body_bone(points: np.ndarray, keypoints: np.ndarray, parents: np.ndarray, body: np.ndarray) -> np.ndarray:

@@ -10,16 +10,7 @@ the target keeps its own bone lengths, so forward kinematics fixes every joint r
 root and the root is placed where the keypoints best follow those displacements (least squares
 over all keypoints: the mean of what each one is missing).
 
-Version 3 fixes two faults that made it worse than doing nothing on cct. (1) Sizes instead of
-heights: a height ratio made a snake's slither 30 times longer on a humanoid and the return
-leg's error 30 times larger (demo cycle PMD 62.2 against identity's 61.1, reptile sources
-250-335). (2) Version 2 moved the root by the root's column of M alone; across categories that
-column is nearly uniform (top weight 0.05 over 52 bones where uniform is 0.02), so the root
-followed the mean displacement of every source keypoint, rotation-induced ones included. Using
-every keypoint's Eq. 3 translation brought cct PMD (largest extent) on the real glTF assets from
-16.7 to 8.2 (identity 17.2) and on the demo from 7.0 to 6.1 (identity 17.0), while on a 40-character
-zoo (all splits) it went from 5.5 to 5.9 (identity 16.4); on h2h it costs 6.2 -> 9.9 (demo) and
-6.5 -> 10.3 (zoo), where the root's column is sharp (real assets: 17.2 -> 9.1).
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 

@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmark.protocols.base import HUMANOID_LIKE
 from benchmark.result_checks import row_problem
 from benchmark.results import method_versions, read_result_records, read_run_info
+from schemas.character import HUMANOID_LIKE
 from schemas.result import ResultRecord
 
 # Headline metric per protocol, first column present wins: h2h keeps the paper's unit height,

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from mimicbench.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
 
@@ -140,7 +141,9 @@ def run_run(args) -> int:
         print(markdown_tables(summary["aggregate"]))
         print(f"{summary['computed']} cases computed ({summary['failed']} failed, {summary['not_supported']} not "
               f"supported by their method), {summary['skipped']} already done; results in {args.out}")
-    return 0
+    for reason in summary["unavailable"].values():
+        print(f"mimicbench: error: not run: {reason}", file=sys.stderr)
+    return 1 if summary["unavailable"] else 0
 
 
 def run_leaderboard(args) -> int:
@@ -156,9 +159,18 @@ def run_leaderboard(args) -> int:
 
 
 def run_methods(args) -> int:
-    from benchmark.registry import available_methods, get_method
+    """One line a method; a method that cannot be loaded (a broken plug-in) is named on stderr, exit 1."""
+    from benchmark.registry import METHODS, get_method
+    from schemas.errors import UserError
 
-    for name in available_methods():
-        md = get_method(name).metadata
+    broken = []
+    for name in METHODS.names():
+        try:
+            md = get_method(name).metadata
+        except (UserError, TypeError) as exc:  # LoadError, NameCollision, not a method
+            broken.append(str(exc))
+            continue
         print(f"{name:16s} v{md.version:6s} {md.licence:8s} {md.description}")
-    return 0
+    for reason in broken:
+        print(f"mimicbench: error: {reason}", file=sys.stderr)
+    return 1 if broken else 0

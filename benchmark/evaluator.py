@@ -10,7 +10,7 @@ for the fingerprints that keep results, cases and dataset together.
 
 The evaluator knows no protocol by name: each protocol module (:mod:`benchmark.protocols`) builds
 its requests and scores, and calls the method only through the ``call`` it is handed here
-(:func:`_call`). A method whose metadata does not list a protocol gets ``not_supported`` rows.
+(:func:`benchmark.batch.evaluate_batch`). A method whose metadata does not list a protocol gets ``not_supported`` rows.
 """
 from __future__ import annotations
 
@@ -20,20 +20,18 @@ from typing import Sequence
 
 from tqdm.auto import tqdm
 
+from benchmark.batch import evaluate_batch
 from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
 from benchmark.protocols.base import EvalData
 from benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
                                   dataset_fingerprints, method_meta, write_method_meta)
-from benchmark.registry import get_method
-from benchmark.request import MotionRequest, TransferRequest
-from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.ray_runner import evaluate_on_engine, ray_path
+from benchmark.registry import LoadError, check_method_names, get_method
+from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
 from benchmark.samples import SampleSink
-from benchmark.scoring import check_prediction
-from benchmark.worker import InProcessRunner, open_runner
-from schemas.result import APPAREL_METRICS, NOT_SUPPORTED, ResultRecord
-from schemas.shards import has_table, read_records
-
+from benchmark.worker import open_runner
+from schemas.result import NOT_SUPPORTED
+from schemas.dataset import Dataset
 
 
 @dataclass
@@ -70,83 +68,16 @@ class DistributedContext:
 
 
 def load_cases(dataset, protocols: Sequence[str]):
-    """Cases of each protocol, in stored order; raises if ``bench cases`` has not been run."""
+    """Cases of each protocol, in stored order; raises if ``bench cases`` has not been run.
+    ``dataset``: a :class:`~schemas.dataset.Dataset` or its path."""
+    dataset = Dataset.of(dataset)
     out = {}
     for p in protocols:
         get_protocol(p)  # raises on an unknown name
-        if not has_table(dataset, "cases", p):
+        if not dataset.has_table("cases", p):
             raise FileNotFoundError(f"{dataset}: no {p} cases; run `mimicbench bench cases {dataset}` first")
-        out[p] = read_records(dataset, "cases", p)
+        out[p] = dataset.records("cases", p)
     return out
-
-
-def _call(method, requests: list[TransferRequest], sizes: list):
-    """Run a batch through a runner (:mod:`benchmark.worker`; a bare method runs in process); on a
-    failure retry one by one. Returns [(array | None, error | None, seconds)]. ``sizes`` holds each
-    answer's vertex count, or its whole shape ((F, N, 3) for a :class:`MotionRequest`)."""
-    runner = method if hasattr(method, "run_batch") else InProcessRunner(method, setup=False)
-    outcome = runner.run_batch(requests)
-    error = outcome.error
-    if error is None and len(outcome.outputs) != len(requests):
-        error = f"method returned {len(outcome.outputs)} outputs for {len(requests)} requests"
-    if error is not None:
-        if len(requests) == 1:
-            return [(None, error, outcome.seconds)]
-        results = []
-        for req, n in zip(requests, sizes):
-            results.extend(_call(runner, [req], [n]))
-        return results
-    per = outcome.seconds / len(requests)
-    results = []
-    for out, n in zip(outcome.outputs, sizes):
-        try:
-            results.append((check_prediction(out, n), None, per))
-        except ValueError as exc:
-            results.append((None, str(exc), per))
-    return results
-
-
-def _row(case, method, status, error, seconds, metrics=None) -> ResultRecord:
-    m = metrics or {}
-    return ResultRecord(case.case_id, case.protocol, method.metadata.name, method.metadata.version, status, error,
-                        float(seconds), m.get("pmd"), m.get("pmd_squared"), m.get("els"), m.get("els_forward"),
-                        case.source_category, case.target_category, pmd_height=m.get("pmd_height"),
-                        pmd_extent=m.get("pmd_extent"), pmd_aligned=m.get("pmd_aligned"),
-                        **{k: m.get(k) for k in APPAREL_METRICS})
-
-
-def supports(method, protocol: str) -> bool:
-    """Whether the method's metadata lists ``protocol``."""
-    return protocol in getattr(method.metadata, "protocols", DEFAULT_PROTOCOLS)
-
-
-def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> list[ResultRecord]:
-    """Score one batch of cases of one protocol (a :class:`BenchmarkProtocol` or its name);
-    ``samples`` (a :class:`benchmark.samples.SampleSink`) keeps the predictions of the sampled
-    cases for pictures.
-
-    A method whose metadata does not list the protocol gets ``not_supported`` rows and is not
-    called.
-    """
-    if isinstance(protocol, str):
-        protocol = get_protocol(protocol)
-    if not supports(method, protocol.name):
-        reason = f"{method.metadata.name} does not support the {protocol.name} protocol (metadata.protocols)"
-        return [_row(c, method, NOT_SUPPORTED, reason, 0.0) for c in cases]
-
-    def call(requests):
-        return _call(method, list(requests), [r.expected_shape if isinstance(r, MotionRequest) else
-                                              len(r.target.vertices) for r in requests])
-
-    call.method_tags = tuple(getattr(method.metadata, "tags", ()))  # e.g. an ablation that reads the GT mask
-
-    outcomes = protocol.evaluate(cases, data, call)
-    if samples is not None:  # predictions of a few sampled cases, for the leaderboard's pictures
-        for leg in ("forward", "returned"):
-            kept = [o for o in outcomes if leg in o.outputs]
-            if kept:
-                samples.keep([o.case for o in kept], [o.outputs[leg] for o in kept], leg=leg)
-    return [_row(o.case, method, o.status, o.error, o.seconds, o.metrics) for o in outcomes]
 
 
 def check_run_options(methods: Sequence[str], batch_size: int, case_timeout: float) -> None:
@@ -178,14 +109,25 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         engine: a :class:`mimicbench.engines.RayEngine` runs each batch as a Ray task
             (:mod:`benchmark.ray_runner`); None or a local engine keeps the worker processes.
 
+    A method whose entry cannot be imported (:class:`~mimicbench.registry.LoadError`, e.g. a plug-in
+    missing a module) is not run: the summary's ``unavailable`` maps its name to the reason.
+
     Raises:
-        ValueError: an option out of range, or an unknown protocol.
+        UnknownName: a method or protocol name no entry has (before anything is loaded or written).
+        ValueError: an option out of range.
         ProvenanceError: the cases were built from another state of the dataset, or ``out``
             holds rows made from another dataset state (nothing is written then).
     """
     check_run_options(methods, batch_size, case_timeout)
-    instances = [get_method(m) for m in methods]  # fail fast on unknown names
+    check_method_names(methods)  # fail fast on unknown names
+    instances, unavailable = [], {}
+    for name in methods:  # a method that cannot be imported (a broken plug-in) is left out, the others run
+        try:
+            instances.append(get_method(name))
+        except LoadError as exc:
+            unavailable[name] = str(exc)
     check_cases_current(dataset)  # before the reader refuses stale cases, to name the fix
+    dataset = Dataset.of(dataset)  # the manifest read once for cases, fingerprints and the evaluation data
     cases = load_cases(dataset, protocols)
     fingerprints = dataset_fingerprints(dataset, list(cases))
     check_results_folder(out, fingerprints)
@@ -245,7 +187,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         ctx.barrier()
     finally:
         ctx.close()
-    summary = {"rank": ctx.rank, "world_size": ctx.world_size, **counts}
+    summary = {"rank": ctx.rank, "world_size": ctx.world_size, **counts, "unavailable": unavailable}
     if ctx.rank == 0:
         from benchmark.aggregate import aggregate
 

@@ -29,8 +29,9 @@ from pathlib import Path
 from typing import Sequence
 
 from mimicbench import __version__ as TOOLKIT_VERSION
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 from schemas.fingerprint import digest_of, stage_config, stale_inputs, table_fingerprint
+from schemas.dataset import Dataset
 from schemas.manifest import atomic_write_bytes, load_manifest
 
 META_FILE = "meta.json"
@@ -59,7 +60,8 @@ def cases_config(dataset, params: dict) -> dict:
 def check_cases_current(dataset, manifest: dict | None = None) -> None:
     """Raise :class:`ProvenanceError` unless the cases were built from the dataset's current
     characters and motions (as recorded by ``bench cases``); a dataset without cases passes."""
-    manifest = load_manifest(dataset) if manifest is None else manifest
+    if manifest is None:
+        manifest = dataset.manifest if isinstance(dataset, Dataset) else load_manifest(dataset)
     if not manifest.get("tables", {}).get("cases", {}).get("shards"):
         return  # no cases at all: the reader says to run `bench cases`
     recorded = (manifest.get("configs", {}).get("cases") or {}).get("fingerprint", {}).get("inputs", {})
@@ -85,12 +87,10 @@ def cases_are_current(dataset) -> bool:
 def dataset_fingerprints(dataset, protocols: Sequence[str]) -> dict:
     """The fingerprints results record: characters, motions, pairs (None without a pairs table)
     and the cases of each protocol."""
-    manifest = load_manifest(dataset)
-    has_pairs = bool(manifest.get("tables", {}).get("pairs", {}).get("shards"))
-    return {"characters": table_fingerprint(dataset, "characters", manifest),
-            "motions": table_fingerprint(dataset, "motions", manifest),
-            "pairs": table_fingerprint(dataset, "pairs", manifest) if has_pairs else None,
-            "cases": {p: split_fingerprint(manifest, "cases", p) for p in protocols}}
+    dataset = Dataset.of(dataset)
+    return {"characters": dataset.fingerprint("characters"), "motions": dataset.fingerprint("motions"),
+            "pairs": dataset.fingerprint("pairs") if dataset.has_table("pairs") else None,
+            "cases": {p: split_fingerprint(dataset.manifest, "cases", p) for p in protocols}}
 
 
 def method_meta(metadata, dataset, fingerprints: dict, weights: str | None = None) -> dict:

@@ -19,11 +19,11 @@ cases of its batch with Ray's error.
 """
 from __future__ import annotations
 
-import importlib
 from functools import partial
 from typing import Sequence
 
 from benchmark.protocols import get_protocol
+from mimicbench.registry import load_target
 
 _RUNNERS: dict = {}  # per Ray worker process: (import path, device, timeout, in process) -> runner
 _DATA: dict = {}  # per Ray worker process: dataset folder -> EvalData
@@ -35,11 +35,7 @@ def _runner(path: str, device: str, case_timeout: float, in_process: bool):
 
     key = (path, device, case_timeout, in_process)
     if key not in _RUNNERS:
-        module, qualname = path.split(":", 1)
-        obj = importlib.import_module(module)
-        for part in qualname.split("."):
-            obj = getattr(obj, part)
-        method = obj()
+        method = load_target(path)()
         _RUNNERS[key] = (InProcessRunner(method, device) if in_process
                          else WorkerRunner(method, path, device, case_timeout=case_timeout))
     return _RUNNERS[key]
@@ -68,7 +64,7 @@ def ray_path(method) -> str:
 def score_batch(cases: Sequence, method_path: str, device: str, dataset: str, protocol: str, samples=None,
                 case_timeout: float = 600.0, in_process: bool = False) -> list:
     """ResultRecords of one batch of cases of one protocol (the Ray task's body)."""
-    from benchmark.evaluator import evaluate_batch
+    from benchmark.batch import evaluate_batch
 
     runner = _runner(method_path, device, float(case_timeout), in_process)
     return evaluate_batch(runner, get_protocol(protocol), list(cases), _data(dataset), samples)
@@ -85,7 +81,7 @@ def evaluate_on_engine(engine, method, method_path: str, protocol: str, todo: Se
     A batch whose task failed for good (its worker died on every retry) gives ``failed`` rows
     with the engine's reason.
     """
-    from benchmark.evaluator import _row
+    from benchmark.batch import result_row
     from datagen.stage_runner import run_stage
     from mimicbench.engines import TaskResources
 
@@ -97,4 +93,4 @@ def evaluate_on_engine(engine, method, method_path: str, protocol: str, todo: Se
                             ordered=True, keep_results=False, resources=TaskResources(num_cpus=1))
     for batch, status in zip(batches, statuses):
         if status.status != "ok":
-            on_rows([_row(c, method, "failed", f"batch task failed: {status.reason}", 0.0) for c in batch])
+            on_rows([result_row(c, method, "failed", f"batch task failed: {status.reason}", 0.0) for c in batch])

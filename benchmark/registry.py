@@ -1,16 +1,14 @@
-"""Methods by name: bundled baselines, third-party entry points, runtime registration.
+"""Pose-transfer methods by name: :data:`METHODS`, a :class:`mimicbench.registry.Registry`.
 
-Bundled methods are listed as ``"module:Class"`` strings and imported only when asked for.
-Third-party packages add methods through the entry-point group ``mimicbench.methods``
-(``name = "package.module:Class"``). Unknown names raise with a "did you mean" suggestion.
+The bundled methods are seeded here as lazy ``"module:Class"`` entries (and declared again, with
+the same targets, in ``pyproject.toml``'s ``[project.entry-points."mimicbench.methods"]``, the group
+third-party packages use: ``name = "package.module:Class"``); :func:`register` adds one at run
+time. Unknown names raise :class:`~mimicbench.registry.UnknownName` with a "did you mean".
 """
 from __future__ import annotations
 
-import difflib
-import importlib
-from importlib.metadata import entry_points
-
 from benchmark.method import PoseTransferLike, PoseTransferMethod
+from mimicbench.registry import LoadError, NameCollision, Registry, UnknownName
 
 ENTRY_POINT_GROUP = "mimicbench.methods"
 
@@ -30,48 +28,37 @@ BUILTIN = {
     "mimicat_no_prior": "baselines.mimicat.method:MimicatNoPrior",
 }
 
-_registered: dict[str, object] = {}
+METHODS = Registry("method", BUILTIN, ENTRY_POINT_GROUP)
+
+__all__ = ["METHODS", "LoadError", "NameCollision", "UnknownName", "available_methods", "check_method_names",
+           "get_method", "register"]
 
 
 def register(name: str, target) -> None:
     """Register a method class (or ``"module:Class"`` string) under ``name`` at run time."""
-    _registered[name] = target
+    METHODS.register(name, target)
 
 
 def available_methods() -> list[str]:
-    """Every name that :func:`get_method` accepts, sorted."""
-    names = set(BUILTIN) | set(_registered)
-    names |= {ep.name for ep in entry_points(group=ENTRY_POINT_GROUP)}
-    return sorted(names)
+    """Every name that :func:`get_method` accepts: the bundled ones, then the others sorted."""
+    return METHODS.names()
 
 
-def _load(target):
-    if isinstance(target, str):
-        module, _, attr = target.partition(":")
-        return getattr(importlib.import_module(module), attr)
-    return target
+def check_method_names(names) -> None:
+    """UnknownName (or NameCollision) for the first name no entry has, before anything is loaded."""
+    for name in names:
+        METHODS.target(name)
 
 
 def get_method(name: str) -> PoseTransferMethod:
     """Instantiate the method registered as ``name``.
 
     Raises:
-        KeyError: unknown name, with close matches and the list of available methods.
+        UnknownName: no method has that name (the message names close matches and the available ones).
+        LoadError: its entry (e.g. a plug-in's entry point) could not be imported.
         TypeError: the registered object does not implement the adapter API.
     """
-    if name in _registered:
-        target = _registered[name]
-    elif name in BUILTIN:
-        target = BUILTIN[name]
-    else:
-        eps = {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
-        if name not in eps:
-            known = available_methods()
-            close = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
-            hint = f" Did you mean {', '.join(repr(c) for c in close)}?" if close else ""
-            raise KeyError(f"unknown method {name!r}.{hint} Available: {', '.join(known)}")
-        target = eps[name].load()
-    method = _load(target)()
+    method = METHODS.get(name)()
     if not isinstance(method, PoseTransferLike):
         raise TypeError(f"method {name!r}: expected an object with `metadata` and `transfer(requests)`")
     return method

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmark.normalisation import largest_extent
-from mimicbench.weights import SparseWeights
+from schemas.weights import SparseWeights
 
 
 def read_only(array, dtype=None) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 from benchmark.request import Rig, read_only
 from mimicbench.mesh import unique_edges
 from schemas.character import CharacterRecord
-from schemas.shards import read_records
+from schemas.dataset import Dataset
 
 
 @dataclass
@@ -38,4 +38,5 @@ class CharacterData:
 
 def load_characters(dataset) -> dict[str, CharacterData]:
     """Every character with a mesh, by ID (skeleton-only sources such as BVH are left out)."""
-    return {r.character_id: CharacterData(r) for r in read_records(dataset, "characters") if len(r.faces)}
+    return {r.character_id: CharacterData(r) for r in Dataset.of(dataset).records("characters")
+            if len(r.faces)}

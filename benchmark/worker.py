@@ -33,7 +33,6 @@ script's ``__main__`` module in the worker.
 """
 from __future__ import annotations
 
-import importlib
 import logging
 import multiprocessing
 import signal
@@ -45,6 +44,7 @@ from typing import Sequence
 import numpy as np
 
 from benchmark.request import MotionRequest, Rig, TransferRequest
+from mimicbench.registry import load_target
 
 log = logging.getLogger("mimicbench")
 
@@ -121,9 +121,7 @@ def import_path(method) -> str | None:
     if module == "__main__" or "<locals>" in qualname:
         return None
     try:
-        obj = importlib.import_module(module)
-        for part in qualname.split("."):
-            obj = getattr(obj, part)
+        obj = load_target(f"{module}:{qualname}")
     except Exception:
         return None
     return f"{module}:{qualname}" if obj is cls else None
@@ -297,11 +295,7 @@ def worker_main(conn, spec: str, device: str, rank: int, world_size: int) -> Non
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        module, _, qualname = spec.partition(":")
-        obj = importlib.import_module(module)
-        for part in qualname.split("."):
-            obj = getattr(obj, part)
-        method = obj()
+        method = load_target(spec)()
         method.setup(device)
         method.on_distributed_init(rank, world_size)
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which fails the cases

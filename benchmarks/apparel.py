@@ -38,72 +38,7 @@ The compiled joint kernels (numba, :mod:`datagen.apparel.joint_kernel`) are impo
 once before any figure is timed; that first call (compiling them, or loading numba's cache of
 them) is printed on its own line and is in no per-clip figure.
 
-Measured with simulation version 8 (the per-step joint arithmetic compiled) and the output-
-preserving speed-ups after it (main at f752089) on a nearly idle machine (load 0.7-1.7, these
-runs alone), the least of 3 runs; "before" is main at d5480f2 (simulation version 7), measured
-just after; this stage runs on one thread, so its CPU and wall seconds agree:
-
-    links  this stage s/clip, wall (x real time)   before (version 7)   Blender bake s/clip, wall (CPU)
-       10  0.045 (44x)                             0.081                0.048 (0.046)
-       50  0.156 (12.8x)                           0.204                0.224 (0.220)
-      200  0.716 (2.8x)                            0.805                0.958 (0.953)
-
-Blender / this stage in wall seconds, run by run: 1.14x, 1.07x, 1.07x at 10 links; 1.41x, 1.45x,
-1.43x at 50; 1.35x, 1.31x, 1.36x at 200 (in CPU seconds 1.04-1.07x, 1.40-1.43x, 1.31-1.36x). Of
-issue 14's aims: 10x real time at 50 links is met (12.8x: 0.156 s a clip against 0.2), and this
-stage is faster than Blender at every size, at 10 links by 7-14% of wall time (4-7% of CPU time;
-0.045 against 0.048 s a clip). Under load 4-5.6 from another developer's training (CPU seconds, the
-least of 3 runs, "before" interleaved): 0.046 / 0.162 / 0.739 s against 0.081 / 0.214 / 0.856
-before and Blender's 0.047 / 0.235 / 1.030 (at 10 links 1.00-1.17x, run by run). What got 10 links
-there: the compiled kernels (0.082 -> 0.052), then a closed world's pybullet client kept for the
-next world (a character's set-up 0.024 -> 0.011 s, a third of it per clip) and fewer Python steps
-around pybullet's calls. The first call of the kernels: 0.2-0.3 s wall when numba's cache is
-present (about 3 s compiling them into an empty cache); importing numba adds about 0.2-0.4 s to
-importing the stage. Where a clip's CPU seconds go now (under load; "Bullet" is ``stepSimulation``,
-"joints" the per-step joint-state reads, compiled arithmetic and torque calls, "rest" the body and
-anchor moves, the per-frame link reads and the loop), and the set-up a third of which each clip
-pays:
-
-    links  clip    Bullet  joints  rest    set-up
-       10  0.041   0.024   0.010   0.007   0.011
-       50  0.148   0.098   0.037   0.013   0.042
-      200  0.705   0.535   0.132   0.038   0.160
-
-At 10 links Bullet's step alone is half of Blender's whole bake, and the Python left around it is
-the pybullet calls themselves (one ``getJointStatesMultiDof`` is about 6 us for 10 joints, its
-tuples about 0.5 us a joint to turn into an array; the torque call, the piece reset and the
-constraint move 1-3 us each), not arithmetic: the numpy work the compiled kernels replaced was
-0.036 s of a 50-link clip and is now about 0.003 s. More speed needs fewer pybullet calls a step
-or a cheaper Bullet step, both of which change the simulation.
-
-Measured on an idle machine before the kernels (simulation version 7 with the output-preserving
-speed-ups after it, main at 5efe527; three runs, the least of each; this stage on one thread, so
-CPU = wall; Blender CPU / wall, its bake keeps a second thread busy when it has a core):
-
-    links  this stage s/clip (x real time)   Blender bake s/clip CPU / wall
-       10  0.086 (23x)                       0.090 / 0.047
-       50  0.213 (9.4x)                      0.318 / 0.231
-      200  0.805 (2.5x)                      1.098 / 0.952
-
-Earlier history: version 6 took 0.138 / 0.348 / 1.23 s a clip. What changed since: springs solved
-per tree of links (version 7), a clip's substep poses and anchor placements computed for many
-frames at once, link rotations made rest-relative once per clip, the limit check skipped when no
-joint is turned as far as its smallest limit, link frames remembered per axis at set-up, and
-(version 8) the rotation vectors, limit screen, spring torques and re-solves past the torque bound
-compiled, and pybullet clients kept across worlds. Tried and left out: chains merged up to 30 links
-a multibody instead of 24 (no gain beyond noise); physics at 120 Hz (4 substeps, on both sides,
-spring gains kept per second): Blender's bake halves, but zoo penetration reaches 2.2% of a clip, a
-seed-1 clip explodes and this stage gets slower (0.27 s at 50 links: struck chains need more
-contact and limit work), so the rate stays 240 Hz; solver iterations 10 instead of 30 and a
-residual threshold do not change Bullet's step time here (the solver stops early already); with no
-collisions at all the step costs 0.083 s instead of 0.096 at 50 links, the most any collision
-filtering could save on this scene; Bullet's own spherical joint limits left out of the URDF (the
-stage projects joints onto their limits after every step anyway): Bullet's step 18% cheaper at 50
-links and this scene's bytes unchanged, but on zoo seed 0 one clip's penetration went from 0.7% to
-4.7% (the limits act within a step, the projection only after it), so they stay; numba reading
-pybullet's joint-state tuples directly (its list unboxing is far slower than ``numpy.fromiter``).
-The spherical joint motors pybullet adds to every joint cost nothing: with their force set to 0
-Bullet makes no constraint rows for them.
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
-from datagen.correspond.methods import get_method, match_batch
+from datagen.correspond.methods import get_matcher, match_batch
 from mimicbench.sinkhorn import sinkhorn_log
 
 
@@ -51,7 +51,7 @@ def zoo_features(n: int, k: int = 80) -> list[np.ndarray]:
     from datagen.zoo.build import build_skeleton, naming_style
     from datagen.zoo.naming import bone_names
     from datagen.zoo.plan import plan_zoo
-    from datagen.zoo.templates import HUMANOID_LIKE
+    from schemas.character import HUMANOID_LIKE
 
     out = []
     for spec in plan_zoo(n, seed=0):
@@ -112,7 +112,7 @@ def main() -> None:
     feats = zoo_features(len(chars))
     fa = [feats[i] for i in idx[:, 0]]
     fb = [feats[j] for j in idx[:, 1]]
-    method = get_method("structure")
+    method = get_matcher("structure")
     start = time.perf_counter()
     for i in range(0, args.pairs, args.batch):
         match_batch(method, a[i:i + args.batch], b[i:i + args.batch], fa[i:i + args.batch], fb[i:i + args.batch])

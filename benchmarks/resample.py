@@ -35,7 +35,7 @@ def subdivided(record):
 
     import trimesh
 
-    from mimicbench.weights import SparseWeights
+    from schemas.weights import SparseWeights
 
     v, f, attr = trimesh.remesh.subdivide(record.vertices.astype(np.float64), record.faces,
                                           vertex_attributes={"w": record.weights.to_dense(np.float64)})
@@ -83,7 +83,7 @@ def run_ours(chars, motions, faces, backend):
 
 def run_blender(chars, motions, faces, tmp):
     """The same for Blender's route, in a child process."""
-    from mimicbench.weights import SparseWeights
+    from schemas.weights import SparseWeights
 
     arrays = {"count": len(chars), "target": faces}
     for i, c in enumerate(chars):

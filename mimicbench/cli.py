@@ -4,7 +4,7 @@ Each sub-command lives in its own module exposing ``register(subparsers)``, whic
 whose ``func`` default takes the parsed arguments and returns an exit code. Modules import their
 heavy dependencies inside ``func``, so ``mimicbench --help`` stays fast.
 
-User errors (:class:`~mimicbench.errors.UserError` and its subclasses such as ``DatasetError``,
+User errors (:class:`~schemas.errors.UserError` and its subclasses such as ``DatasetError``,
 any ``OSError`` (a missing file, a full disk, a read-only folder), a ``ValueError`` from an
 argument check) print ``mimicbench: error: ...`` and exit
 with status 2; ``--debug`` (anywhere on the command line, or ``MIMICBENCH_DEBUG=1``) shows the
@@ -19,7 +19,7 @@ import os
 import sys
 
 from mimicbench import __version__
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 
 # Exceptions that mean "the user asked for something impossible", not "mimicbench has a bug".
 # Any OSError (disk full, a read-only folder, a missing file) is the machine's state, not a bug:

@@ -1,22 +1,10 @@
 """The exception type for errors the user can fix (bad input, a wrong folder, a bad option value).
 
-The CLI prints these as ``mimicbench: error: <message>`` and exits with status 2 (``--debug``
-shows the traceback); anything else is a bug and keeps its traceback. Raise :class:`UserError`
-(or a subclass such as :class:`schemas.errors.DatasetError`) with a message that says what was
-expected and what was found.
+Defined in :mod:`schemas.errors` (the lowest layer, so the data contract can raise it too) and
+offered here under its public name: plug-in methods and scripts raise ``mimicbench.errors.UserError``.
 """
 from __future__ import annotations
 
+from schemas.errors import UserError, os_error_at
 
-class UserError(Exception):
-    """Bad input or a bad request, explained by the message; not a bug in mimicbench."""
-
-
-def os_error_at(exc: OSError, path) -> OSError:
-    """``exc`` as an OSError that names ``path`` (the file being written) when it names none, with
-    the underlying reason kept (pyarrow's disk-full error carries no file name; its text has the
-    "No space left on device")."""
-    if exc.filename is not None:
-        return exc
-    reason = exc.strerror or str(exc) or type(exc).__name__
-    return OSError(exc.errno, reason, str(path))
+__all__ = ["UserError", "os_error_at"]

@@ -14,7 +14,7 @@ import numpy as np
 from mimicbench.kinematics import array_to_transforms
 from mimicbench.quaternion import quat_to_matrix
 from mimicbench.validation import check_shape
-from mimicbench.weights import SparseWeights, as_dense
+from schemas.weights import SparseWeights, as_dense
 
 
 def stretch_matrices(scale: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ import numpy as np
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.quaternion import matrix_to_quat
 from mimicbench.validation import check_shape
-from mimicbench.weights import as_dense
+from schemas.weights import as_dense
 
 
 def estimate_transforms(
@@ -26,7 +26,7 @@ def estimate_transforms(
     Args:
         rest_vertices: (N, 3) rest vertices.
         posed_vertices: (..., N, 3) posed vertices (frames batch over leading dimensions).
-        weights: dense (N, K) or :class:`~mimicbench.weights.SparseWeights`.
+        weights: dense (N, K) or :class:`~schemas.weights.SparseWeights`.
         rest_keypoints: (K, 3) rest keypoints cbar_k.
         min_weight: keypoints whose total weight is below this own no vertices.
 

@@ -5,12 +5,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mimicbench.weights import MAX_INFLUENCES, SparseWeights
 from schemas.columns import Column
+from schemas.weights import MAX_INFLUENCES, SparseWeights
 
 TABLE = "characters"
 
 CATEGORIES = ("humanoid", "quadruped", "bird", "fish", "reptile", "insect", "apparel", "unknown")
+HUMANOID_LIKE = ("humanoid", "apparel")
+"""Categories that count as humanoid (an ``apparel`` character is a humanoid wearing apparel)."""
 
 
 @dataclass
@@ -65,7 +67,7 @@ class CharacterRecord:
 
     @property
     def weights(self) -> SparseWeights:
-        """Skin weights as :class:`~mimicbench.weights.SparseWeights`."""
+        """Skin weights as :class:`~schemas.weights.SparseWeights`."""
         return SparseWeights(np.asarray(self.weight_indices, np.int32), np.asarray(self.weight_values, np.float32),
                              int(len(self.parents)))
 

@@ -194,7 +194,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         if isinstance(exc, OSError):  # a full disk's write error names no file: name the one being written
-            from mimicbench.errors import os_error_at
+            from schemas.errors import os_error_at
 
             raise os_error_at(exc, path) from exc
         raise

@@ -9,6 +9,10 @@ from schemas.columns import Column
 
 TABLE = "motions"
 
+SIM_SUFFIX = "@sim"
+"""A simulated clip's motion ID and name: the kinematic clip's followed by this (``datagen apparel``
+writes the pair, the benchmark's apparel protocol and the MMDMC reference pair them by it)."""
+
 
 @dataclass
 class MotionRecord:

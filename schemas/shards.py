@@ -24,7 +24,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from schemas.columns import records_to_table, table_to_records
-from mimicbench.errors import os_error_at
+from schemas.errors import os_error_at
 from schemas.errors import DatasetError
 from schemas.fingerprint import stale_inputs
 from schemas.integrity import entry_path, verify_shard
@@ -184,7 +184,8 @@ def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int,
     return tmp
 
 
-def _reader_manifest(root, allow_incomplete: bool) -> dict:
+def reader_manifest(root, allow_incomplete: bool) -> dict:
+    """The manifest of ``root`` for reading: DatasetError when missing, or incomplete unless allowed."""
     manifest = load_manifest(root)
     if not allow_incomplete and not is_complete(manifest):
         raise DatasetError(incomplete_reason(root, manifest))
@@ -198,7 +199,11 @@ def shard_entries(root, table: str, split: str | None = None, allow_incomplete: 
         DatasetError: no readable manifest, or the dataset is marked incomplete (unless
             ``allow_incomplete``: a stage resuming its own output).
     """
-    manifest = _reader_manifest(root, allow_incomplete)
+    return entries_of(reader_manifest(root, allow_incomplete), table, split)
+
+
+def entries_of(manifest: dict, table: str, split: str | None = None) -> list[dict]:
+    """The entries ``manifest`` lists for ``table``'s shards (of one split, or all); no checks."""
     shards = manifest.get("tables", {}).get(table, {}).get("shards", [])
     return [s for s in shards if split is None or s["split"] == split]
 
@@ -226,21 +231,30 @@ def read_table(root, table: str, split: str | None = None, columns: list[str] | 
             tables of this dataset that have changed since (e.g. pairs after a new zoo).
     """
     root = Path(root)
+    return read_entries(root, table, readable_entries(root, table, split, allow_incomplete), columns, verify)
+
+
+def read_entries(root: Path, table: str, entries: list[dict], columns: list[str] | None = None,
+                 verify: bool | None = None) -> pa.Table:
+    """The shards ``entries`` of ``table`` read with the per-shard checks of :func:`read_table`."""
     expected = schema_of(table)
     if columns is not None:
         expected = pa.schema([expected.field(c) for c in columns], metadata=expected.metadata)
-    return pa.concat_tables([read_checked_shard(root, e, expected, columns, verify)
-                             for e in readable_entries(root, table, split, allow_incomplete)])
+    return pa.concat_tables([read_checked_shard(root, e, expected, columns, verify) for e in entries])
 
 
 def readable_entries(root: Path, table: str, split: str | None, allow_incomplete: bool) -> list[dict]:
     """The manifest's shard entries of ``table`` (of ``split``), after the dataset-level checks of
     :func:`read_table` (manifest present and complete, ``table`` not stale, at least one shard)."""
-    manifest = _reader_manifest(root, allow_incomplete)
+    return checked_entries(root, reader_manifest(root, allow_incomplete), table, split)
+
+
+def checked_entries(root: Path, manifest: dict, table: str, split: str | None) -> list[dict]:
+    """:func:`readable_entries` with the manifest already read (and its completeness checked)."""
     stale = stale_inputs(root, manifest, table)
     if stale:
         raise DatasetError(stale)
-    entries = [s for s in manifest["tables"].get(table, {}).get("shards", []) if split is None or s["split"] == split]
+    entries = entries_of(manifest, table, split)
     if not entries:
         what = f"table {table!r}" + (f" split {split!r}" if split is not None else "")
         raise DatasetError(f"{root}/manifest.json lists no shard of {what} (present: "
@@ -289,5 +303,10 @@ def read_records(root, table: str, split: str | None = None, *, verify: bool | N
 
 def splits_of(root, table: str, allow_incomplete: bool = False) -> list[str]:
     """Splits present for ``table``, in train/val/test order first."""
-    found = {s["split"] for s in shard_entries(root, table, allow_incomplete=allow_incomplete)}
+    return ordered_splits(shard_entries(root, table, allow_incomplete=allow_incomplete))
+
+
+def ordered_splits(entries: list[dict]) -> list[str]:
+    """The splits of shard ``entries``, in train/val/test order first."""
+    found = {s["split"] for s in entries}
     return [s for s in SPLITS if s in found] + sorted(found - set(SPLITS))

@@ -149,7 +149,7 @@ def test_gene_stand_through_ingest_and_apparel(assets_dir, tmp_path):
     motions = {m.name: m for m in read_records(tmp_path / "sim", "motions")}
     stand, sim = motions["stand"], motions["stand@sim"]
     q = c.meta["apparel"]["clips"]["stand"]
-    assert q["physics"] == "file" and q["links"] == 62 and q["gravity"] == 9.8
+    assert q["physics"] == "file" and q["links"] == 62 and q["gravity"] == pytest.approx(9.8)
     assert np.isfinite(q["new_inside_pct"]) and q["secondary_motion_pct"] > 0.1
     body = ~c.apparel_bone_mask
     np.testing.assert_array_equal(sim.transforms[:, body], stand.transforms[:, body])

@@ -15,7 +15,7 @@ from datagen.apparel.simulate import SimulationExploded
 from datagen.apparel.springs import chain_mass_matrix
 from datagen.apparel.urdf import chain_urdf, hull_obj
 from datagen.apparel.world import ApparelWorld
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 from tests.apparel_toys import LINK, LINKS, make_character, make_motion, quick_turn
 
 
@@ -128,7 +128,7 @@ def test_limits_hold_within_tolerance_on_a_fast_turn(turn_frames):
 def test_gravity_is_a_parameter():
     # a horizontal chain with neither motor nor stiffness: without gravity it stays level, with the
     # default 9.8 m/s^2 it sags, and more under 3 times that gravity
-    assert ApparelParams().simulation.gravity == 9.8
+    assert ApparelParams().simulation.gravity == pytest.approx(9.8)
     tips = {}
     for g in (0.0, 9.8, 29.4):
         rec = make_character(horizontal=True)
@@ -295,9 +295,9 @@ def test_params_file_overrides_and_errors(tmp_path):
     f.write_text(json.dumps({"kinds": {"hair": {"stiffness": 0.5}, "default": {"link_mass": 0.2}},
                              "simulation": {"max_speed": 9}}))
     p = load_params(f)
-    assert p.for_kind("hair").stiffness == 0.5 and p.simulation.max_speed == 9.0
-    assert p.for_kind("sleeve").link_mass == 0.2  # unknown kinds use the overridden default
-    assert p.for_kind("hair").link_mass == ApparelParams().for_kind("hair").link_mass
+    assert p.for_kind("hair").stiffness == pytest.approx(0.5) and p.simulation.max_speed == pytest.approx(9.0)
+    assert p.for_kind("sleeve").link_mass == pytest.approx(0.2)  # unknown kinds use the overridden default
+    assert p.for_kind("hair").link_mass == pytest.approx(ApparelParams().for_kind("hair").link_mass)
     for bad, msg in (({"kinds": {"hair": {"stiffnes": 1}}}, "unknown field 'stiffnes'"),
                      ({"kinds": {"hair": {"stiffness": 2}}}, "expected a number >= 0 and <= 1"),
                      ({"physics": {}}, "unknown section"),

@@ -61,7 +61,7 @@ def test_headline_columns_and_category_pairs_on_one_scale(scored):
 
 def _flat_pair():
     """A 2 m x 0.1 m x 0.5 m slab rigged to one bone, and a copy squashed to a tenth of its height."""
-    from mimicbench.weights import SparseWeights
+    from schemas.weights import SparseWeights
 
     corners = np.array([[x, y, z] for x in (0, 2.0) for y in (0, 0.1) for z in (0, 0.5)], np.float32)
     faces = np.array([[0, 1, 2], [1, 3, 2], [4, 6, 5], [5, 6, 7], [0, 4, 1], [1, 4, 5],

@@ -1,6 +1,5 @@
 """The evaluator: failures recorded per case, no partial averages, resume, torchrun parity."""
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path

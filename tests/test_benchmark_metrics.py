@@ -16,9 +16,10 @@ FACES = np.array([[0, 1, 2], [0, 3, 1]])
 def test_rest_frame_by_hand():
     f = RestFrame.of(REST, unique_edges(FACES))
     np.testing.assert_allclose(f.centre, [2, 1, 0.5])
-    assert f.height == 2.0 and f.extent == 4.0 and f.scale("height") == 2.0 and f.scale("extent") == 4.0
+    assert f.height == pytest.approx(2.0) and f.extent == pytest.approx(4.0)
+    assert f.scale("height") == pytest.approx(2.0) and f.scale("extent") == pytest.approx(4.0)
     np.testing.assert_allclose(f.normalise([[2, 1, 0.5], [4, 2, 0.5]], "extent"), [[0, 0, 0], [0.5, 0.25, 0]])
-    assert largest_extent(REST) == 4.0 and size_ratio(REST, REST * 1.5) == 1.5
+    assert largest_extent(REST) == pytest.approx(4.0) and size_ratio(REST, REST * 1.5) == pytest.approx(1.5)
     with pytest.raises(ValueError, match="height or extent|one of height, extent"):
         f.scale("width")
     with pytest.raises(ValueError, match="positive Y extent"):
@@ -68,8 +69,9 @@ def test_identity_is_perfect():
     v = rng.normal(size=(50, 3))
     edges = unique_edges(rng.integers(0, 50, size=(80, 3)))
     for by in ("height", "extent"):
-        assert pmd(v, v, v, by) == 0.0 and pmd_squared(v, v, v, by) == 0.0 and pmd_aligned(v, v, v, by) == 0.0
-    assert els(v, v, edges) == 1.0
+        for metric in (pmd, pmd_squared, pmd_aligned):
+            assert metric(v, v, v, by) == pytest.approx(0.0, abs=1e-9), metric.__name__
+    assert els(v, v, edges) == pytest.approx(1.0)
 
 
 @pytest.mark.parametrize("by", ["height", "extent"])

@@ -3,8 +3,11 @@ import sys
 import pytest
 
 from benchmark.method import PoseTransferMethod
-from benchmark.registry import available_methods, get_method, register
+from benchmark.registry import UnknownName, available_methods, get_method, register
+from mimicbench.cli import main
+from tests.bench_fixtures import make_bench_dataset
 from tests.bench_fixtures import FlakyMethod
+from tests.test_registry import fake_distribution
 
 
 def test_bundled_methods_load_lazily_with_metadata():
@@ -15,16 +18,16 @@ def test_bundled_methods_load_lazily_with_metadata():
 
 
 def test_unknown_name_suggests_close_matches():
-    with pytest.raises(KeyError, match=r"Did you mean 'name_copy'"):
+    with pytest.raises(UnknownName, match=r"Did you mean 'name_copy'"):
         get_method("name_cpy")
-    with pytest.raises(KeyError, match="Available: "):
+    with pytest.raises(UnknownName, match="Available: "):
         get_method("zzzz")
 
 
 def test_runtime_registration_and_entry_points(tmp_path, monkeypatch):
     import benchmark.registry as registry
 
-    monkeypatch.setattr(registry, "_registered", dict(registry._registered))  # names registered here stay here
+    monkeypatch.setattr(registry.METHODS, "_runtime", dict(registry.METHODS._runtime))  # names registered here stay here
     register("flaky", FlakyMethod)
     assert isinstance(get_method("flaky"), FlakyMethod)
     # a third-party package declaring `mimicbench.methods` in its entry points
@@ -38,3 +41,46 @@ def test_runtime_registration_and_entry_points(tmp_path, monkeypatch):
     assert "my_method" in available_methods()
     assert type(get_method("my_method")).__name__ == "Mine"
     sys.modules.pop("thirdparty_pose", None)
+
+
+def test_a_typo_in_methods_is_one_error_line_naming_the_close_match_exit_2(tmp_path, capsys, monkeypatch):
+    import benchmark.registry as registry
+
+    monkeypatch.setattr(registry.METHODS, "_runtime", {})  # only the bundled names (other tests register more)
+    code = main(["bench", "run", str(tmp_path / "D"), "--methods", "identity,name_cpy", "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    lines = [x for x in err.splitlines() if "name_copy" in x]
+    assert len(lines) == 1 and lines[0].startswith("mimicbench: error: unknown method 'name_cpy'. Did you mean "
+                                                   "'name_copy'?")
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.fixture
+def broken_plugin(tmp_path, monkeypatch):
+    """An installed plug-in whose entry point imports a module that is not there."""
+    fake_distribution(tmp_path / "site", "broken_pose", {"broken_pose": "broken_pose_missing.module:Method"})
+    monkeypatch.syspath_prepend(str(tmp_path / "site"))
+    return "broken_pose"
+
+
+def test_bench_methods_lists_the_others_and_names_the_broken_entry_point(broken_plugin, capsys):
+    code = main(["bench", "methods"])
+    out, err = capsys.readouterr()
+    listed = [line.split()[0] for line in out.splitlines()]
+    assert code == 1 and {"identity", "name_copy", "mmdmc", "mimicat"} <= set(listed) and broken_plugin not in listed
+    assert err.splitlines()[0] == ("mimicbench: error: method 'broken_pose': cannot load broken_pose_missing.module:"
+                                   "Method (ModuleNotFoundError: No module named 'broken_pose_missing')")
+
+
+def test_a_broken_method_is_left_out_and_the_others_run(broken_plugin, small_zoo, tmp_path, capsys):
+    data = make_bench_dataset(small_zoo, tmp_path / "data", h2h_poses=1, cct_pairs=2, cct_poses=1)
+    out = tmp_path / "res"
+    code = main(["bench", "run", str(data), "--methods", f"{broken_plugin},identity", "--out", str(out), "--quiet",
+                 "--in-process"])
+    stdout, err = capsys.readouterr()
+    assert code == 1
+    assert ("mimicbench: error: not run: method 'broken_pose': cannot load broken_pose_missing.module:Method "
+            "(ModuleNotFoundError: No module named 'broken_pose_missing')") in err.splitlines()
+    assert (out / "identity").is_dir() and not (out / broken_plugin).exists()
+    assert "identity" in stdout and "0 failed" in stdout

@@ -12,7 +12,7 @@ from schemas.errors import DatasetError
 
 def test_int_and_float_types_accept_the_range_and_name_it_when_rejecting():
     assert positive_int("3") == 3 and nonnegative_int("0") == 0 and int_in(100, 200)("200") == 200
-    assert positive_float("0.05") == 0.05 and float_in(0, 1)("1") == 1.0
+    assert positive_float("0.05") == pytest.approx(0.05) and float_in(0, 1)("1") == pytest.approx(1.0)
     cases = [(positive_int, "0", "an integer >= 1"), (positive_int, "-1", ">= 1"), (positive_int, "1.5", ">= 1"),
              (int_in(100, 200), "201", ">= 100 and <= 200"), (positive_float, "0", "> 0"),
              (positive_float, "nan", "finite"), (positive_float, "inf", "finite"),

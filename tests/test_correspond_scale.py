@@ -25,7 +25,7 @@ def _zoo_skeleton(character_id: str):
     from datagen.zoo.build import build_skeleton, naming_style
     from datagen.zoo.naming import bone_names
     from datagen.zoo.plan import plan_zoo
-    from datagen.zoo.templates import HUMANOID_LIKE
+    from schemas.character import HUMANOID_LIKE
 
     spec = next(s for s in plan_zoo(975, seed=0) if s.character_id == character_id)
     skel, _ = build_skeleton(spec)
@@ -38,7 +38,7 @@ def test_a_pair_whose_relaxed_sweeps_overflow_is_redone_with_classic_sweeps():
     (w = 1.7) overflow to NaN; that failed its whole block of 2,048 pairs before. Now the pair is
     solved by classic sweeps and meets the marginals (rows at most 1, columns at most K1/K2 or 1)."""
     from datagen.correspond.encoders import get_encoder
-    from datagen.correspond.methods import get_method
+    from datagen.correspond.methods import get_matcher
     from datagen.correspond.structure import skeleton_features
     from datagen.correspond.batched import feature_penalty
 
@@ -46,7 +46,7 @@ def test_a_pair_whose_relaxed_sweeps_overflow_is_redone_with_classic_sweeps():
     enc = get_encoder("minilm")
     ea, eb = enc.embed(na), enc.embed(nb)
     fa, fb = skeleton_features(na, pa, ka).matrix(), skeleton_features(nb, pb, kb).matrix()
-    m = get_method("structure")
+    m = get_matcher("structure")
     # the relaxed solver alone does not balance this pair (the condition the fallback exists for)
     cos = torch.from_numpy(ea @ eb.T).clamp(-1, 1)[None]
     scores = m.text * cos - feature_penalty(torch.from_numpy(fa)[None], torch.from_numpy(fb)[None], m.feature_weights())
@@ -131,4 +131,4 @@ def test_role_report_cache_gives_the_uncached_scores():
         assert pair_scores(x, y, h, cache) == pair_scores(x, y, h)
     assert set(cache) == {"a", "b", "c"}
     # hand-checked: a->b matches every role exactly (arms swapped back by the Hungarian pairs)
-    assert pair_scores(a, b, hung)["exact"] == 1.0
+    assert pair_scores(a, b, hung)["exact"] == pytest.approx(1.0)

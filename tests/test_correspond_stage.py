@@ -36,7 +36,7 @@ def test_pairs_written_validated_and_roles_agree(corresponded):
         k1, k2 = chars[p.source_id].num_joints, chars[p.target_id].num_joints
         assert p.s_cos.shape == p.m_sink.shape == (k1, k2) and len(p.hungarian) <= min(k1, k2)
         assert len(set(p.hungarian[:, 0])) == len(set(p.hungarian[:, 1])) == len(p.hungarian)
-        assert p.method == "structure" and p.method_params["no_match"] == 0.45
+        assert p.method == "structure" and p.method_params["no_match"] == pytest.approx(0.45)
         assert np.all(p.m_sink.sum(1) <= 1 + 1e-4) and np.all(p.m_sink >= 0)
     report = json.loads((root / "correspond_report.json").read_text())
     assert report == json.loads(json.dumps(summary["report"]))

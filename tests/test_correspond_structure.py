@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from datagen.correspond.batched import correspondence_batch, feature_penalty, hungarian_pairs
-from datagen.correspond.methods import FEATURES, METHODS, get_method
+from datagen.correspond.methods import FEATURES, METHODS, get_matcher
 from datagen.correspond.roles import role_classes
 from datagen.correspond.structure import skeleton_features
 from mimicbench.sinkhorn import sinkhorn_log
@@ -132,14 +132,14 @@ def test_dustbin_sinkhorn_matches_the_core_solver_on_the_augmented_problem():
 
 
 def test_methods_by_name_and_their_record():
-    assert get_method("text") == METHODS["text"] and not METHODS["text"].uses_structure
-    s = get_method("structure", no_match=0.3, temperature=0.2)
-    assert s.no_match == 0.3 and s.temperature == 0.2 and len(s.feature_weights()) == len(FEATURES)
+    assert get_matcher("text") == METHODS["text"] and not METHODS["text"].uses_structure
+    s = get_matcher("structure", no_match=0.3, temperature=0.2)
+    assert s.no_match == pytest.approx(0.3) and s.temperature == pytest.approx(0.2) and len(s.feature_weights()) == len(FEATURES)
     assert '"no_match": 0.3' in s.params_json() and '"name": "structure"' in s.params_json()
-    with pytest.raises(ValueError, match="expected one of"):
-        get_method("structur")
+    with pytest.raises(ValueError, match="unknown matching method .structur.. Did you mean .structure."):
+        get_matcher("structur")
     with pytest.raises(ValueError, match="text method"):
-        get_method("text", no_match=0.4)
+        get_matcher("text", no_match=0.4)
 
 
 def test_role_map_classes():

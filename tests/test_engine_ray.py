@@ -20,7 +20,7 @@ ray = pytest.importorskip("ray")
 import cloudpickle  # noqa: E402  (ships with ray)
 
 from datagen.correspond.stage import correspond_dataset  # noqa: E402
-from mimicbench.engines import LocalEngine, TaskResources, get_engine  # noqa: E402
+from mimicbench.engines import TaskResources, get_engine  # noqa: E402
 from mimicbench.engines.ray_engine import RayEngine  # noqa: E402
 from datagen.resample.stage import resample_dataset  # noqa: E402
 from datagen.stage_runner import run_stage  # noqa: E402

@@ -178,7 +178,7 @@ def test_mesh_unit_rescales_a_file_in_another_unit_and_its_size_is_warned(ingest
     assert small["warnings"] == []
     char, motions, meta, arrays = load(tmp_path / "small", "Fox")
     big, big_motions, _, _ = load(out, "Fox")
-    assert char.meta["ingest"]["metres_per_unit"] == 0.01 and big.meta["ingest"]["metres_per_unit"] == 1.0
+    assert char.meta["ingest"]["metres_per_unit"] == pytest.approx(0.01) and big.meta["ingest"]["metres_per_unit"] == pytest.approx(1.0)
     assert 0.7 < char.height < 0.9
     np.testing.assert_allclose(char.vertices, big.vertices * 0.01, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(char.keypoints, big.keypoints * 0.01, rtol=1e-5, atol=1e-6)
@@ -277,7 +277,7 @@ def test_bvh_becomes_a_skeleton_in_metres(ingested, assets_dir):
     # and 24 m in metres, so CMU's own unit (inches / 0.45 = 0.056444 m) is taken (BVH is Y up like the dataset)
     want = rest[order] * 0.056444
     np.testing.assert_allclose(char.keypoints - char.keypoints[0], want - want[0], atol=1e-4)
-    assert char.meta["ingest"]["bvh_scale"] == 0.056444 and char.meta["ingest"]["bvh_unit"].startswith("CMU")
+    assert char.meta["ingest"]["bvh_scale"] == pytest.approx(0.056444) and char.meta["ingest"]["bvh_unit"].startswith("CMU")
     assert load_manifest(out)["configs"]["characters"]["bvh_scale"] == "auto"
     assert 1.2 < np.ptp(char.keypoints[:, 1]) < 1.9  # a person, in metres
     assert char.height is None and len(char.faces) == 0

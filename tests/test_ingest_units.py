@@ -31,7 +31,8 @@ def test_slerp_cubic_and_step_samplers_by_hand():
     vals = np.array([[0.0], [10.0], [30.0]])
     assert _interpolate(times, vals, "LINEAR", 2.0, False)[0] == pytest.approx(20.0)
     assert _interpolate(times, vals, "STEP", 2.9, False)[0] == pytest.approx(10.0)
-    assert _interpolate(times, vals, "LINEAR", -1.0, False)[0] == 0.0 and _interpolate(times, vals, "LINEAR", 9, False)[0] == 30
+    assert _interpolate(times, vals, "LINEAR", -1.0, False)[0] == pytest.approx(0.0, abs=1e-12)
+    assert _interpolate(times, vals, "LINEAR", 9, False)[0] == pytest.approx(30.0)
     # Hermite: p(s) = (2s^3-3s^2+1) p0 + (s^3-2s^2+s) td b0 + (-2s^3+3s^2) p1 + (s^3-s^2) td a1
     cubic = np.array([[0.0], [1.0], [2.0],   # key 0: in-tangent, value, out-tangent
                       [5.0], [3.0], [0.0]])  # key 1
@@ -296,7 +297,7 @@ def test_bvh_rest_height_and_auto_unit_by_hand(tmp_path):
     assert bvh_rest_height(path) == pytest.approx(165.0)
     assert auto_bvh_scale(165.0)[:2] == (0.01, "centimetres")
     assert auto_bvh_scale(1.65)[:2] == (1.0, "metres")
-    assert auto_bvh_scale(24.0)[0] == 0.056444  # CMU conversions: 0.24 m in cm, 24 m in metres
+    assert auto_bvh_scale(24.0)[0] == pytest.approx(0.056444)  # CMU conversions: 0.24 m in cm, 24 m in metres
     assert auto_bvh_scale(1650.0)[:2] == (0.001, "millimetres")
     assert auto_bvh_scale(0.0) == (0.01, "centimetres", False)
     broken = tmp_path / "broken.bvh"

@@ -108,7 +108,7 @@ def test_cli_mmd_unit_scales_model_motion_and_physics(tmp_path):
         assert main(["datagen", "ingest", str(tmp_path / "a.pmx"), "--out", str(tmp_path / unit), "--mmd-unit", unit,
                      "--quiet"]) == 0
     default, tenth = (read_records(tmp_path / u, "characters")[0] for u in ("0.08", "0.1"))
-    assert default.meta["mmd"]["metres_per_unit"] == 0.08 and tenth.meta["mmd"]["metres_per_unit"] == 0.1
+    assert default.meta["mmd"]["metres_per_unit"] == pytest.approx(0.08) and tenth.meta["mmd"]["metres_per_unit"] == pytest.approx(0.1)
     # the fixture's bone 左足 sits at (1, 8, 0) MMD units and vertex 1 at (1, 0, -1): times 0.1, z mirrored
     np.testing.assert_allclose(tenth.keypoints[tenth.bone_names.index("左足")], [0.1, 0.8, 0.0], atol=1e-7)
     np.testing.assert_allclose(tenth.vertices[1], [0.1, 0.0, 0.1], atol=1e-7)

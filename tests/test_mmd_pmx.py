@@ -50,7 +50,7 @@ def test_gene_agrees_with_pymeshio_field_by_field(gene, gene_path):
         if b.grant_parent >= 0:
             assert (b.grant_parent, np.float32(b.grant_ratio)) == (rb.effect_index, np.float32(rb.effect_factor))
         if b.ik is not None:
-            assert (b.ik.target, b.ik.loop, [l.bone for l in b.ik.links]) == (rb.ik.target_index, rb.ik.loop, [l.bone_index for l in rb.ik.link])
+            assert (b.ik.target, b.ik.loop, [link.bone for link in b.ik.links]) == (rb.ik.target_index, rb.ik.loop, [link.bone_index for link in rb.ik.link])
     for r, rr in zip(gene.rigid_bodies, ref.rigidbodies):
         assert (r.name, r.bone, r.group, r.mask, r.shape, r.mode) == (rr.name, rr.bone_index, rr.collision_group, rr.no_collision_group & 0xFFFF, rr.shape_type, rr.mode)
         np.testing.assert_array_equal(np.r_[r.size, r.position, r.rotation],
@@ -120,7 +120,7 @@ def test_spec_fixture_pmx(kw):
     assert m.deform.tolist() == [0, 1, 2, 4 if kw.get("qdef") else 3]
     np.testing.assert_allclose(m.weight_values[1, :2], [0.25, 0.75])
     assert [b.name for b in m.bones] == ["センター", "左足", "左足ＩＫ"]
-    assert m.bones[1].grant_rotation and m.bones[1].grant_ratio == 0.5
+    assert m.bones[1].grant_rotation and m.bones[1].grant_ratio == pytest.approx(0.5)
     ik = m.bones[2].ik
     assert (ik.target, ik.loop, ik.limit_angle, ik.links[0].bone) == (1, 40, 2.0, 1)
     np.testing.assert_array_equal(ik.links[0].limit_min, [-1, 0, 0])
@@ -149,7 +149,7 @@ def test_spec_fixture_pmd_agrees_with_pymeshio():
     np.testing.assert_allclose(m.weight_values[1, :2], [0.3, 0.7], rtol=1e-6)
     assert m.deform.tolist() == [0, 1, 0] and m.weight_bones[2, 0] == 1
     ik = m.bones[2].ik
-    assert ik.limit_angle == 2.0 and ik.links[0].limit_min is not None  # knee: 4 x 0.5 rad, knee limit
+    assert ik.limit_angle == pytest.approx(2.0) and ik.links[0].limit_min is not None  # knee: 4 x 0.5 rad, knee limit
     # PMD body positions are offsets from the bone; bone -1 means bone 0 (at y=10), not the origin
     np.testing.assert_allclose(m.rigid_bodies[0].position, [0, 11, 0])
     np.testing.assert_allclose(m.rigid_bodies[1].position, [1, 4, 0])

@@ -8,8 +8,9 @@ import torch
 
 from baselines.mmdmc.body import PRIOR_TAU, BodySkinning
 from baselines.mmdmc.bone_distance import bone_distances, mesh_box
-from baselines.mmdmc.data import attachment_bones, body_target_weights, prepare
-from mimicbench.weights import SparseWeights
+from baselines.mmdmc.data import body_target_weights, prepare
+from baselines.mmdmc.rig import attachment_bones
+from schemas.weights import SparseWeights
 
 # joints: 0 root (0,0,0) -> 1 (1,0,0) -> 2 leaf (1,1,0); 3 apparel child of 1 at (1,0,1) -> 4 apparel (1,0,2)
 KEYPOINTS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [1, 0, 1], [1, 0, 2]], np.float64)

@@ -9,7 +9,7 @@ import pytest
 from benchmark.registry import get_method
 from benchmark.request import MotionRequest, Rig
 from mimicbench.quaternion import quat_to_matrix
-from mimicbench.weights import SparseWeights
+from schemas.weights import SparseWeights
 
 NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_refine", "mmdmc_gt_mask")
 

@@ -164,7 +164,8 @@ def test_attachment_options_train_and_skin_apparel_to_its_chains_body_bone(appar
 
     from baselines.mmdmc.apparel import ApparelDynamics
     from baselines.mmdmc.body import skin
-    from baselines.mmdmc.data import TrainingData, attachment_bones
+    from baselines.mmdmc.data import TrainingData
+    from baselines.mmdmc.rig import attachment_bones
     from baselines.mmdmc.method import load_modules
     from baselines.mmdmc.pipeline import apparel_probability, predict, skinning_weights
 

@@ -12,7 +12,7 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 def test_readme_adapter_example_plugs_in(small_zoo, tmp_path, monkeypatch):
     import benchmark.registry as registry
 
-    monkeypatch.setattr(registry, "_registered", dict(registry._registered))  # the example's name stays in this test
+    monkeypatch.setattr(registry.METHODS, "_runtime", dict(registry.METHODS._runtime))  # the example's name stays in this test
     code = re.search(r"```python\n(.*?)```", README.read_text(), re.S).group(1)
     exec(compile(code, "README.md", "exec"), {})
     data = make_bench_dataset(small_zoo, tmp_path / "data", h2h_poses=2, cct_pairs=2, cct_poses=1)

@@ -1,22 +1,20 @@
 """Resampling to 5,000 faces with barycentric re-skinning."""
 import dataclasses
-import shutil
 
 import numpy as np
 import pytest
 import trimesh
 
 from datagen.resample import resample_character, resample_dataset
-from datagen.resample.clean import BadMesh, clean_mesh
+from datagen.resample.clean import clean_mesh
 from datagen.resample.closest_point import closest_points, closest_points_brute_force
 from datagen.resample.quality import transfer_error_percent
 from datagen.resample.reskin import nearest_vertex_weights
 from mimicbench.cli import main
-from mimicbench.weights import SparseWeights
-from schemas.character import CharacterRecord
 from schemas.motion import MotionRecord
 from schemas.shards import read_records, write_records
 from schemas.validate import validate_dataset
+from schemas.weights import SparseWeights
 from tests.test_schemas import make_character
 
 

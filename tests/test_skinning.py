@@ -6,7 +6,7 @@ from mimicbench.kinematics import forward_kinematics, transforms_to_array
 from mimicbench.quaternion import quat_normalize, quat_to_matrix
 from mimicbench.skinning import linear_blend_skinning, posed_keypoints_from_vertices
 from mimicbench.skinning_torch import linear_blend_skinning_torch
-from mimicbench.weights import SparseWeights
+from schemas.weights import SparseWeights
 
 
 def naive_lbs(verts, keypoints, dense, transforms):

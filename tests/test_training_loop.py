@@ -13,10 +13,10 @@ import pytest
 import torch
 from PIL import Image
 
-from mimicbench.errors import UserError
 from mimicbench.training import checkpoint
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.loop import seed_everything, train_model, train_stage
+from schemas.errors import UserError
 from tests import training_toys
 
 REPO = Path(__file__).resolve().parents[1]

@@ -4,7 +4,7 @@ from mimicbench.kinematics import transforms_to_array
 from mimicbench.quaternion import quat_angle, quat_normalize
 from mimicbench.skinning import linear_blend_skinning
 from mimicbench.transform_estimation import estimate_transforms
-from mimicbench.weights import SparseWeights
+from schemas.weights import SparseWeights
 
 
 def rigid_character(k=6, per_bone=10, seed=0):

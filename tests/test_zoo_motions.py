@@ -14,7 +14,7 @@ SPECS = {s.category: s for s in plan_zoo(7, seed=1)}
 
 def test_ramp_starts_at_zero_and_reaches_one():
     r = ramp(20, 8)
-    assert r[0] == 0 and r[8:].min() == 1 and np.all(np.diff(r) >= 0)
+    assert r[0] == pytest.approx(0.0, abs=1e-12) and r[8:].min() == pytest.approx(1.0, abs=1e-12) and np.all(np.diff(r) >= 0)
 
 
 def test_rotvec_to_quat_handles_zero_and_angles():

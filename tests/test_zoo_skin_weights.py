@@ -3,8 +3,9 @@ import numpy as np
 
 from datagen.zoo.mesh_builder import build_mesh
 from datagen.zoo.skeleton import SkeletonBuilder
-from datagen.zoo.skin_weights import point_segment_distance, skin_weights
+from datagen.zoo.skin_weights import skin_weights
 from mimicbench.mesh import unique_edges
+from mimicbench.segments import point_segment_distance
 
 
 def _naive_distance(p, a, b):

@@ -11,16 +11,9 @@ depends only on the rest mesh and its weights and is cached per character.
 
 The default ``rigid=0.5`` holds the vertices a majority of whose weight one bone carries (every
 vertex that only two bones share among them) and lets ARAP re-solve the ones blended between
-three or more bones. The zoo's skin weights are smooth, so the earlier 0.7 held
-only a third of a character's vertices (33% on the training zoo, seed 11), and ARAP re-solved
-the other two thirds from the rest shape: on 40 ground-truth LBS poses of that zoo it moved the
-vertices by 0.207 (PMD x100, height units; 0.135 at 0.6), against 0.033 at 0.5, which holds 85%.
-The benchmark's ground truth is itself LBS, so this is what ARAP costs where the pose is right.
-On the training zoo's cases (80 h2h, 100 cct; shipped weights of version 2), ARAP off / 0.7 /
-0.5 scored h2h 0.806 / 0.871 / 0.810 and cct 3.223 / 3.385 / 3.205: at 0.5 the refinement
-smooths the cycle's blended regions (cct better than without it) and costs h2h 0.004. (Also
-measured and not kept: holding, besides, every vertex whose edges LBS kept within 10-25% of
-their rest length: h2h 0.809-0.821, cct 3.222-3.292.)
+three or more bones.
+
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mimicbench.errors import UserError
 from mimicbench.quaternion import quat_to_matrix
+from schemas.errors import UserError
 
 SPLITS = ("train", "val", "test", "all")
 
@@ -39,7 +39,7 @@ class Character:
         character_id: stable ID.
         vertices: (N, 3) float64 rest vertices, metres; faces: (M, 3) int64.
         keypoints: (K, 3) float64 rest joint heads; parents: (K,) int64, -1 for roots.
-        weights: :class:`mimicbench.weights.SparseWeights` (N rows).
+        weights: :class:`schemas.weights.SparseWeights` (N rows).
         centre: (3,) rest bounding-box centre; size: its largest side (metres).
         motions: list of (F, K, 7) float32 transforms (q_w, q_x, q_y, q_z, t_x, t_y, t_z) per clip.
         scales: list of (F, K, 6) float32 or None, one per clip (the ``scale`` column).

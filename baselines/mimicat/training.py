@@ -20,7 +20,7 @@ from baselines.mimicat.config import PRESETS
 from baselines.mimicat.pose_prior import PosePrior, prior_loss
 from baselines.mimicat.shape_encoder import ShapeAutoencoder, shape_loss
 from mimicbench.training.batching import rank_batches
-from mimicbench.training.registry import register_trainable
+from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage
 
 
@@ -107,4 +107,4 @@ def _more_stages() -> list[TrainStage]:
     return list(module.stages())
 
 
-register_trainable("mimicat", STAGES + _more_stages(), PRESETS)
+TRAINABLE = make_trainable("mimicat", STAGES + _more_stages(), PRESETS)

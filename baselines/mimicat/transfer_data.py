@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from baselines.mimicat.corr_data import keypoint_features, normalised_points, point_indices, rest_frame
+from baselines.mimicat.corr_data import keypoint_features, point_indices, rest_frame
 
 
 @dataclass

@@ -20,7 +20,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from torch import nn
 
-from baselines.mmdmc.segmentation import mlp
+from baselines.mmdmc.nn import mlp
 from mimicbench.mesh import unique_edges
 
 HISTORY = 3

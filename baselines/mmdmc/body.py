@@ -10,34 +10,15 @@ prior -B_ik / tau (tau learnt) and ``W = softmax_k(scores)``. With ``prior="piec
 f_s since methods version 6) the vertices of a mesh piece that wraps one bone are scored by the piece
 prior of :mod:`baselines.mmdmc.piece_prior` instead, wherever the caller hands it in (the pipeline
 at inference); the learnt scores serve every other vertex, and training (which hands in no piece
-prior) shapes them. Why not learn a correction on top of the piece prior: trained 3 epochs that
-way, f_s stayed within 0.001 of the prior on the zoo (its softmax is saturated there), so its
-learnt path saw no training at all and scored one-piece meshes with the bare -B / tau (on the
-shared flat-shaded characters, Dolphin, Farmer, Punk, Rat, Stegosaurus and Triceratops, 0.2-0.4
-further from their artists' weights than version 5).
-
-Our choices where the paper is silent or did not train in minutes (measured on the training zoo,
-seed 101, against the body target's weights; L1 of a weight row, 0 to 2, body vertices):
-B_ik and the prior. A softmax of -G / tau alone is 1.01 away from the target (nearest joint
-along the surface picks the right bone for 47% of body vertices); of -B / tau 0.57 (61%), since
-a joint does not say which way its bone runs. The first shipped model used the -G / tau prior
-and 90 steps: its weights were 1.1-1.2 away on held-out characters, 1 cm of body error (PMD_b).
-
-Training f_s with its weight term on body vertices only (``weights_on="body"``, training.py) on
-kinematic clips of 60 zoo characters never simulated (seed 111): on a validation zoo (seed 303,
-4 characters, 12 clips, cm at 1.70 m, body-module output against the simulation) the untrained
-prior scores PMD_b 0.31, ELS 0.972 and a body weight error of 0.66; 3 epochs (300 steps) 0.28,
-0.971 and 0.56; the shipped f_s (weight term over all vertices, 12 characters) 0.40, 0.948 and
-0.72. 9 epochs (900 steps; the shipped f_s since version 5) bring the weight error to 0.50 and the
-mean stretch of body edges (LBS with f_s's weights smoothed over 4% of the height against the
-dataset's) from 1.15% to 1.03%. Prior temperatures 0.005, 0.02 and 0.03 and an inverse-distance prior (B + a min_k B)^-p
-were no better than -B / 0.01 on the training zoo.
+prior) shapes them.
 
 Positions and G are in the character's unit-height frame. The posed mesh is LBS of the rest mesh
 (metres) with W over the body joints and the body joints' transforms (K, 7); a request's
 transforms already carry the character's own bone lengths (t_k is joint k's posed position), which
 is what MMDMC's "translations scaled by the bone lengths" gives when the motion comes from another
 skeleton.
+
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 
@@ -45,7 +26,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mmdmc.segmentation import mlp
+from baselines.mmdmc.nn import mlp
 from mimicbench.skinning_torch import linear_blend_skinning_torch
 
 PRIOR_TAU = 0.01

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.zoo.skin_weights import point_segment_distance
+from mimicbench.segments import point_segment_distance
 from mimicbench.validation import check_shape
 
 

@@ -6,20 +6,17 @@ is attached to (a skirt with the hips, hair with the head) and the apparel modul
 there. A request carries the rig (joints, parents, body-bone mask) but never its skin weights, so at
 inference the vertex's chain is found geometrically: the apparel bone whose segments
 (:func:`baselines.mmdmc.bone_distance.bone_distances` over the apparel bones) pass nearest the
-vertex. Its attachment bone (:func:`baselines.mmdmc.data.attachment_bones`) then gets the vertex's
+vertex. Its attachment bone (:func:`baselines.mmdmc.rig.attachment_bones`) then gets the vertex's
 whole weight. f_c's mask says which vertices are apparel; f_s skins the rest.
 
-Why not f_s on apparel vertices too: a skinning of body joints learnt from positions gives apparel
-the weights of the body bones it lies near (a skirt between the thighs is split between them and
-tears; on a validation zoo, seed 303, with the ground-truth mask, the body module's apparel PMD_a
-3.99 cm and apparel-edge ELS 0.959 against 2.40 and 0.981 with the attachment bone).
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from baselines.mmdmc.bone_distance import bone_distances, mesh_box
-from baselines.mmdmc.data import attachment_bones
+from baselines.mmdmc.rig import attachment_bones
 
 
 def chain_attachment(vertices: np.ndarray, keypoints: np.ndarray, parents: np.ndarray,

@@ -9,11 +9,7 @@ from (its nearest body ancestor; :func:`body_target_weights`): the ground truth 
 vertices, and elsewhere the apparel carried rigidly by the body part it is attached to (what a
 skinning of body joints can reach, and what the apparel module then displaces).
 
-Why the attachment bone and not the nearest body bone: on the training zoo (seed 101, 30
-simulated clips; the kinematic clips posed against the simulated ones, cm at 1.70 m) the
-attachment target is much closer to the simulation and keeps the apparel's edges (PMD_a 3.84,
-ELS 0.9937) where the nearest body bone tears a skirt between the thighs (PMD_a 5.38, ELS
-0.9711; the kinematic apparel bones themselves: 5.53, 0.9914).
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 
@@ -25,10 +21,11 @@ import numpy as np
 from baselines.mmdmc.bone_distance import bone_distances, mesh_box
 from baselines.mmdmc.geodesic import geodesic_distances
 from baselines.mmdmc.piece_prior import piece_prior
-from datagen.apparel import SIM_SUFFIX
+from baselines.mmdmc.rig import attachment_bones
 from mimicbench.mesh import unique_edges, unit_height_frame
 from mimicbench.skinning import linear_blend_skinning
-from mimicbench.weights import SparseWeights
+from schemas.motion import SIM_SUFFIX
+from schemas.weights import SparseWeights
 
 
 @dataclass
@@ -181,22 +178,6 @@ def posed(character: Prepared, transforms: np.ndarray, rows: np.ndarray | None =
     return linear_blend_skinning(v, character.keypoints, w, transforms).astype(np.float32)
 
 
-def attachment_bones(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
-    """(K,) int64: each bone's nearest body ancestor, itself for a body bone; -1 for an apparel bone
-    whose chain hangs from no body bone."""
-    parents = np.asarray(parents, np.int64)
-    body = np.asarray(body, bool)
-    if parents.shape != body.shape:
-        raise ValueError(f"parents {parents.shape} and body-bone mask {body.shape}: expected one entry per bone each")
-    out = np.full(len(parents), -1, np.int64)
-    for k in range(len(parents)):
-        a, seen = k, 0
-        while a >= 0 and not body[a] and seen <= len(parents):
-            a, seen = int(parents[a]), seen + 1
-        out[k] = a if a >= 0 and body[a] else -1
-    return out
-
-
 def body_target_weights(character: Prepared) -> np.ndarray:
     """(N, Kb) float32 dense weights over the body bones (cached on the character): the dataset's,
     with each apparel bone's weight moved onto the body bone its chain hangs from
@@ -204,7 +185,7 @@ def body_target_weights(character: Prepared) -> np.ndarray:
     nearest body bone (:func:`baselines.body_only.nearest_body_bone`)."""
     if "body_weights" not in character.cache:
         from baselines.body_only import nearest_body_bone
-        from mimicbench.weights import as_dense
+        from schemas.weights import as_dense
 
         k = len(character.parents)
         dense = as_dense(character.weights, k).astype(np.float64)

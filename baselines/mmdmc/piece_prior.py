@@ -25,25 +25,7 @@ grabs no sharp spot).
   of the anchor. A piece that wraps no bone (a body modelled in one piece) gets no piece prior:
   f_s scores it with its bone-distance prior -B / tau, as before.
 
-Measured (weights of the prior, -B / tau where no piece is wrapped, against the dataset's, body vertices; L1 per vertex, 0 to 2;
-stretch: mean |l/l_ref - 1| of body edges, LBS of the kinematic clips every 4th frame):
-
-| | validation zoo (seed 303) L1 / stretch | CesiumMan L1 | Gene L1 |
-|---|---|---|---|
-| version 5's f_s (bone-distance prior, trained 9 epochs, diffused over 4% of the height) | 0.50 / 1.06% | 0.46 | 1.38 |
-| the prior, anchor by mean distance only | 0.24 / 0.32% | 1.05 | 1.20 |
-| with the leaf anchor | 0.19 / 0.31% | 0.79 | 1.21 |
-| with the leaf anchor and the leaf's segment through its piece (shipped) | 0.13 / 0.26% | 0.56 | 1.22 |
-| each vertex anchored at its own nearest bone | 0.61 / 2.8% | | |
-| anchor's neighbours plus any bone nearest to 15% of the piece | 0.30 / 0.55% | 0.77 | 1.18 |
-
-The anchor must not switch inside a piece. The constants are the zoo's own rule for its weights
-(:mod:`datagen.zoo.skin_weights`), which is also what an artist's limb skinning looks like: its
-bone leads, its neighbours blend in by distance, the rest of the skeleton is left out. CesiumMan
-(81% of its body vertices in pieces the prior wraps, some of them whole legs) is skinned further
-than that by its artist: there the prior (with -B / tau on the unwrapped rest) is 0.56 from its
-weights, against 0.46 for version 5's f_s and 0.47 for version 6 (the prior on wrapped pieces, f_s's
-trained scores elsewhere).
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 
@@ -51,7 +33,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from datagen.zoo.skin_weights import point_segment_distance
+from baselines.mmdmc.rig import attachment_bones
+from mimicbench.segments import point_segment_distance
 
 POWER = 4.0        # inverse-distance power of the blend
 SOFT = 0.5         # share of the piece's thickness added to every distance
@@ -66,13 +49,11 @@ MIN_VERTICES = 24  # fewer vertices make a fragment (a flat-shaded mesh's split 
 
 def body_parents(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
     """(Kb,) int64 column of each body bone's nearest body ancestor (apparel bones between them
-    skipped, :func:`baselines.mmdmc.data.attachment_bones`), -1 for none.
+    skipped, :func:`baselines.mmdmc.rig.attachment_bones`), -1 for none.
 
     Args:
         parents: (K,) int, -1 for a root; body: (K,) bool body bones (their order gives the columns).
     """
-    from baselines.mmdmc.data import attachment_bones  # data imports this module
-
     attach = attachment_bones(parents, body)  # checks the shapes
     parents = np.asarray(parents, np.int64)
     body = np.asarray(body, bool)

@@ -16,9 +16,7 @@ end to end on their outputs):
   through the vertex and edge terms alone. With ``seg_body_clips="kinematic"`` seg and body
   read every kinematic clip, so they can train on a zoo that was never simulated (more
   characters than the simulated set); the default reads the simulated pairs, as the shipped
-  model did. Measured (held-out zoo seed 202, 24 cases, cm at 1.70 m): f_s with ``"body"`` on 60
-  unsimulated characters, 3 epochs, gives the body module PMD_b 0.44 and ELS 0.966 against the
-  shipped f_s's 0.64 and 0.938, but PMD_a 4.58 against 3.85 (README).
+  model did.
 - ``apparel`` (needs seg, body): f_d rolled out over windows of T frames from K = 3 ground-truth
   states (Eq. 11), on the apparel vertices f_c finds, from f_s's body states; L1 vertex, edge
   length (Eq. 14-15) and an L2 regulariser on the displacements. A share ``rest_start`` of the
@@ -39,13 +37,9 @@ epoch's generator; a vertex subsample (``points``) stands in for the whole mesh 
 default and every shipped f_s's: Eq. 9 there is about 1e-5 and does almost nothing). With
 ``body_edge_loss="mesh_stretch"`` the body subsample is drawn as the two ends of ``points // 2``
 random mesh edges, and Eq. 9 becomes the mean relative stretch |l_pred / l_truth - 1| (what ELS
-measures) on those real edges whose two ends the weights term covers. Measured (body, 9 epochs
-from scratch, small config, validation zoo seed 303, body-edge stretch of f_s's weights raw /
-diffused over 0.04 as at inference): the knn-trained shipped f_s 1.57% / 0.98%; mesh_stretch
-w_edge 100, lr 3e-4, grad_clip 1: 1.43% / 1.06% (w_edge 1000: 1.41% / 1.08%); at lr 1e-3
-(w_edge 100 or 10, with or without grad_clip 1) f_s's weight error drifts from 0.6 to 1.1 after
-epoch 4-7 and the stretch to 3%. The term stays near 1% in training at any weight: this f_s does not
-lower it, so it stays off.
+measures) on those real edges whose two ends the weights term covers.
+
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 
@@ -63,7 +57,7 @@ from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_
 from baselines.mmdmc.refine import JointRefiner
 from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
-from mimicbench.training.registry import register_trainable
+from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage
 
 _DATA: dict = {}
@@ -367,4 +361,4 @@ STAGES = [
 ]
 BUILDERS = {s.name: s.build for s in STAGES}
 
-register_trainable("mmdmc", STAGES, CONFIGS)
+TRAINABLE = make_trainable("mmdmc", STAGES, CONFIGS)

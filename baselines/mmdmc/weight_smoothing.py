@@ -9,22 +9,9 @@ Each iteration moves every vertex's weights halfway to the mean of its mesh neig
 face edges): w <- (w + mean_{j ~ i} w_j) / 2. Rows stay convex combinations (they keep summing to
 1); a vertex in no face keeps its own. The pipeline smooths after the apparel vertices were moved
 onto their chains' body bones (:func:`baselines.mmdmc.pipeline.mesh_weights`), so a garment hanging
-from two body bones blends between them instead of tearing. Measured on a validation zoo (seed
-303, 4 characters, 12 clips, every 4th frame; f_s trained on 60 zoo characters; LBS of the
-kinematic clip against the simulation, cm at 1.70 m): f_s alone, body vertices and body edges,
-0 iterations PMD_b 0.276 and ELS 0.982; 5: 0.257, 0.986; 10: 0.261, 0.987; 20: 0.288, 0.987.
-With f_c's mask voted per piece and the attachment: apparel-edge ELS 0.9820 unsmoothed, 0.9891
-after 3 iterations and 0.9915 after 10 (all edges 0.9823, 0.9870, 0.9886; PMD_a 2.40, 2.39, 2.39).
+from two body bones blends between them instead of tearing.
 
-Iterations count edges, not distance (hence :func:`diffuse_weights`): a coarse mesh is smoothed over a larger share of its body
-(the demo's 2,000-vertex characters, mean edge 3.8% of the height against 1.5-2.1% on the zoo
-above: the full model's PMD_b 0.32, 0.50, 0.73 cm after 0, 3, 10 iterations).
-
-Diffusion over a distance (version 3's f_s, full model, 2 windows of 16 frames a clip, cm at
-1.70 m): on the validation zoo (seed 303, simulation version 7) 10 iterations give PMD_b 0.306 and
-ELS 0.9800, radius 0.03 of the height 0.297 and 0.9820, 0.045 0.331 and 0.9829, 0.06 0.381 and
-0.9831 (body and apparel edges alike gain); on the demo's coarse zoo 10 iterations give PMD_b
-0.845 and ELS 0.9525, none 0.361 and 0.9543, radius 0.04 (shipped since version 5) 0.382 and 0.9586.
+Measurements behind these choices: README, *Measurements behind the defaults*.
 """
 from __future__ import annotations
 

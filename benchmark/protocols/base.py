@@ -11,7 +11,6 @@ from __future__ import annotations
 import abc
 import zlib
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
@@ -19,15 +18,13 @@ import numpy as np
 from benchmark.normalisation import RestFrame
 from benchmark.request import TransferRequest
 from benchmark.rigs import CharacterData
-from datagen.apparel import SIM_SUFFIX
 from mimicbench.skinning import linear_blend_skinning
 from schemas.case import CaseRecord
 from schemas.errors import DatasetError
+from schemas.motion import SIM_SUFFIX
 from schemas.shard_stream import checked_parquet_file, read_row_group
-from schemas.shards import has_table, read_records, read_table, readable_entries
+from schemas.dataset import Dataset
 
-HUMANOID_LIKE = ("humanoid", "apparel")
-"""Categories that count as humanoid (an ``apparel`` character is a humanoid wearing apparel)."""
 
 Call = Callable[[Sequence[TransferRequest]], list]
 """The evaluator's call site: requests in, ``[(array | None, error | None, seconds)]`` out."""
@@ -98,13 +95,15 @@ class CasePool:
 
     @classmethod
     def load(cls, dataset, split: str = "test") -> "CasePool":
-        """The characters of ``split`` (``all`` for every split) and their motions."""
-        chars = [c for c in read_records(dataset, "characters") if len(c.faces) and split in ("all", c.split)]
+        """The characters of ``split`` (``all`` for every split) and their motions; ``dataset`` a
+        :class:`~schemas.dataset.Dataset` or its path."""
+        dataset = Dataset.of(dataset)
+        chars = [c for c in dataset.records("characters") if len(c.faces) and split in ("all", c.split)]
         chars.sort(key=lambda c: c.character_id)
         ids = {c.character_id for c in chars}
         motions: dict[str, list] = {}
-        if has_table(dataset, "motions"):
-            t = read_table(dataset, "motions", columns=list(MOTION_INFO_COLUMNS))
+        if dataset.has_table("motions"):
+            t = dataset.read_table("motions", columns=list(MOTION_INFO_COLUMNS))
             for row in zip(*(t.column(c).to_pylist() for c in MOTION_INFO_COLUMNS)):
                 info = MotionInfo(*row)
                 if info.character_id in ids:
@@ -159,9 +158,9 @@ class CasePool:
         """The motion records with an ID in ``motion_ids``, in stored order, one row group at a time."""
         if not motion_ids:
             return
-        root = Path(self.dataset)
-        for entry in readable_entries(root, "motions", None, False):
-            pf = checked_parquet_file(root, entry, "motions")
+        dataset = Dataset.of(self.dataset)
+        for entry in dataset.readable_entries("motions"):
+            pf = checked_parquet_file(dataset.root, entry, "motions")
             for g in range(pf.num_row_groups):
                 ids = pf.read_row_group(g, columns=["motion_id"]).column("motion_id").to_pylist()
                 if motion_ids.intersection(ids):
@@ -180,14 +179,16 @@ class EvalData:
 
     @classmethod
     def load(cls, dataset) -> "EvalData":
+        """Rigs, pairs and clip rates of ``dataset`` (a :class:`~schemas.dataset.Dataset` or its path)."""
         from benchmark.rigs import load_characters
 
+        dataset = Dataset.of(dataset)
         pairs = {}
-        if has_table(dataset, "pairs"):
-            pairs = {(r.source_id, r.target_id): r.m_sink for r in read_records(dataset, "pairs")}
+        if dataset.has_table("pairs"):
+            pairs = {(r.source_id, r.target_id): r.m_sink for r in dataset.records("pairs")}
         fps = {}
-        if has_table(dataset, "motions"):  # two scalar columns: the apparel protocol's requests state the fps
-            t = read_table(dataset, "motions", columns=["motion_id", "fps"])
+        if dataset.has_table("motions"):  # two scalar columns: the apparel protocol's requests state the fps
+            t = dataset.read_table("motions", columns=["motion_id", "fps"])
             fps = dict(zip(t.column("motion_id").to_pylist(), t.column("fps").to_pylist()))
         return cls(load_characters(dataset), pairs, motion_fps=fps)
 

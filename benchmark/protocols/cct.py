@@ -16,9 +16,10 @@ from __future__ import annotations
 from typing import Sequence
 
 from benchmark.metrics import els
-from benchmark.protocols.base import HUMANOID_LIKE, BenchmarkProtocol, Call, CasePool, EvalData, Outcome
+from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome
 from benchmark.scoring import score_pose
 from schemas.case import CaseRecord
+from schemas.character import HUMANOID_LIKE
 
 
 class CrossCategoryCycle(BenchmarkProtocol):

@@ -21,7 +21,3 @@ simulated mesh. Modules, one concept each:
 - ``stage`` and ``command``: the dataset stage with status rows and resume, and its CLI.
 - ``joint_kernel``: the per-step joint arithmetic (rotation vectors, limit screen, spring torques), compiled.
 """
-
-SIM_SUFFIX = "@sim"
-"""A simulated clip's motion ID and name: the kinematic clip's followed by this (part of the data
-contract: the benchmark's apparel protocol pairs the two by it; defined here, where importing it costs nothing)."""

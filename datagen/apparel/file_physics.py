@@ -630,7 +630,7 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     from datagen.apparel.body_shapes import body_pieces
     from datagen.apparel.quality import clip_quality
     from datagen.apparel.selection import dominant_bone
-    from datagen.apparel import SIM_SUFFIX
+    from schemas.motion import SIM_SUFFIX
     from datagen.apparel.setup import substeps_for
     from schemas.motion import MotionRecord
 

@@ -19,7 +19,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datagen.apparel import SIM_SUFFIX
 from datagen.apparel.body_shapes import BodyPiece, body_pieces
 from datagen.apparel.chain_spec import ChainSpec
 from datagen.apparel.chains import build_chains
@@ -16,6 +15,7 @@ from datagen.apparel.selection import dominant_bone
 from datagen.apparel.simulate import simulate_clip
 from datagen.apparel.world import ApparelWorld
 from schemas.character import CharacterRecord
+from schemas.motion import SIM_SUFFIX
 from schemas.motion import MotionRecord
 
 SIM_VERSION = "8"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;

@@ -19,17 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.apparel import SIM_SUFFIX
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
-from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage, summarize_statuses
-from mimicbench.errors import UserError
+from mimicbench.engines import Engine
+from schemas.errors import UserError
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
 from schemas.manifest import MANIFEST, load_manifest_for_write, mark_complete, mark_incomplete
+from schemas.motion import SIM_SUFFIX
 from schemas.shards import has_table, read_records, splits_of, write_records
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
@@ -182,7 +182,10 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     if problems:
         raise RuntimeError("apparel wrote an invalid dataset:\n" + "\n".join(problems))
     qs = [q for q in quality.values()]
-    mean = (lambda key: float(np.mean([q[key] for q in qs])) if qs else None)
+
+    def mean(key):
+        return float(np.mean([q[key] for q in qs])) if qs else None
+
     summary = {"characters": sum(1 for b, _ in masks.values() if b.any()), "clips": len(kinematic),
                "simulated": sum(s.status == "ok" for s in statuses), "reused": reused,
                "failed": sum(s.status == "failed" for s in statuses),

@@ -18,7 +18,7 @@ _LAZY = {
     "correspond_dataset": "datagen.correspond.stage",
     "correspondence_for_names": "datagen.correspond.stage",
     "correspondence_for_skeletons": "datagen.correspond.stage",
-    "get_method": "datagen.correspond.methods",
+    "get_matcher": "datagen.correspond.methods",
 }
 __all__ = sorted(_LAZY)
 

@@ -17,12 +17,18 @@ from typing import Sequence
 import numpy as np
 
 from datagen.correspond.torchvision_compat import ensure_torchvision_importable
+from mimicbench.registry import Registry
 
 
 class TextEncoder:
     """Base: ``name`` (with version) and ``embed(texts) -> (n, d) float32`` unit rows."""
 
     name: str = "encoder"
+
+    @classmethod
+    def from_options(cls, clip_model: str, clip_pretrained: str | None, device: str) -> "TextEncoder":
+        """The encoder built from the stage's options (each encoder takes the ones it uses)."""
+        return cls(device)
 
     def embed(self, texts: Sequence[str]) -> np.ndarray:
         raise NotImplementedError
@@ -46,6 +52,10 @@ class MiniLMEncoder(TextEncoder):
 
 
 class ClipEncoder(TextEncoder):
+    @classmethod
+    def from_options(cls, clip_model: str, clip_pretrained: str | None, device: str) -> "ClipEncoder":
+        return cls(clip_model, clip_pretrained, device)
+
     def __init__(self, model: str = "ViT-B-32", pretrained: str | None = None, device: str = "cpu"):
         ensure_torchvision_importable()
         import open_clip
@@ -77,9 +87,10 @@ class ClipEncoder(TextEncoder):
 @lru_cache(maxsize=4)
 def get_encoder(name: str = "minilm", clip_model: str = "ViT-B-32", clip_pretrained: str | None = None,
                 device: str = "cpu") -> TextEncoder:
-    """A cached encoder: ``minilm`` or ``clip`` (with model and pretrained tag or local file)."""
-    if name == "minilm":
-        return MiniLMEncoder(device)
-    if name == "clip":
-        return ClipEncoder(clip_model, clip_pretrained, device)
-    raise ValueError(f"encoder: expected 'minilm' or 'clip', got {name!r}")
+    """A cached encoder: ``minilm`` or ``clip`` (with model and pretrained tag or local file), or one
+    registered in :data:`ENCODERS`; :class:`~mimicbench.registry.UnknownName` otherwise."""
+    return ENCODERS.get(name).from_options(clip_model, clip_pretrained, device)
+
+
+ENCODERS = Registry("encoder", {"minilm": MiniLMEncoder, "clip": ClipEncoder})
+"""Text encoders by name: classes with ``from_options(clip_model, clip_pretrained, device)``."""

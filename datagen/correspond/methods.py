@@ -39,6 +39,7 @@ import numpy as np
 from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
 from datagen.correspond.canonical import canonicalize_names
 from datagen.correspond.structure import skeleton_features
+from mimicbench.registry import Registry
 
 FEATURES = ("side", "limb_axial", "centre_axial", "along", "chain_hop", "limb_hop", "pelvis", "trunk", "neck", "head", "tail", "depth", "x", "y", "z")
 
@@ -83,13 +84,14 @@ METHODS = {
                              no_match=0.45),
 }
 DEFAULT_METHOD = "structure"
+MATCHERS = Registry("matching method", METHODS)
+"""Matching methods (:class:`MatchMethod`) by name; ``--method`` of ``datagen correspond``."""
 
 
-def get_method(name: str = DEFAULT_METHOD, temperature: float | None = None, no_match: float | None = None) -> MatchMethod:
-    """The method ``name`` (``text`` or ``structure``), optionally with another T or threshold."""
-    if name not in METHODS:
-        raise ValueError(f"method: expected one of {sorted(METHODS)}, got {name!r}")
-    m = METHODS[name]
+def get_matcher(name: str = DEFAULT_METHOD, temperature: float | None = None,
+                no_match: float | None = None) -> MatchMethod:
+    """The matching method ``name`` (``text`` or ``structure``), optionally with another T or threshold."""
+    m = MATCHERS.get(name)
     changes = {}
     if temperature is not None:
         changes["temperature"] = float(temperature)

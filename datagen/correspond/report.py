@@ -52,7 +52,10 @@ def pair_scores(source, target, hungarian, cache: dict | None = None) -> dict | 
     same_category = source.category == target.category
     (count_a, count_b), right = ((count_ra, count_rb), exact) if same_category else ((count_ca, count_cb), mapped)
     possible = sum(min(n, count_b[key]) for key, n in count_a.items())
-    share = (lambda xs: float(np.mean(xs)) if len(xs) else None)  # no match: nothing to agree on
+
+    def share(xs):  # no match: nothing to agree on
+        return float(np.mean(xs)) if len(xs) else None
+
     return {"agreement": share(right), "exact": share(exact), "role_map": share(mapped),
             "matched": len(h) / min(len(ra), len(rb)), "recall": (int(right.sum()) / possible) if possible else 1.0}
 
@@ -111,7 +114,10 @@ def format_report(report: dict) -> str:
     name = (report.get("method") or {}).get("name", "?")
     lines = [f"role agreement of the matches (method {name}; exact roles within a category, role-map classes "
              "across; matched = share of min(K1, K2) matched; recall = right / possible):"]
-    pct = (lambda x: "   n/a" if x is None else f"{x:6.1%}")
+
+    def pct(x):
+        return "   n/a" if x is None else f"{x:6.1%}"
+
     for key, v in report["by_category"].items():
         lines.append(f"  {key:24s} {pct(v['agreement'])}  matched {pct(v['matched'])}  recall {pct(v['recall'])}"
                      f"  ({v['pairs']} pairs)")

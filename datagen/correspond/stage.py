@@ -16,12 +16,12 @@ import numpy as np
 from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
 from datagen.correspond.canonical import canonicalize_names
 from datagen.correspond.encoders import get_encoder
-from datagen.correspond.methods import DEFAULT_METHOD, get_method, match_batch, skeleton_feature_table
+from datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch, skeleton_feature_table
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
 from datagen.correspond.structure import skeleton_features
-from mimicbench.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage
+from mimicbench.engines import Engine, TaskResources
 from schemas.errors import DatasetError
 from schemas.fingerprint import stage_config, tables_fingerprint
 from schemas.manifest import atomic_write_bytes
@@ -80,7 +80,7 @@ def correspondence_for_skeletons(names_a, parents_a, keypoints_a, names_b, paren
     Returns S_cos (K1, K2), Hungarian pairs (P, 2) int32 and M_sink (K1, K2) as ``pairs/`` stores
     them for ``method`` (``structure`` by default, or ``text``).
     """
-    m = get_method(method, temperature, no_match)
+    m = get_matcher(method, temperature, no_match)
     enc = get_encoder(encoder, clip_model, clip_pretrained)
     ca, cb = canonicalize_names(list(names_a)), canonicalize_names(list(names_b))
     if not ca or not cb:
@@ -155,7 +155,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     if not records:
         raise DatasetError(f"{dataset_dir}: no character with bones in the characters table; nothing to correspond")
     by_id = {r.character_id: r for r in records}
-    m = get_method(method, temperature, no_match)
+    m = get_matcher(method, temperature, no_match)
     enc = get_encoder(encoder, clip_model, clip_pretrained)
     emb = embed_skeletons(records, enc)
     feats = skeleton_feature_table(records) if m.uses_structure else {}

@@ -51,8 +51,8 @@ import sys
 import bpy  # noqa: I001  (first, before anything that loads another Embree)
 import numpy as np
 
-from datagen.ingest.blender_pool import DONE_MARKER  # standard library only
 from datagen.ingest.clip_length import check_clip_frames  # standard library only
+from datagen.ingest.job import DONE_MARKER  # standard library only
 from mimicbench.quaternion import matrix_to_quat  # numpy only
 
 C = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # Blender Z-up -> Y-up

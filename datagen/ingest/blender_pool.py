@@ -11,7 +11,6 @@ handles before it is replaced (1 is the old one-process-per-asset behaviour).
 from __future__ import annotations
 
 import collections
-import json
 import os
 import queue
 import subprocess
@@ -19,8 +18,9 @@ import sys
 import threading
 import time
 
+from datagen.ingest.job import DONE_MARKER, job_line
+
 CHILD_MODULE = "datagen.ingest.blender_child"
-DONE_MARKER = "@@mimicbench-ingest-done@@"  # the child prints it with the output path after each job
 
 
 class BlenderWorker:
@@ -80,7 +80,7 @@ class BlenderWorker:
         process died (reason says which); the job's output must not be used."""
         if self.proc is None or self.proc.poll() is not None:
             self._start()
-        job = json.dumps({"asset": asset, "out": out_npz, "options": options})
+        job = job_line(asset, out_npz, options)
         try:
             self.proc.stdin.write(job + "\n")
             self.proc.stdin.flush()

@@ -19,7 +19,7 @@ _WORKERS: dict = {}  # per engine worker process: assets_per_process -> BlenderW
 def ingest_task(item: tuple) -> object:
     """``(asset, out_npz, child_options, timeout, assets_per_process)`` -> the asset's StatusRecord."""
     from datagen.ingest import blender_pool
-    from datagen.ingest.runner import run_job
+    from datagen.ingest.job import run_job
 
     asset, out_npz, options, timeout, per_process = item
     worker = _WORKERS.get(per_process)

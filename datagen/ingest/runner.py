@@ -31,6 +31,7 @@ from datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_res
 from datagen.ingest.category import infer_category
 from datagen.ingest.clip_length import MAX_CLIP_FRAMES, check_clip_frames
 from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
+from datagen.ingest.job import run_job, status_of
 from datagen.ingest.uris import external_uri_problems
 from datagen.mmd.frame import MMD_UNIT_METRES
 from datagen.splits import split_of
@@ -38,7 +39,6 @@ from mimicbench.argtypes import MAX_JOBS
 from mimicbench.errors import UserError
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.skinning import linear_blend_skinning
-from mimicbench.weights import SparseWeights
 from schemas.character import CATEGORIES, CharacterRecord
 from schemas.finite import nonfinite_arrays
 from schemas.manifest import MANIFEST, mark_complete, mark_incomplete
@@ -46,6 +46,7 @@ from schemas.motion import MotionRecord
 from schemas.shards import has_table, read_records, write_records
 from schemas.status import StatusRecord
 from schemas.validate import validate_dataset
+from schemas.weights import SparseWeights
 
 CACHE = ".ingest"
 SUPPORTED = BLENDER_SUFFIXES
@@ -137,39 +138,6 @@ def category_for(asset: Path, category_map: dict | None) -> str:
     """Category of an asset from the map alone (``unknown`` when it names none); see
     :func:`records_from_cache` for inference."""
     return category_from_map(asset, category_map) or "unknown"
-
-
-def _remove_outputs(out_npz: Path) -> None:
-    """Delete whatever a job wrote (final or partial files)."""
-    stem = out_npz.with_suffix("")
-    for p in (out_npz, stem.with_suffix(".json"), Path(str(out_npz) + ".part.npz"), Path(str(stem) + ".json.part")):
-        if p.exists():
-            p.unlink()
-
-
-def run_job(worker: blender_pool.BlenderWorker, asset: Path, out_npz: Path, options: dict,
-            timeout: float) -> StatusRecord:
-    """Ingest one asset with ``worker``; return its status row (failed jobs leave no files)."""
-    start = time.perf_counter()
-    _remove_outputs(out_npz)
-    finished, reason = worker.run(str(asset), str(out_npz), options, timeout)
-    seconds = time.perf_counter() - start
-    result_file = out_npz.with_suffix(".json")
-    if not finished or not result_file.exists() or not out_npz.exists() and _status_of(result_file) == "ok":
-        _remove_outputs(out_npz)
-        return StatusRecord(str(asset), "ingest", "failed", reason or "the Blender job wrote no result", seconds)
-    result = json.loads(result_file.read_text())
-    if result["status"] != "ok":
-        _remove_outputs(out_npz)
-        return StatusRecord(str(asset), "ingest", "failed", result["reason"], seconds)
-    return StatusRecord(str(asset), "ingest", "ok", "", seconds)
-
-
-def _status_of(result_file: Path) -> str:
-    try:
-        return json.loads(result_file.read_text()).get("status", "")
-    except (OSError, ValueError):
-        return ""
 
 
 def reproduction_error(char: CharacterRecord, transforms: np.ndarray, scale: np.ndarray | None, frames: np.ndarray,
@@ -406,7 +374,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         cid = character_id_for(a, taken)
         taken[cid] = str(a)
         plan[a] = (key, cid)
-        if _status_of(cache / f"{key}.json") == "ok" and (cache / f"{key}.npz").exists():
+        if status_of(cache / f"{key}.json") == "ok" and (cache / f"{key}.npz").exists():
             statuses.append(StatusRecord(str(a), "ingest", "skipped", "already ingested", 0.0))
         else:
             jobs_todo.append(a)
@@ -445,7 +413,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
             workers.get().stop()
     chars, motions = [], []
     for a, (key, cid) in plan.items():
-        if _status_of(cache / f"{key}.json") != "ok":
+        if status_of(cache / f"{key}.json") != "ok":
             continue
         sp = split or split_map.get(cid) or split_of(cid)
         c, m = records_from_cache(a, cache, key, cid, sp, category_map,

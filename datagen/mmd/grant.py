@@ -11,8 +11,7 @@ translation, e.g. 腕捩連 turns with half of 腕捩, 目 with 0.15 of 両目. 
 from __future__ import annotations
 
 from datagen.mmd.model import BONE_GRANT_LOCAL
-from datagen.mmd.pose import IDENTITY, qmul
-from mimicbench.quaternion import quat_slerp
+from mimicbench.quaternion import IDENTITY, quat_multiply, quat_slerp
 
 
 def apply_grant(poser, i: int) -> None:
@@ -26,7 +25,7 @@ def apply_grant(poser, i: int) -> None:
     if b.grant_rotation:
         src = poser.anim_rot[:, g] if local or not parent_granted else poser.grant_rot[:, g]
         if poser.is_ik_link[g]:
-            src = qmul(poser.ik_rot[:, g], src)
+            src = quat_multiply(poser.ik_rot[:, g], src)
         poser.grant_rot[:, i] = quat_slerp(IDENTITY, src, float(b.grant_ratio))
     if b.grant_translation:
         src_t = poser.anim_trans[:, g] if local or not parent_granted else poser.grant_trans[:, g]

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.mmd.pose import IDENTITY, qmul, quat_to_mat, unrotate
+from mimicbench.quaternion import IDENTITY, quat_conjugate, quat_multiply, quat_to_matrix
 
 AXES = np.eye(3)
 
@@ -25,8 +25,9 @@ def axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.concatenate([np.cos(half)[:, None], axis * np.sin(half)[:, None]], axis=1)
 
 
-def conj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
+def unrotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """R^T v for rotations (F, 3, 3) and vectors (F, 3)."""
+    return np.einsum("fji,fj->fi", R, v)
 
 
 def _rodrigues(v: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -54,7 +55,7 @@ def euler_xyz_to_quat(e: np.ndarray) -> np.ndarray:
     """Quaternions (F, 4) of Rx(a) Ry(b) Rz(c) for angles (F, 3)."""
     q = np.broadcast_to(IDENTITY, e.shape[:-1] + (4,))
     for a in range(3):
-        q = qmul(q, axis_angle(AXES[a], e[..., a]))
+        q = quat_multiply(q, axis_angle(AXES[a], e[..., a]))
     return q
 
 
@@ -69,7 +70,7 @@ def solve_ik(poser, ik_bone: int) -> None:
         poser.update_global(link.bone)
     plane_angle = np.zeros((f, len(links)))
     best = np.full(f, np.inf)
-    saved = [poser.ik_rot[:, l.bone].copy() for l in links]
+    saved = [poser.ik_rot[:, link.bone].copy() for link in links]
     active = np.ones(f, bool)
     for it in range(chain.loop):
         if not active.any():
@@ -79,14 +80,14 @@ def solve_ik(poser, ik_bone: int) -> None:
         improved = active & (dist < best)
         best = np.where(improved, dist, best)
         stop = active & ~improved
-        for n, l in enumerate(links):
-            saved[n] = np.where(improved[:, None], poser.ik_rot[:, l.bone], saved[n])
+        for n, link in enumerate(links):
+            saved[n] = np.where(improved[:, None], poser.ik_rot[:, link.bone], saved[n])
             if stop.any():  # frames that stopped improving go back to their best rotations
-                poser.ik_rot[stop, l.bone] = saved[n][stop]
-                poser.update_local(l.bone)
+                poser.ik_rot[stop, link.bone] = saved[n][stop]
+                poser.update_local(link.bone)
         active = improved
-    for l in reversed(links):  # links run from the effector up: refresh from the top link down
-        poser.update_global(l.bone)
+    for link in reversed(links):  # links run from the effector up: refresh from the top link down
+        poser.update_global(link.bone)
 
 
 def _iterate(poser, ik_bone: int, chain, target: int, plane_angle: np.ndarray, it: int, active: np.ndarray) -> None:
@@ -120,7 +121,7 @@ def _iterate(poser, ik_bone: int, chain, target: int, plane_angle: np.ndarray, i
                 new = np.where(flip, -new, new)
             new = np.clip(new, lo, hi)
             plane_angle[:, li] = np.where(valid, new, plane_angle[:, li])
-            ik = qmul(axis_angle(axis, new), conj(poser.anim_rot[:, j]))
+            ik = quat_multiply(axis_angle(axis, new), quat_conjugate(poser.anim_rot[:, j]))
         else:
             valid &= np.degrees(angle) >= 1e-3
             angle = np.minimum(angle, chain.limit_angle)
@@ -128,11 +129,11 @@ def _iterate(poser, ik_bone: int, chain, target: int, plane_angle: np.ndarray, i
             n = np.linalg.norm(cross, axis=1)
             valid &= n > 1e-12
             rot = axis_angle(cross / np.maximum(n, 1e-12)[:, None], angle)
-            full = qmul(qmul(poser.ik_rot[:, j], poser.anim_rot[:, j]), rot)
+            full = quat_multiply(quat_multiply(poser.ik_rot[:, j], poser.anim_rot[:, j]), rot)
             if limited:
-                e = np.clip(euler_xyz(quat_to_mat(full)), link.limit_min, link.limit_max)
+                e = np.clip(euler_xyz(quat_to_matrix(full)), link.limit_min, link.limit_max)
                 full = euler_xyz_to_quat(e)
-            ik = qmul(full, conj(poser.anim_rot[:, j]))
+            ik = quat_multiply(full, quat_conjugate(poser.anim_rot[:, j]))
         if not valid.any():
             continue
         ik = ik / np.linalg.norm(ik, axis=1, keepdims=True)

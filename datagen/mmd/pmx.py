@@ -151,7 +151,7 @@ def parse_pmx(data: bytes, name: str = "<pmx>") -> MMDModel:
     for i, b in enumerate(bones):
         check_indices([b.parent, b.tail_bone, b.grant_parent], nb, f"bone {i} ({b.name}) parent/tail/grant", name)
         if b.ik is not None:
-            check_indices([b.ik.target] + [l.bone for l in b.ik.links], nb, f"bone {i} ({b.name}) IK", name,
+            check_indices([b.ik.target] + [link.bone for link in b.ik.links], nb, f"bone {i} ({b.name}) IK", name,
                           allow_minus_one=False)
         if b.parent == i:
             raise MMDFormatError(f"{name}: bone {i} ({b.name}) is its own parent")

@@ -17,31 +17,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from datagen.mmd.grant import apply_grant
+from datagen.mmd.ik import solve_ik
 from datagen.mmd.model import MMDModel
 from datagen.mmd.records import topological_order
-from mimicbench.quaternion import quat_multiply, quat_to_matrix
-
-IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
-
-
-def quat_to_mat(q: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotations of unit quaternions (..., 4) (w, x, y, z)."""
-    return quat_to_matrix(q)
-
-
-def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a b of quaternions (..., 4) (b applied first)."""
-    return quat_multiply(a, b)
+from mimicbench.quaternion import IDENTITY, quat_multiply, quat_to_matrix
 
 
 def rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
     """R v for rotations (F, 3, 3) and vectors (F, 3)."""
     return np.einsum("fij,fj->fi", R, v)
-
-
-def unrotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """R^T v for rotations (F, 3, 3) and vectors (F, 3)."""
-    return np.einsum("fji,fj->fi", R, v)
 
 
 class MMDPoser:
@@ -97,14 +82,14 @@ class MMDPoser:
 
     def local_rotation(self, i: int) -> np.ndarray:
         """IK rotation x animated rotation x granted rotation of bone i (F, 4)."""
-        r = qmul(self.ik_rot[:, i], self.anim_rot[:, i]) if self.is_ik_link[i] else self.anim_rot[:, i]
+        r = quat_multiply(self.ik_rot[:, i], self.anim_rot[:, i]) if self.is_ik_link[i] else self.anim_rot[:, i]
         if self.model.bones[i].grant_rotation:
-            r = qmul(r, self.grant_rot[:, i])
+            r = quat_multiply(r, self.grant_rot[:, i])
         return r
 
     def update_local(self, i: int) -> None:
         b = self.model.bones[i]
-        self.local_R[:, i] = quat_to_mat(self.local_rotation(i))
+        self.local_R[:, i] = quat_to_matrix(self.local_rotation(i))
         t = self.offset[i] + self.anim_trans[:, i]
         if b.grant_translation:
             t = t + self.grant_trans[:, i]
@@ -150,8 +135,6 @@ class MMDPoser:
         animated local rotations (F, K, 4) and translations (F, K, 3); (K, ...) inputs give (K, ...).
         ``ik_on`` (F, K) bool: IK bones that solve at each frame (default all); where an IK bone
         is off, its links keep their animated rotations (the VMD's show/IK keys)."""
-        from datagen.mmd.grant import apply_grant
-        from datagen.mmd.ik import solve_ik
 
         single = np.ndim(anim_rot) == 2
         if single:

@@ -19,8 +19,8 @@ from datagen.mmd.apparel import apparel_bones, apparel_chains, apparel_vertex_ma
 from datagen.mmd.errors import MMDFormatError
 from datagen.mmd.model import DEFORM_NAMES, MMDModel
 from datagen.mmd.names import english_name
-from mimicbench.weights import SparseWeights
 from schemas.character import CharacterRecord
+from schemas.weights import SparseWeights
 
 # Bones every MMD humanoid has (standard bone set): their presence makes the category humanoid
 HUMANOID_BONES = ("上半身", "下半身", "頭", "左腕", "右腕", "左足", "右足", "左ひざ", "右ひざ")

@@ -91,9 +91,9 @@ def parse_vmd(data: bytes, name: str = "<vmd>") -> VMDMotion:
         raise MMDFormatError(f"{name}: wrong magic {sig[:25]!r}, expected {MAGIC_V2!r} (not a VMD file)")
     n = r.count("bone keys", BONE_KEY.itemsize)
     bones = np.frombuffer(r.take(n * BONE_KEY.itemsize, "bone keys"), BONE_KEY)
-    for field in ("position", "rotation"):
-        if not np.isfinite(bones[field]).all():
-            raise MMDFormatError(f"{name}: non-finite bone key {field}")
+    for column in ("position", "rotation"):
+        if not np.isfinite(bones[column]).all():
+            raise MMDFormatError(f"{name}: non-finite bone key {column}")
     norms = np.linalg.norm(bones["rotation"].astype(np.float64), axis=1)
     if n and (norms < 1e-3).any():
         raise MMDFormatError(f"{name}: bone key {int(np.argmax(norms < 1e-3))} has a zero rotation quaternion")

@@ -31,7 +31,7 @@ def run(args) -> int:
 
     from datagen.render.character import character_panel
     from datagen.render.render import RenderError, render_sheet
-    from mimicbench.errors import UserError
+    from schemas.errors import UserError
 
     start = time.perf_counter()
     try:

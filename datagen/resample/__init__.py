@@ -15,6 +15,10 @@ from __future__ import annotations
 
 import importlib
 
+# the stage's face-count limits (checked by the stage, offered by the CLI); here so neither imports the other
+MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
+MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
+
 _LAZY = {
     "resample_character": "datagen.resample.character",
     "resample_dataset": "datagen.resample.stage",

@@ -15,7 +15,7 @@ import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from mimicbench.weights import SparseWeights
+from schemas.weights import SparseWeights
 
 
 class BadMesh(ValueError):

@@ -3,11 +3,9 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.engines import add_engine_arguments
+from datagen.resample import MAX_FACES, MIN_FACES
 from mimicbench.argtypes import MAX_JOBS, int_in, job_count
-
-MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
-MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
+from mimicbench.engines import add_engine_arguments
 
 
 def register(subparsers) -> None:

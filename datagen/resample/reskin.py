@@ -10,7 +10,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from datagen.resample.closest_point import SurfacePoints
-from mimicbench.weights import MAX_INFLUENCES, SparseWeights
+from schemas.weights import MAX_INFLUENCES, SparseWeights
 
 
 def barycentric_matrix(faces: np.ndarray, surface: SurfacePoints, num_vertices: int) -> csr_matrix:

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from datagen.resample.character import resample_character
-from datagen.resample.command import MAX_FACES, MIN_FACES
+from datagen.resample import MAX_FACES, MIN_FACES
 from mimicbench.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError
@@ -38,8 +38,8 @@ from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manife
                               save_manifest)
 from schemas.shard_stream import ShardStream, checked_parquet_file, iter_records, iter_row_groups, read_row_group
 from schemas.shards import has_table, readable_entries, remove_split, splits_of, write_records
-from schemas.tables import ROW_GROUP_SIZE
 from schemas.status import StatusRecord
+from schemas.tables import ROW_GROUP_SIZE
 from schemas.validate import validate_dataset
 
 BACKENDS = ("fast", "pymeshlab")

@@ -12,9 +12,9 @@ from datagen.zoo.motions import FPS, NUM_FRAMES, clip_transforms
 from datagen.zoo.naming import ANIMAL_STYLES, HUMANOID_STYLES, bone_names
 from datagen.zoo.plan import CharacterSpec
 from datagen.zoo.skeleton import Skeleton, SkeletonBuilder
-from datagen.zoo.templates import HUMANOID_LIKE, TEMPLATES, ZOO_CATEGORIES
+from datagen.zoo.templates import TEMPLATES, ZOO_CATEGORIES
 from datagen.zoo.templates.humanoid import H2H_SKELETON_ID, H2H_TOPOLOGY, build_humanoid, humanoid_params
-from schemas.character import CharacterRecord
+from schemas.character import HUMANOID_LIKE, CharacterRecord
 from schemas.motion import MotionRecord
 
 ZOO_VERSION = "2"  # 2: the fourth apparel variant (up to 241 joints)

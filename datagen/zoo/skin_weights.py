@@ -12,16 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from datagen.zoo.skeleton import Skeleton
-from mimicbench.weights import MAX_INFLUENCES, SparseWeights
-
-
-def point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distances (N, C) from points (N, 3) to segments a (C, 3) -> b (C, 3)."""
-    ab = b - a  # (C, 3)
-    ap = points[:, None, :] - a[None]  # (N, C, 3)
-    t = np.clip(np.einsum("ncj,cj->nc", ap, ab) / np.maximum(np.einsum("cj,cj->c", ab, ab), 1e-12), 0.0, 1.0)
-    closest = a[None] + t[..., None] * ab[None]
-    return np.linalg.norm(points[:, None, :] - closest, axis=-1)
+from mimicbench.segments import point_segment_distance
+from schemas.weights import MAX_INFLUENCES, SparseWeights
 
 
 def neighbourhood(skel: Skeleton, k: int, children: list[list[int]]) -> list[int]:

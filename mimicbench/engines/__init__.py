@@ -10,25 +10,33 @@ import argparse
 
 from mimicbench.engines.base import Engine, Outcome, TaskResources, call_item
 from mimicbench.engines.local import LocalEngine
+from mimicbench.registry import Registry
 
-ENGINES = ("local", "ray")
 
-__all__ = ["ENGINES", "Engine", "LocalEngine", "Outcome", "TaskResources", "add_engine_arguments", "call_item",
+def _local(jobs: int, address: str | None) -> Engine:
+    if address:
+        raise ValueError("--ray-address: only with --engine ray")
+    return LocalEngine(jobs)
+
+
+def _ray(jobs: int, address: str | None) -> Engine:
+    from mimicbench.engines.ray_engine import RayEngine
+
+    return RayEngine(address=address, num_cpus=jobs if jobs > 1 and not address else None)
+
+
+ENGINE_REGISTRY = Registry("engine", {"local": _local, "ray": _ray})
+"""Engine factories ``(jobs, address) -> Engine`` by name."""
+ENGINES = tuple(ENGINE_REGISTRY.names())
+
+__all__ = ["ENGINES", "ENGINE_REGISTRY", "Engine", "LocalEngine", "Outcome", "TaskResources", "add_engine_arguments", "call_item",
            "engine_from_args", "get_engine"]
 
 
 def get_engine(name: str = "local", jobs: int = 1, address: str | None = None) -> Engine:
     """The engine called ``name``: ``local`` with ``jobs`` processes, or ``ray`` (at ``address``, or a
     local Ray instance of ``jobs`` CPUs when ``jobs > 1``, else of all CPUs)."""
-    if name == "local":
-        if address:
-            raise ValueError("--ray-address: only with --engine ray")
-        return LocalEngine(jobs)
-    if name == "ray":
-        from mimicbench.engines.ray_engine import RayEngine
-
-        return RayEngine(address=address, num_cpus=jobs if jobs > 1 and not address else None)
-    raise ValueError(f"engine: expected one of {ENGINES}, got {name!r}")
+    return ENGINE_REGISTRY.get(name)(jobs, address)
 
 
 def add_engine_arguments(parser: argparse.ArgumentParser) -> None:

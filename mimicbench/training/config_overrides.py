@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from mimicbench.errors import UserError
+from schemas.errors import UserError
 
 
 def _leaf_keys(config: dict, prefix: str = "") -> list[str]:

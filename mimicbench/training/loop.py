@@ -28,11 +28,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mimicbench.errors import UserError
 from mimicbench.training import checkpoint, loss_log
 from mimicbench.training.distributed import barrier, gather_objects, init_distributed
 from mimicbench.training.registry import trainable
 from mimicbench.training.stage import StageContext, TrainStage
+from schemas.errors import UserError
 
 DEFAULT_LR = 1e-4
 DEFAULT_WEIGHT_DECAY = 0.01

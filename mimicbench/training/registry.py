@@ -1,23 +1,22 @@
-"""Trainable models by name.
+"""Trainable models by name: :data:`TRAINABLES`, a :class:`mimicbench.registry.Registry`.
 
-A model registers its stages and config presets with :func:`register_trainable` when its
-training module is imported. :func:`trainable` imports the bundled ones lazily by name
-(``mimicat`` -> ``baselines.mimicat.training``), so the CLI stays fast and the core never imports
-``baselines`` at module level.
+A bundled model's training module builds its :class:`Trainable` (stages and config presets) with
+:func:`make_trainable` as ``TRAINABLE``; the registry names it lazily (``mimicat`` ->
+``baselines.mimicat.training:TRAINABLE``), so the CLI stays fast and the core never imports
+``baselines`` at module level. :func:`register_trainable` adds a model at run time.
 """
 from __future__ import annotations
 
 import copy
-import difflib
-import importlib
 from dataclasses import dataclass
 
-from mimicbench.errors import UserError
+from mimicbench.registry import Registry
 from mimicbench.training.stage import TrainStage
+from schemas.errors import UserError
 
 BUILTIN = {
-    "mimicat": "baselines.mimicat.training",
-    "mmdmc": "baselines.mmdmc.training",
+    "mimicat": "baselines.mimicat.training:TRAINABLE",
+    "mmdmc": "baselines.mmdmc.training:TRAINABLE",
 }
 
 
@@ -45,11 +44,11 @@ class Trainable:
         return copy.deepcopy(self.configs[preset])
 
 
-_registered: dict[str, Trainable] = {}
+TRAINABLES = Registry("trainable model", BUILTIN)
 
 
-def register_trainable(name: str, stages: list[TrainStage], configs: dict[str, dict]) -> Trainable:
-    """Register (or replace) the trainable model ``name``.
+def make_trainable(name: str, stages: list[TrainStage], configs: dict[str, dict]) -> Trainable:
+    """The trainable model ``name`` (checked, not registered).
 
     Args:
         name: the name ``mimicbench train NAME`` uses.
@@ -65,29 +64,28 @@ def register_trainable(name: str, stages: list[TrainStage], configs: dict[str, d
             raise ValueError(f"trainable {name!r}: stage {s.name!r} needs {missing}, which must come "
                              f"earlier in the stage list")
         seen.add(s.name)
-    model = Trainable(name, tuple(stages), dict(configs))
-    _registered[name] = model
+    return Trainable(name, tuple(stages), dict(configs))
+
+
+def register_trainable(name: str, stages: list[TrainStage], configs: dict[str, dict]) -> Trainable:
+    """Register (or replace) the trainable model ``name`` at run time (:func:`make_trainable`'s args)."""
+    model = make_trainable(name, stages, configs)
+    TRAINABLES.register(name, model)
     return model
 
 
 def available_trainables() -> list[str]:
     """Every name :func:`trainable` accepts."""
-    return sorted(set(BUILTIN) | set(_registered))
+    return TRAINABLES.names()
 
 
 def trainable(name: str) -> Trainable:
-    """The trainable model ``name``, importing its bundled module on first use."""
-    if name not in _registered and name in BUILTIN:
-        try:
-            importlib.import_module(BUILTIN[name])
-        except ModuleNotFoundError as exc:
-            if exc.name and BUILTIN[name].startswith(exc.name):
-                raise UserError(f"trainable model {name!r} is not in this installation ({BUILTIN[name]} is "
-                                f"missing)") from exc
-            raise
-    if name not in _registered:
-        known = available_trainables()
-        close = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
-        hint = f" Did you mean {', '.join(repr(c) for c in close)}?" if close else ""
-        raise UserError(f"unknown trainable model {name!r}.{hint} Available: {', '.join(known)}")
-    return _registered[name]
+    """The trainable model ``name``, importing its bundled module on first use.
+
+    Raises:
+        UnknownName: no model has that name; LoadError: its module is not in this installation.
+    """
+    model = TRAINABLES.get(name)
+    if not isinstance(model, Trainable) or model.name != name:
+        raise TypeError(f"trainable model {name!r}: expected a Trainable called {name!r}, got {model!r:.80}")
+    return model

@@ -20,4 +20,3 @@ TEMPLATES = {
 }
 
 ZOO_CATEGORIES = tuple(TEMPLATES)
-HUMANOID_LIKE = ("humanoid", "apparel")
