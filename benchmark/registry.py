@@ -28,6 +28,7 @@ BUILTIN = {
     "mimicat": "baselines.mimicat.method:Mimicat",
     "mimicat_naive_avg": "baselines.mimicat.method:MimicatNaiveAvg",
     "mimicat_no_prior": "baselines.mimicat.method:MimicatNoPrior",
+    "mimicat_init_only": "baselines.mimicat.method:MimicatInitOnly",
 }
 
 _registered: dict[str, object] = {}

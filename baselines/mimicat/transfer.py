@@ -2,8 +2,9 @@
 
 For a source pose and a target character, with a soft correspondence M from G:
 
-1. Initialisation (Eq. 3-4, :mod:`baselines.mimicat.initialisation`): per target keypoint j a
-   rotation q̄_j and a position t̄_j.
+1. Initialisation (:mod:`baselines.mimicat.initialisation`; ``init="structured"``, the presets'
+   default, or ``"paper"``, Eq. 3-4 as published): per target keypoint j a rotation q̄_j and a
+   position t̄_j.
 2. Shape conditioning: the residual feature ``delta_f = E(V_s posed) - E(V_s rest)`` (l_E, d)
    says how the source's shape moved; the target's rest shape tokens E(V_t) attend to it
    (cross-attention, queries from the target, keys and values from delta_f), giving posed
@@ -27,7 +28,7 @@ from torch import nn
 
 from baselines.mimicat.correspondence import mlp, transformer
 from baselines.mimicat.corr_data import KEYPOINT_FEATURES
-from baselines.mimicat.initialisation import initial_pose
+from baselines.mimicat.initialisation import initialise
 from baselines.mimicat.transfer_data import CharacterTensors, pad
 from mimicbench.skinning_torch import linear_blend_skinning_torch
 
@@ -56,12 +57,19 @@ class PoseTransferTransformer(nn.Module):
         shape_width: width d of the shape encoder's tokens.
         width, layers, heads, mlp_width: transformer sizes.
         average: rotation average of the initialisation, ``eq4`` or ``naive`` (ablation A1).
+        init: construction of the initialisation, ``structured`` or ``paper``
+            (:func:`baselines.mimicat.initialisation.initialise`).
     """
 
     def __init__(self, shape_width: int, width: int = 64, layers: int = 2, heads: int = 4, mlp_width: int = 128,
-                 average: str = "eq4"):
+                 average: str = "eq4", init: str = "structured"):
         super().__init__()
+        from baselines.mimicat.initialisation import INITS
+
+        if init not in INITS:
+            raise ValueError(f"init: expected one of {INITS}, got {init!r}")
         self.average = average
+        self.init = init
         self.token_encoder = mlp(TOKEN_FEATURES, width, width)
         self.target_projector = nn.Linear(shape_width, width)
         self.delta_projector = nn.Linear(shape_width, width)
@@ -76,9 +84,9 @@ class PoseTransferTransformer(nn.Module):
 
     def initialise(self, src: CharacterTensors, q_src: torch.Tensor, t_src: torch.Tensor, tgt: CharacterTensors,
                    m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Eq. 3-4 for one pair: q̄ (Kt, 4), t̄ (Kt, 3) and the keypoint token inputs (Kt, TOKEN_FEATURES)."""
-        q_bar, t_bar = initial_pose(q_src, t_src, src.keypoints, tgt.keypoints, tgt.parents, m,
-                                    tgt.size / src.size, self.average)
+        """The initialisation for one pair: q̄ (Kt, 4), t̄ (Kt, 3) and the keypoint token inputs (Kt, TOKEN_FEATURES)."""
+        q_bar, t_bar = initialise(self.init, q_src, t_src, src.keypoints, src.parents, tgt.keypoints, tgt.parents, m,
+                                  tgt.size / src.size, self.average)
         q_bar, t_bar = q_bar.to(torch.float32), t_bar.to(torch.float32)
         mf = m.to(torch.float32)
         mass = mf.sum(dim=0, keepdim=True).clamp_min(1e-9)

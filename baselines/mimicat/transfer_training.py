@@ -11,7 +11,9 @@
   residual features of the two legs (E(posed target) - E(target) should move like
   E(posed source) - E(source)). ``total = rec_weight L_rec + reg_weight L_reg + feat_weight L_feat``.
   Both legs use G's M at the Sinkhorn temperature ``m_temperature`` (see
-  :func:`baselines.mimicat.transfer.correspondences`), as the method does at test time.
+  :func:`baselines.mimicat.transfer.correspondences`), as the method does at test time, and H's
+  initialisation ``init`` (``structured`` in the presets; ``paper``, Eq. 3-4 as published, for a
+  config without the key, which is what checkpoints trained before it used).
 - ``transfer_no_prior`` (needs ``shape``, ``corr``): the same without ``L_reg`` (ablation A2):
   the very training of ``--stage transfer --set transfer.reg_weight=0`` (same seed, initial
   weights, batches and settings), kept as its own stage so that one run folder holds both.
@@ -34,7 +36,9 @@ CORR_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size":
                  "sinkhorn_iters": 50}
 TRANSFER_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size": 4, "points": 512, "split": "all",
                      "examples_per_epoch": 64, "same_skeleton_share": 0.3, "rec_weight": 1.0,
-                     "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0}
+                     "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0, "init": "paper"}
+"""Values a config without the key means: what the checkpoints trained before the key existed
+used (the presets of :mod:`baselines.mimicat.config` set ``init`` to ``structured``)."""
 
 
 def section(config: dict, name: str) -> dict:
@@ -111,7 +115,8 @@ def corr_loss(module: CorrespondenceTransformer, batch: dict, ctx) -> dict:
 
 def build_transfer(config: dict, ctx) -> PoseTransferTransformer:
     c = section(config, "transfer")
-    return PoseTransferTransformer(shape_width(config), c["width"], c["layers"], c["heads"], c["mlp"])
+    return PoseTransferTransformer(shape_width(config), c["width"], c["layers"], c["heads"], c["mlp"],
+                                   init=c["init"])
 
 
 def transfer_examples(records: dict, motions: dict, n: int, same_skeleton_share: float,
