@@ -127,21 +127,36 @@ class PoseTransferTransformer(nn.Module):
 
 
 def encode_pair_shapes(encoder: nn.Module, src: list[CharacterTensors], src_posed: list[torch.Tensor],
-                       tgt: list[CharacterTensors]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """E's tokens for a batch: source rest, source posed, target rest (each (B, l, d)) and delta_f."""
+                       tgt: list[CharacterTensors], rest_cache: dict | None = None
+                       ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """E's tokens for a batch: source rest, source posed, target rest (each (B, l, d)) and delta_f.
+
+    ``rest_cache``: character ID -> (l, d) rest tokens of a frozen E, filled and read here, so that
+    E reads each rest mesh once (None: every rest mesh through E again with the posed ones).
+    """
     from baselines.mimicat.transfer_data import shape_tokens
 
     b = len(src)
-    pts = torch.stack([s.normalised(s.vertices) for s in src] + [s.normalised(p) for s, p in zip(src, src_posed)]
-                      + [t.normalised(t.vertices) for t in tgt])
-    tok = shape_tokens(encoder, pts)
-    f_s, f_sp, f_t = tok[:b], tok[b:2 * b], tok[2 * b:]
+    if rest_cache is None:
+        pts = torch.stack([s.normalised(s.vertices) for s in src] + [s.normalised(p) for s, p in zip(src, src_posed)]
+                          + [t.normalised(t.vertices) for t in tgt])
+        tok = shape_tokens(encoder, pts)
+        f_s, f_sp, f_t = tok[:b], tok[b:2 * b], tok[2 * b:]
+        return f_s, f_sp, f_t, f_sp - f_s
+    missing = list({c.character_id: c for c in src + tgt if c.character_id not in rest_cache}.values())
+    if missing:
+        with torch.no_grad():
+            tok = shape_tokens(encoder, torch.stack([c.normalised(c.vertices) for c in missing]))
+        rest_cache.update({c.character_id: t for c, t in zip(missing, tok)})
+    f_sp = shape_tokens(encoder, torch.stack([s.normalised(p) for s, p in zip(src, src_posed)]))
+    f_s = torch.stack([rest_cache[s.character_id] for s in src])
+    f_t = torch.stack([rest_cache[t.character_id] for t in tgt])
     return f_s, f_sp, f_t, f_sp - f_s
 
 
 def transfer_batch(encoder: nn.Module, g: nn.Module, h: PoseTransferTransformer, src: list[CharacterTensors],
                    q_src: list[torch.Tensor], t_src: list[torch.Tensor], src_posed: list[torch.Tensor],
-                   tgt: list[CharacterTensors], m: list[torch.Tensor] | None = None):
+                   tgt: list[CharacterTensors], m: list[torch.Tensor] | None = None, rest_cache: dict | None = None):
     """The cascade E -> G -> H for a batch of pairs.
 
     Args:
@@ -150,12 +165,13 @@ def transfer_batch(encoder: nn.Module, g: nn.Module, h: PoseTransferTransformer,
         src, tgt: characters; q_src, t_src: per pair the source pose (Ks, 4), (Ks, 3);
         src_posed: per pair the posed source vertices (Ns, 3).
         m: per pair (Ks, Kt) correspondences to use instead of G's.
+        rest_cache: rest tokens of a frozen E by character ID (see :func:`encode_pair_shapes`).
 
     Returns:
         ``[(q (Kt, 4), t (Kt, 3))]``, the correspondences used, and the shape tokens
         ``(f_s, f_sp, f_t, delta_f)``.
     """
-    f_s, f_sp, f_t, delta_f = encode_pair_shapes(encoder, src, src_posed, tgt)
+    f_s, f_sp, f_t, delta_f = encode_pair_shapes(encoder, src, src_posed, tgt, rest_cache)
     if m is None:
         from baselines.mimicat.transfer_data import correspondence_inputs
 
