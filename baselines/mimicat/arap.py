@@ -33,7 +33,8 @@ vertex by more than 4% of the size, yet an edge of 1e-9 of the size grew 1e5-1e1
 (a mean of length ratios) fell to -600 on a case. On 40 h2h and 80 cct cases of the twelve shared
 glTF characters (ingested, resampled, every pair), unwelded / welded / ARAP off: h2h ELS -69.5 /
 0.845 / 0.844, PMD 27.085 / 27.085 / 27.083; cct cycle ELS -81.9 / 0.927 / 0.928, PMD 6.541 /
-6.535 / 6.505.
+6.535 / 6.505. On the zoo of seed 29 (120 h2h, 500 cct cases) the weld changes nothing that
+counts: unwelded minus welded h2h PMD +0.0001, cct +0.0012 (standard error 0.0004), ELS equal.
 """
 from __future__ import annotations
 
