@@ -14,7 +14,7 @@ ASSETS = ("Quaternius_Dolphin", "Quaternius_MantaRay", "CesiumMan")
 def test_mimicat_keeps_real_meshes_whole(assets_dir, tmp_path):
     from benchmark.cases import build_cases, write_cases
     from benchmark.evaluator import run_benchmark
-    from benchmarks.mimicat_paired import per_case
+    from benchmark.results import method_dir, read_result_records
     from datagen.correspond import correspond_dataset
     from datagen.ingest import ingest_assets
     from datagen.resample import resample_dataset
@@ -29,8 +29,14 @@ def test_mimicat_keeps_real_meshes_whole(assets_dir, tmp_path):
     assert all(cases[p] for p in ("h2h", "cct"))
     out = tmp_path / "results"
     run_benchmark(data, ["mimicat", "text_soft"], ("h2h", "cct"), out=out, in_process=True)
+    def els(method: str, protocol: str) -> dict:
+        from benchmark.registry import get_method
+
+        rows = read_result_records(method_dir(out, method, get_method(method).metadata.version))
+        return {r.case_id: r.els for r in rows if r.protocol == protocol and r.status == "ok"}
+
     for protocol in ("h2h", "cct"):
-        ours, theirs = per_case(out, "mimicat", protocol, "els"), per_case(out, "text_soft", protocol, "els")
+        ours, theirs = els("mimicat", protocol), els("text_soft", protocol)
         assert set(ours) == set(theirs) == {c.case_id for c in cases[protocol]}
         mean_ours, mean_theirs = np.mean(list(ours.values())), np.mean(list(theirs.values()))
         assert mean_ours > mean_theirs - 0.02, (protocol, mean_ours, mean_theirs)
