@@ -26,6 +26,7 @@ BUILTIN = {
     "mimicat": "baselines.mimicat.method:Mimicat",
     "mimicat_naive_avg": "baselines.mimicat.method:MimicatNaiveAvg",
     "mimicat_no_prior": "baselines.mimicat.method:MimicatNoPrior",
+    "mimicat_init_only": "baselines.mimicat.method:MimicatInitOnly",
 }
 
 METHODS = Registry("method", BUILTIN, ENTRY_POINT_GROUP)

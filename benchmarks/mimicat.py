@@ -6,6 +6,13 @@ Builds (or reuses) a 16-character zoo resampled to 5,000 faces with corresponden
 - training: steps per second of the ``corr`` stage (G) and of the ``transfer`` stage (H, both
   cycle legs, with L_reg when the checkpoint has a prior), each a loss, a backward pass and an
   AdamW step on the stage's configured batch, frozen modules from the checkpoint;
+- the transfer stage before and after, on the same batches: before, G's Sinkhorn in log space
+  for the pairs each step meets and every rest mesh through E every step (the code up to version
+  3); then with the shared caches alone
+  (:data:`baselines.mimicat.transfer_training.SHARED_CACHES`: G's M computed once per pair at an
+  epoch's start, E's rest tokens once per mesh); after, the caches and G's Sinkhorn by matrix
+  scaling (:func:`mimicbench.sinkhorn.sinkhorn_scaling_torch`); a first epoch from empty caches
+  (the epoch's M computation included in its time) and a second epoch in the same process;
 - inference: seconds per request of ``mimicat`` (E -> G -> H -> LBS, with and without ARAP) on
   the cases' forward requests, against the named peer ``text_soft`` (the same initialisation
   without the networks); the last line is mimicat's time per case over text_soft's.
@@ -82,6 +89,60 @@ def training_steps_per_second(stage_name: str, data: Path, checkpoint: Path, dev
     return steps / (time.perf_counter() - t0)
 
 
+def transfer_epochs_steps_per_second(data: Path, checkpoint: Path, device: torch.device, steps: int,
+                                     shared: bool, scaling: bool) -> tuple[float, float]:
+    """Steps per second of two epochs of ``steps`` steps of the transfer stage, caches emptied
+    first, with the shared caches on or off and G's no-gradient Sinkhorn by matrix scaling or in
+    log space; each epoch timed from its first batch (the epoch's M precomputation included)."""
+    import baselines.mimicat.correspondence as corr
+    import baselines.mimicat.transfer_training as tt
+    from mimicbench.sinkhorn import sinkhorn_log, sinkhorn_scaling_torch
+    from baselines.mimicat.method import checkpoint_path
+    from mimicbench.training.checkpoint import load_module, read_header
+    from mimicbench.training.loop import _to_device
+    from mimicbench.training.registry import trainable
+    from mimicbench.training.stage import StageContext
+
+    model = trainable("mimicat")
+    stage = model.stage("transfer")
+    config = read_header(checkpoint_path(checkpoint, "transfer"))["config"]
+    c = config["transfer"]
+    config = {**config, "transfer": {**c, "examples_per_epoch": steps * int(c.get("batch_size", 4))}}
+    ctx = StageContext(data, device, config)
+    for need in stage.needs:
+        m = load_module(checkpoint_path(checkpoint, need), lambda cfg, s=model.stage(need): s.build(cfg, ctx), device)
+        for p in m.parameters():
+            p.requires_grad_(False)
+        ctx.frozen[need] = m.eval()
+    tt._CACHE.clear()
+    tt.SHARED_CACHES = shared
+    if not scaling:  # the log-space iteration every G call used before
+        corr.sinkhorn_scaling_torch = lambda s, temperature, num_iters, tol: sinkhorn_log(
+            s, temperature=temperature, num_iters=num_iters, tol=tol)
+    torch.manual_seed(0)
+    module = stage.build(config, ctx).to(device)
+    opt = torch.optim.AdamW(module.parameters(), lr=1e-4)
+    rates = []
+    try:
+        for epoch in range(2):
+            rng = np.random.default_rng(epoch)
+            t0 = time.perf_counter()
+            n = 0
+            for batch in stage.batches(config, ctx, rng):
+                loss = stage.loss(module, _to_device(batch, device), ctx)["total"]
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                n += 1
+            if device.type == "cuda":
+                torch.cuda.synchronize()
+            rates.append(n / (time.perf_counter() - t0))
+    finally:
+        tt.SHARED_CACHES = True
+        corr.sinkhorn_scaling_torch = sinkhorn_scaling_torch
+    return rates[0], rates[1]
+
+
 def seconds_per_case(method, requests) -> float:
     method.transfer(requests[:2])  # warm-up: weights, caches
     t0 = time.perf_counter()
@@ -108,6 +169,12 @@ def main() -> None:
     print(f"device {device}, torch threads {torch.get_num_threads()}, checkpoint {checkpoint}")
     for stage in ("corr", "transfer"):
         print(f"training {stage}: {training_steps_per_second(stage, data, checkpoint, device, args.steps):.2f} steps/s")
+    before = transfer_epochs_steps_per_second(data, checkpoint, device, args.steps, shared=False, scaling=False)
+    caches = transfer_epochs_steps_per_second(data, checkpoint, device, args.steps, shared=True, scaling=False)
+    after = transfer_epochs_steps_per_second(data, checkpoint, device, args.steps, shared=True, scaling=True)
+    for i, name in enumerate(("first epoch (empty caches)", "second epoch")):
+        print(f"transfer {name}: before {before[i]:.3f} steps/s, caches alone {caches[i]:.3f}, after "
+              f"{after[i]:.3f} ({after[i] / before[i]:.2f}x)")
     ev = EvalData.load(data)
     by_protocol = load_cases(data, ("h2h", "cct"))
     cases = [c for p in ("h2h", "cct") for c in by_protocol[p][:args.cases // 2]]

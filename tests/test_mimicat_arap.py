@@ -32,7 +32,8 @@ def test_handles_hold_and_every_component_gets_one():
     assert len(ref.handles(faces, blended, 2 * len(rig.vertices))) == 6
     pose = posed(rig, bend(rig, 0.8, 1))
     out = ref.refine("t", rig.vertices, rig.faces, rig.weights.values, pose)
-    bb = ref.handles(rig.faces, rig.weights.values, len(rig.vertices))
+    bb = ref.held("t", rig.vertices, rig.faces, rig.weights.values)
+    assert set(ref.handles(rig.faces, rig.weights.values, len(rig.vertices))) <= set(bb)
     np.testing.assert_allclose(out[bb], pose[bb], atol=1e-5)
     assert np.isfinite(out).all()
     with pytest.raises(ValueError, match="rigid"):
@@ -89,7 +90,83 @@ def test_real_gltf_characters(assets_dir, name):
     size = float((rest.max(0) - rest.min(0)).max())
     np.testing.assert_allclose(refiner.refine(name + "/rest", rest, faces, values, rest), rest, atol=1e-4 * size)
     out = refiner.refine(name, rest, faces, values, pose)
-    b = refiner.handles(refiner.solvable_faces(rest, faces), values, len(rest))
+    b = refiner.held(name, rest, faces, values)
+    assert set(np.flatnonzero(values.max(axis=1) >= refiner.rigid)) <= set(b)
     assert np.isfinite(out).all()
     np.testing.assert_allclose(out[b], pose[b], atol=1e-4 * size)
     assert np.abs(out - pose).max() < 0.5 * size  # a refinement, not a different pose
+
+
+def _zipped_tube(gap: float):
+    """The tube with its middle ring doubled ``gap`` apart (new vertices take the ring's weights)
+    and the two copies joined by thin triangles (a decimator's leftovers): the faces above the
+    ring use the copy. Returns the rig, vertices (N + S, 3), faces, weight values, the ring's and
+    the copy's vertex indices."""
+    from tests.toys import make_tube
+
+    t = make_tube(num_bones=4, rings=12, segments=8)
+    v, f = np.asarray(t["vertices"], np.float64), np.asarray(t["faces"], np.int64)
+    values = np.asarray(t["weights"].values, np.float64)
+    ring = np.arange(6 * 8, 7 * 8)
+    copy = len(v) + np.arange(8)
+    upper = np.isin(f, np.arange(7 * 8, 12 * 8)).any(axis=1) & np.isin(f, ring).any(axis=1)
+    remap = np.arange(len(v) + 8)
+    remap[ring] = copy
+    f = np.concatenate([np.where(upper[:, None], remap[f], f)] +
+                       [np.array([[ring[s], ring[(s + 1) % 8], copy[s]], [ring[(s + 1) % 8], copy[(s + 1) % 8], copy[s]]])
+                        for s in range(8)])
+    v = np.concatenate([v, v[ring] + [0.0, gap, 0.0]])
+    return t, v, f, np.concatenate([values, values[ring]]), ring, copy
+
+
+def test_edges_shorter_than_the_weld_deform_as_lbs_did():
+    """A seam of edges 1e-9 of the size (zero-area triangles, as decimation leaves them): ARAP
+    solved on the welded mesh gives each short edge exactly its LBS edge vector, so its length
+    ratio to the LBS one is 1; without the weld, ARAP moves the two sides independently and the
+    short edges' lengths change by orders of magnitude (what sent mimicat's ELS to -600 on real
+    characters). Vertices away from the seam stay within the refinement's reach of LBS."""
+    from benchmark.metrics import els
+    from mimicbench.mesh import unique_edges
+    from mimicbench.skinning import linear_blend_skinning
+    from mimicbench.weights import SparseWeights
+
+    t, v, f, values, ring, copy = _zipped_tube(1e-9)
+    idx = np.concatenate([np.asarray(t["weights"].indices), np.asarray(t["weights"].indices)[ring]])
+    weights = SparseWeights(idx.astype(np.int32), values.astype(np.float32), t["weights"].num_keypoints)
+    rig = tube_rig("t", 4)
+    pose = linear_blend_skinning(v, t["keypoints"], weights, bend(rig, 0.9, 3))
+    edges = unique_edges(f)
+    short = edges[np.isin(edges[:, 0], np.concatenate([ring, copy])) & np.isin(edges[:, 1], copy)
+                  | np.isin(edges[:, 1], np.concatenate([ring, copy])) & np.isin(edges[:, 0], copy)]
+    short = short[np.linalg.norm(v[short[:, 0]] - v[short[:, 1]], axis=1) < 1e-6]
+    assert len(short) >= 8
+    welded = ArapRefiner(rigid=0.9).refine("w", v, f, values, pose)
+    np.testing.assert_allclose(welded[short[:, 0]] - welded[short[:, 1]], pose[short[:, 0]] - pose[short[:, 1]],
+                               atol=1e-6)
+    assert els(welded, pose, edges) > 0.9
+    apart = ArapRefiner(rigid=0.9, weld=0.0).refine("a", v, f, values, pose)
+    assert els(apart, pose, edges) < 0.0  # the failure the weld removes, seen by the same metric
+    with pytest.raises(ValueError, match="weld"):
+        ArapRefiner(weld=1.5)
+
+
+def test_clusters_by_a_naive_loop():
+    """Weld clusters against a loop over every vertex pair (union-find by hand)."""
+    _, v, f, values, ring, copy = _zipped_tube(2e-4)
+    ref = ArapRefiner(weld=1e-3)
+    label = ref.clusters(v, f)
+    tol = 1e-3 * (v.max(0) - v.min(0)).max()
+    root = list(range(len(v)))
+
+    def find(a):
+        while root[a] != a:
+            a = root[a]
+        return a
+    for i in range(len(v)):
+        for j in range(i + 1, len(v)):
+            if np.linalg.norm(v[i] - v[j]) <= tol:
+                root[find(i)] = find(j)
+    expected = np.array([find(i) for i in range(len(v))])
+    same = label[:, None] == label[None, :]
+    np.testing.assert_array_equal(same, expected[:, None] == expected[None, :])
+    assert (label[ring] == label[copy]).all() and len(np.unique(label)) == len(v) - len(copy)

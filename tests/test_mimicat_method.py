@@ -29,9 +29,10 @@ def test_shipped_checkpoint_is_small_and_complete():
 
 
 def test_registered_names_answer_mixed_batches(requests):
-    assert {"mimicat", "mimicat_naive_avg", "mimicat_no_prior"} <= set(available_methods())
+    names = ("mimicat", "mimicat_naive_avg", "mimicat_no_prior", "mimicat_init_only")
+    assert set(names) <= set(available_methods())
     outputs = {}
-    for name in ("mimicat", "mimicat_naive_avg", "mimicat_no_prior"):
+    for name in names:
         method = get_method(name)
         assert method.metadata.name == name and set(method.metadata.protocols) == {"h2h", "cct"}
         method.setup("cpu")
@@ -41,7 +42,7 @@ def test_registered_names_answer_mixed_batches(requests):
             assert np.isfinite(v).all()
         outputs[name] = out
     # the ablations are different models: some answer differs from the full model's
-    for name in ("mimicat_naive_avg", "mimicat_no_prior"):
+    for name in names[1:]:
         assert max(np.abs(a - b).max() for a, b in zip(outputs[name], outputs["mimicat"])) > 1e-6
 
 
@@ -64,3 +65,33 @@ def test_checkpoint_option_run_layout_and_errors(tmp_path, requests, monkeypatch
     assert Mimicat().checkpoint == run
     with pytest.raises(FileNotFoundError, match="no weights for stage 'shape'"):
         Mimicat(tmp_path / "empty").setup("cpu")
+
+
+def test_initialisation_of_the_shipped_checkpoint_and_of_init_only(requests):
+    """The shipped transfer checkpoint's config has no ``transfer.init`` (it was trained before
+    the key): it means ``paper``, what it was trained with. ``mimicat_init_only`` answers the
+    structured initialisation from G's M, H left out: the same vertices as that initialisation
+    posed by LBS outside the method."""
+    import torch
+
+    from baselines.mimicat.initialisation import structured_pose
+    from baselines.mimicat.method import MimicatInitOnly
+    from baselines.mimicat.transfer import pose_mesh
+    from baselines.mimicat.transfer_data import CharacterTensors
+    from baselines.posing import source_pose
+    from mimicbench.training.checkpoint import read_header
+
+    assert "init" not in read_header(BUNDLED / "transfer.safetensors")["config"]["transfer"]
+    full = Mimicat(arap=False)
+    full.setup("cpu")
+    assert full._modules["transfer"].init == "paper"
+    only = MimicatInitOnly(arap=False)
+    only.setup("cpu")
+    assert only._modules["transfer"].init == "structured"
+    for r, got in zip(requests, only.transfer(requests)):
+        s, t = CharacterTensors.of_rig(r.source, only.points), CharacterTensors.of_rig(r.target, only.points)
+        m = only._correspondences([r], [s], [t])[0]
+        q, p = source_pose(r)
+        qb, tb = structured_pose(torch.as_tensor(q), torch.as_tensor(p), s.keypoints, s.parents, t.keypoints,
+                                 t.parents, m, r.target.size / r.source.size)
+        np.testing.assert_allclose(got, pose_mesh(t, qb, tb).numpy(), atol=2e-5)

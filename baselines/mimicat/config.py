@@ -29,7 +29,11 @@ Sections:
   :func:`baselines.mimicat.transfer.correspondences`), and ``transfer.reg_weight`` 0.001: at
   0.01 the gradient of the weighted L_reg on H's parameters was 0.6 times that of L_rec at the
   start (norms 0.42 and 0.70), so H followed the prior rather than the cycle; at 0.001 it is a
-  tenth, a regulariser.
+  tenth, a regulariser. ``transfer.init`` is the construction of H's initialisation:
+  ``structured`` (root displacement of the source root, carried local bone translations, empty
+  columns inheriting the parent's rotation) or ``paper`` (Eq. 3-4 as published; what a config
+  without the key, such as the checkpoints of methods version 3, was trained with), see
+  :mod:`baselines.mimicat.initialisation`.
 """
 from __future__ import annotations
 
@@ -49,7 +53,7 @@ SMALL = {
              "geometry_weight": 0.0},
     "transfer": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 4, "epochs": 10,
                  "examples_per_epoch": 128, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.001,
-                 "feat_weight": 0.1, "m_temperature": 0.1},
+                 "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured"},
     "transfer_no_prior": {"epochs": 10},
 }
 
@@ -67,7 +71,7 @@ PAPER = {
              "geometry_weight": 0.0},
     "transfer": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 16, "epochs": 100,
                  "examples_per_epoch": 4096, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.001,
-                 "feat_weight": 0.1, "m_temperature": 0.1},
+                 "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured"},
     "transfer_no_prior": {"epochs": 100},
 }
 

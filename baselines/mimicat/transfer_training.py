@@ -10,8 +10,13 @@
   frozen pose prior F (matrix-Fisher per keypoint); ``L_feat``: squared difference between the
   residual features of the two legs (E(posed target) - E(target) should move like
   E(posed source) - E(source)). ``total = rec_weight L_rec + reg_weight L_reg + feat_weight L_feat``.
+  G's M of every pair an epoch draws is computed once for all ranks and epochs at the epoch's
+  start (:func:`shared_correspondences`), and E reads each rest mesh once (the frozen encoder's
+  rest tokens are cached per character); only the posed meshes go through E each step.
   Both legs use G's M at the Sinkhorn temperature ``m_temperature`` (see
-  :func:`baselines.mimicat.transfer.correspondences`), as the method does at test time.
+  :func:`baselines.mimicat.transfer.correspondences`), as the method does at test time, and H's
+  initialisation ``init`` (``structured`` in the presets; ``paper``, Eq. 3-4 as published, for a
+  config without the key, which is what checkpoints trained before it used).
 - ``transfer_no_prior`` (needs ``shape``, ``corr``): the same without ``L_reg`` (ablation A2):
   the very training of ``--stage transfer --set transfer.reg_weight=0`` (same seed, initial
   weights, batches and settings), kept as its own stage so that one run folder holds both.
@@ -34,7 +39,9 @@ CORR_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size":
                  "sinkhorn_iters": 50}
 TRANSFER_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size": 4, "points": 512, "split": "all",
                      "examples_per_epoch": 64, "same_skeleton_share": 0.3, "rec_weight": 1.0,
-                     "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0}
+                     "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0, "init": "paper"}
+"""Values a config without the key means: what the checkpoints trained before the key existed
+used (the presets of :mod:`baselines.mimicat.config` set ``init`` to ``structured``)."""
 
 
 def section(config: dict, name: str) -> dict:
@@ -53,6 +60,11 @@ def shape_width(config: dict) -> int:
 
 
 _CACHE: dict = {}
+
+SHARED_CACHES = True
+"""Precompute G's M per epoch for all ranks and cache E's rest tokens (see the module docstring);
+``benchmarks/mimicat.py`` switches it off to time the per-step path it replaced (M computed in the
+step for pairs not yet in this process's cache, every rest mesh through E every step)."""
 
 
 def _characters(dataset, device, points: int, split: str = "all") -> tuple[dict, dict, dict]:
@@ -111,7 +123,8 @@ def corr_loss(module: CorrespondenceTransformer, batch: dict, ctx) -> dict:
 
 def build_transfer(config: dict, ctx) -> PoseTransferTransformer:
     c = section(config, "transfer")
-    return PoseTransferTransformer(shape_width(config), c["width"], c["layers"], c["heads"], c["mlp"])
+    return PoseTransferTransformer(shape_width(config), c["width"], c["layers"], c["heads"], c["mlp"],
+                                   init=c["init"])
 
 
 def transfer_examples(records: dict, motions: dict, n: int, same_skeleton_share: float,
@@ -136,12 +149,46 @@ def transfer_examples(records: dict, motions: dict, n: int, same_skeleton_share:
     return out
 
 
+def _m_cache(ctx) -> dict:
+    """This process's cache of G's M, keyed (source ID, target ID, temperature)."""
+    return _CACHE.setdefault(("m", str(ctx.dataset), str(ctx.device)), {})
+
+
+def shared_correspondences(ctx, tensors: dict, pairs, temperature: float, chunk: int = 16) -> None:
+    """Put G's M (at ``temperature``) of every (source ID, target ID) in ``pairs`` into this
+    process's cache, each missing pair computed once for all ranks: rank r takes the sorted
+    missing pairs r, r + W, ... (W ranks) through G in batches of ``chunk``, and every rank
+    receives what every rank computed (:func:`mimicbench.training.distributed.gather_objects`).
+    Every rank must call it with the same ``pairs`` (the epoch's examples are drawn alike on all).
+
+    Args:
+        ctx: the stage context (frozen ``shape`` and ``corr``, rank, world size).
+        tensors: CharacterTensors by ID.
+        pairs: iterable of (source ID, target ID).
+    """
+    from baselines.mimicat.transfer import correspondences
+    from mimicbench.training.distributed import gather_objects
+
+    cache, temp = _m_cache(ctx), float(temperature)
+    todo = sorted({(s, t) for s, t in pairs if (s, t, temp) not in cache})
+    mine, fresh = todo[ctx.rank::ctx.world_size], {}
+    for i in range(0, len(mine), chunk):
+        part = mine[i:i + chunk]
+        correspondences(ctx.frozen["shape"], ctx.frozen["corr"], [tensors[s] for s, _ in part],
+                        [tensors[t] for _, t in part], fresh, temp)
+    for got in gather_objects({k: v.cpu() for k, v in fresh.items()}, ctx.world_size):
+        cache.update({k: v.to(ctx.device) for k, v in got.items()})
+
+
 def transfer_batches(config: dict, ctx, rng: np.random.Generator):
     from mimicbench.training.batching import rank_batches
 
     c = section(config, "transfer")
-    records, motions, _ = _characters(ctx.dataset, ctx.device, c["points"], c["split"])
+    records, motions, tensors = _characters(ctx.dataset, ctx.device, c["points"], c["split"])
     examples = transfer_examples(records, motions, c["examples_per_epoch"], c["same_skeleton_share"], rng)
+    if SHARED_CACHES:
+        shared_correspondences(ctx, tensors, [p for s, _, _, t in examples for p in ((s, t), (t, s))],
+                               c["m_temperature"])
     for idx in rank_batches(len(examples), c["batch_size"], rng, ctx.rank, ctx.world_size):
         chosen = [examples[i] for i in idx]
         yield {"examples": chosen}
@@ -167,13 +214,15 @@ def cycle_losses(h: PoseTransferTransformer, batch: dict, ctx, reg_weight: float
         q_s.append(pose[:, :4])
         t_s.append(pose[:, 4:])
         posed.append(pose_mesh(tensors[s_id], pose[:, :4], pose[:, 4:]))
-    cache = _CACHE.setdefault(("m", str(ctx.dataset), str(ctx.device)), {})
+    cache = _m_cache(ctx)
     temp = float(c["m_temperature"])
     m_fwd, m_back = correspondences(encoder, g, src, tgt, cache, temp), correspondences(encoder, g, tgt, src, cache, temp)
-    forward, _, f_fwd = transfer_batch(encoder, g, h, src, q_s, t_s, posed, tgt, m_fwd)
+    rest = _CACHE.setdefault(("rest tokens", str(ctx.dataset), str(ctx.device), c["points"]), {}) \
+        if SHARED_CACHES else None
+    forward, _, f_fwd = transfer_batch(encoder, g, h, src, q_s, t_s, posed, tgt, m_fwd, rest)
     pred = [pose_mesh(t, q, p) for t, (q, p) in zip(tgt, forward)]
     back, _, f_back = transfer_batch(encoder, g, h, tgt, [q for q, _ in forward], [p for _, p in forward], pred, src,
-                                     m_back)
+                                     m_back, rest)
     rec = torch.stack([(pose_mesh(s, q, p) - v).norm(dim=-1).mean() / s.size
                        for s, (q, p), v in zip(src, back, posed)]).mean()
     feat = ((f_back[3] - f_fwd[3]) ** 2).mean()

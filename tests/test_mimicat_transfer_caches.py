@@ -1,0 +1,86 @@
+"""The transfer stage's shared caches (G's M per epoch for all ranks, E's rest tokens once per mesh)
+give the batches and losses that recomputing everything in the step gives."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+
+@pytest.fixture()
+def stage_context(small_zoo):
+    import baselines.mimicat.transfer_training as tt
+    from baselines.mimicat.method import BUNDLED, checkpoint_path
+    from mimicbench.training.checkpoint import load_module, read_header
+    from mimicbench.training.registry import trainable
+    from mimicbench.training.stage import StageContext
+
+    model = trainable("mimicat")
+    config = read_header(checkpoint_path(BUNDLED, "transfer"))["config"]
+    config = {**config, "transfer": {**config["transfer"], "examples_per_epoch": 4, "batch_size": 2}}
+    ctx = StageContext(small_zoo, torch.device("cpu"), config)
+    for need in model.stage("transfer").needs:
+        m = load_module(checkpoint_path(BUNDLED, need), lambda cfg, s=model.stage(need): s.build(cfg, ctx), ctx.device)
+        for p in m.parameters():
+            p.requires_grad_(False)
+        ctx.frozen[need] = m.eval()
+    saved = dict(tt._CACHE), tt.SHARED_CACHES
+    tt._CACHE.clear()
+    yield tt, model, config, ctx
+    tt._CACHE.clear()
+    tt._CACHE.update(saved[0])
+    tt.SHARED_CACHES = saved[1]
+
+
+def _epoch(tt, model, config, ctx, shared: bool):
+    """One epoch's batches and their losses (H freshly built with seed 0), caches cleared first."""
+    tt._CACHE.clear()
+    tt.SHARED_CACHES = shared
+    torch.manual_seed(0)
+    h = model.stage("transfer").build(config, ctx)
+    batches = list(model.stage("transfer").batches(config, ctx, np.random.default_rng(3)))
+    cached = dict(tt._CACHE.get(("m", str(ctx.dataset), str(ctx.device)), {}))
+    losses = [{k: float(v.detach()) for k, v in tt.transfer_loss(h, b, ctx).items()} for b in batches]
+    return batches, cached, losses
+
+
+def test_shared_caches_give_the_losses_of_recomputation(stage_context):
+    tt, model, config, ctx = stage_context
+    b_off, m_off, l_off = _epoch(tt, model, config, ctx, shared=False)
+    b_on, m_on, l_on = _epoch(tt, model, config, ctx, shared=True)
+    assert b_on == b_off and len(b_on) == 2
+    assert not m_off  # the per-step path computes M in the step
+    pairs = {(s, t) for b in b_on for s, _, _, t in b["examples"]}
+    assert set(m_on) == {(a, b, float(config["transfer"]["m_temperature"])) for s, t in pairs for a, b in ((s, t), (t, s))}
+    for on, off in zip(l_on, l_off):
+        assert on.keys() == off.keys()
+        for k in on:
+            assert abs(on[k] - off[k]) <= 1e-4 * max(1.0, abs(off[k])), (k, on[k], off[k])
+
+
+def test_shared_correspondences_match_one_pair_at_a_time(stage_context, monkeypatch):
+    """Batched with other pairs (padding, masks) and split over two ranks by hand, G's M equals
+    the M of each pair computed alone."""
+    import mimicbench.training.distributed as dist
+    from baselines.mimicat.transfer import correspondences
+    from mimicbench.training.stage import StageContext
+
+    monkeypatch.setattr(dist, "gather_objects", lambda obj, world_size: [obj])  # each rank's own share
+
+    tt, _, config, ctx = stage_context
+    c = tt.section(config, "transfer")
+    _, _, tensors = tt._characters(ctx.dataset, ctx.device, c["points"], c["split"])
+    ids = sorted(tensors)[:4]
+    pairs = [(a, b) for a in ids for b in ids if a != b][:6]
+    merged = {}
+    for rank in (0, 1):  # what each of two ranks computes before the gather
+        tt._CACHE.clear()
+        tt.shared_correspondences(StageContext(ctx.dataset, ctx.device, config, ctx.frozen, rank, 2), tensors, pairs,
+                                  0.1, chunk=2)
+        got = tt._m_cache(ctx)
+        assert len(got) == len(pairs[rank::2])
+        merged.update(got)
+    assert {k[:2] for k in merged} == set(pairs)
+    for (s, t, temp), m in merged.items():
+        alone = correspondences(ctx.frozen["shape"], ctx.frozen["corr"], [tensors[s]], [tensors[t]], {}, temp)[0]
+        np.testing.assert_allclose(m.numpy(), alone.numpy(), atol=1e-4)  # Sinkhorn stops within 1e-5 of its marginals
