@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from datagen.correspond.stage import correspondence_for_skeletons
+from tests.correspond_rig_tables import RIG_TABLES, table_rig
 
 
 def _quat_matrix(q) -> np.ndarray:
@@ -103,6 +104,8 @@ def pmx_skeleton(path: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
 
 
 def load_rig(assets_dir: Path, name: str):
+    if name in RIG_TABLES:
+        return table_rig(name)
     if name == "CMU_02_01":
         return bvh_skeleton(assets_dir / "bvh" / "CMU_02_01.bvh")
     if name == "Gene":
@@ -176,10 +179,78 @@ LABELLED = {
         ("BackLeg.{s}", "BackShoulder.{s}"), ("BackUpLeg.{s}", "BackLeg.{s}"), ("BackLowLeg.{s}", "BackUpperLeg.{s}")]),
 }
 
+# Pairs across kinds on rigs the method was never tuned on before (tables in
+# tests/correspond_rig_tables.py, and the CMU mocap skeleton). Labels follow the bones (their
+# rest positions and parents), not the words: a Quaternius animal's BackLeg runs hip to stifle
+# (the femur, under the short BackShoulder connector), its BackUpperLeg stifle to hock, its
+# BackLowerLeg hock to paw; a dinosaur's BackLeg is the connector. A mech's MidLeg is the shin of
+# its three-segment leg. Foot.L of the knight and the mechs is an IK root at the foot: the foot.
+#
+# The split was fixed at 23:58 UTC on 1 Dec 2026, before any tuning: TUNED (the failures
+# and two more) may be looked at while choosing rules and weights; HELD_OUT was labelled from the
+# tables alone and its agreement is only reported, never used to choose anything.
+TUNED = {
+    ("CMU_02_01", "Quaternius_MechGeorge"): _sides([  # mocap -> robot
+        ("Hips", "Body"), ("LowerBack", "Torso"), ("Spine1", "Chest"), ("Neck", "Neck"), ("Head", "Head"),
+        ("{side}UpLeg", "UpperLeg.{s}"), ("{side}Leg", "MidLeg.{s}"), ("{side}Foot", "Foot.{s}"),
+        ("{side}Shoulder", "Shoulder.{s}"), ("{side}Arm", "UpperArm.{s}"), ("{side}ForeArm", "LowerArm.{s}")]),
+    ("Quaternius_Knight", "Quaternius_MechGeorge"): _sides([  # humanoid -> robot
+        ("Body", "Body"), ("Abdomen", "Torso"), ("Torso", "Chest"), ("Neck", "Neck"), ("Head", "Head"),
+        ("Shoulder.{s}", "Shoulder.{s}"), ("UpperArm.{s}", "UpperArm.{s}"), ("LowerArm.{s}", "LowerArm.{s}"),
+        ("UpperLeg.{s}", "UpperLeg.{s}"), ("LowerLeg.{s}", "MidLeg.{s}"), ("Foot.{s}", "Foot.{s}")]),
+    ("CMU_02_01", "Quaternius_Soldier"): _sides([  # mocap -> game rig
+        ("Hips", "Hips"), ("LowerBack", "Abdomen"), ("Spine", "Torso"), ("Spine1", "Chest"), ("Neck", "Neck"),
+        ("Head", "Head"), ("{side}UpLeg", "UpperLeg.{s}"), ("{side}Leg", "LowerLeg.{s}"), ("{side}Foot", "Foot.{s}"),
+        ("{side}Shoulder", "Shoulder.{s}"), ("{side}Arm", "UpperArm.{s}"), ("{side}ForeArm", "LowerArm.{s}"),
+        ("{side}Hand", "Hand.{s}"), ("{side}HandIndex1", "Index1.{s}"), ("{c}Thumb", "Thumb1.{s}")]),
+    ("Quaternius_MechGeorge", "Quaternius_Wolf"): _sides([  # robot -> quadruped
+        ("Body", "Back"), ("Neck", "Neck1"), ("Head", "Head"), ("Shoulder.{s}", "FrontShoulder.{s}"),
+        ("UpperArm.{s}", "FrontUpperLeg.{s}"), ("LowerArm.{s}", "FrontLowerLeg.{s}"), ("UpperLeg.{s}", "BackLeg.{s}"),
+        ("MidLeg.{s}", "BackUpperLeg.{s}"), ("LowerLeg.{s}", "BackLowerLeg.{s}")]),
+    ("Quaternius_Soldier", "Quaternius_Stag"): _sides([  # humanoid -> quadruped
+        ("Hips", "Back"), ("Neck", "Neck1"), ("Head", "Head"), ("Shoulder.{s}", "FrontShoulder.{s}"),
+        ("UpperArm.{s}", "FrontUpperLeg.{s}"), ("LowerArm.{s}", "FrontLowerLeg.{s}"), ("UpperLeg.{s}", "BackLeg.{s}"),
+        ("LowerLeg.{s}", "BackUpperLeg.{s}"), ("Foot.{s}", "BackLowerLeg.{s}")]),
+    ("Quaternius_Wolf", "Quaternius_Wasp"): _sides([  # quadruped -> winged insect
+        ("Head", "Head"), ("Tail1", "Abdomen"), ("Tail2", "Abdomen2"), ("Tail3", "Abdomen3"),
+        ("FrontShoulder.{s}", "TopLeg1.{s}"), ("FrontUpperLeg.{s}", "TopLeg2.{s}"), ("FrontLowerLeg.{s}", "TopLeg3.{s}"),
+        ("BackShoulder.{s}", "BottomLeg1.{s}"), ("BackLeg.{s}", "BottomLeg2.{s}"),
+        ("BackUpperLeg.{s}", "BottomLeg3.{s}")]),
+}
+HELD_OUT = {
+    ("Quaternius_AstronautFlamingo", "Quaternius_MechStan"): _sides([  # humanoid -> robot
+        ("Body", "Body"), ("Abdomen", "Torso"), ("Torso", "Chest"), ("Neck", "Neck"), ("Head", "Head"),
+        ("Shoulder.{s}", "Shoulder.{s}"), ("UpperArm.{s}", "UpperArm.{s}"), ("LowerArm.{s}", "LowerArm.{s}"),
+        ("Index1.{s}", "Index1.{s}"), ("Pinky1.{s}", "Pinky1.{s}"), ("Thumb1.{s}", "Thumb1.{s}"),
+        ("UpperLeg.{s}", "UpperLeg.{s}"), ("LowerLeg.{s}", "LowerLeg.{s}"), ("Foot.{s}", "Foot.{s}")]),
+    ("Quaternius_PlatformerCharacter", "Quaternius_Alpaca"): _sides([  # humanoid -> quadruped
+        ("Body", "Back"), ("Neck", "Neck1"), ("Head", "Head"), ("Shoulder.{s}", "FrontShoulder.{s}"),
+        ("UpperArm.{s}", "FrontUpperLeg.{s}"), ("LowerArm.{s}", "FrontLowerLeg.{s}"), ("UpperLeg.{s}", "BackLeg.{s}"),
+        ("LowerLeg.{s}", "BackUpperLeg.{s}"), ("Ear1.{s}", "Ear1.{s}"), ("Ear2.{s}", "Ear2.{s}"),
+        ("Ear3.{s}", "Ear3.{s}")]),
+    ("Quaternius_MechMike", "Quaternius_Deer"): _sides([  # robot -> quadruped
+        ("Body", "Back"), ("Neck", "Neck1"), ("Head", "Head"), ("Shoulder.{s}", "FrontShoulder.{s}"),
+        ("UpperArm.{s}", "FrontUpperLeg.{s}"), ("LowerArm.{s}", "FrontLowerLeg.{s}"), ("UpperLeg.{s}", "BackLeg.{s}"),
+        ("LowerLeg.{s}", "BackUpperLeg.{s}")]),
+    ("Quaternius_Parasaurolophus", "Quaternius_Wasp"): _sides([  # quadruped -> winged insect
+        ("Head", "Head"), ("Tail1", "Abdomen"), ("Tail2", "Abdomen2"), ("Tail3", "Abdomen3"),
+        ("FrontLeg.{s}", "TopLeg1.{s}"), ("FrontUpLeg.{s}", "TopLeg2.{s}"), ("FrontLowLeg.{s}", "TopLeg3.{s}"),
+        ("BackLeg.{s}", "BottomLeg1.{s}"), ("BackUpLeg.{s}", "BottomLeg2.{s}"), ("BackLowLeg.{s}", "BottomLeg3.{s}")]),
+    ("CMU_02_01", "Quaternius_PlatformerCharacter"): _sides([  # mocap -> game rig
+        ("Hips", "Body"), ("Spine1", "Torso"), ("Neck", "Neck"), ("Head", "Head"), ("{side}Shoulder", "Shoulder.{s}"),
+        ("{side}Arm", "UpperArm.{s}"), ("{side}ForeArm", "LowerArm.{s}"), ("{side}Hand", "Fist.{s}"),
+        ("{side}UpLeg", "UpperLeg.{s}"), ("{side}Leg", "LowerLeg.{s}"), ("{side}Foot", "Foot.{s}")]),
+    ("Quaternius_Donkey", "Quaternius_Velociraptor"): _sides([  # quadruped -> biped dinosaur
+        ("Head", "Head"), ("Neck1", "Neck"), ("Tail1", "Tail1"), ("Tail2", "Tail2"), ("Tail3", "Tail3"),
+        ("FrontShoulder.{s}", "FrontLeg.{s}"), ("FrontUpperLeg.{s}", "FrontUpLeg.{s}"),
+        ("FrontLowerLeg.{s}", "FrontLowLeg.{s}"), ("BackShoulder.{s}", "BackLeg.{s}"), ("BackLeg.{s}", "BackUpLeg.{s}"),
+        ("BackUpperLeg.{s}", "BackLowLeg.{s}")]),
+}
+
 
 @pytest.fixture(scope="module")
 def rigs(assets_dir):
-    names = {n for pair in LABELLED for n in pair}
+    names = {n for labels in (LABELLED, TUNED, HELD_OUT) for pair in labels for n in pair}
     return {n: load_rig(assets_dir, n) for n in names}
 
 

@@ -34,6 +34,7 @@ DEFAULT_TEMPERATURE = 0.1
 # 353 sweeps at w = 1.5 and 112 at w = 1.7 (w = 1.9 stalled).
 DUSTBIN_OMEGA = 1.7
 CHUNK = 256
+MIN_TRUNK = 3  # trunk bones (pelvis to below the neck) each skeleton needs for the trunk rules
 
 
 def sinkhorn_padded(scores: torch.Tensor, k1: torch.Tensor, k2: torch.Tensor, temperature: float,
@@ -164,7 +165,8 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
                          temperature: float = DEFAULT_TEMPERATURE, chunk: int = CHUNK,
                          feat_a: Sequence[np.ndarray] | None = None, feat_b: Sequence[np.ndarray] | None = None,
                          feature_weights: Sequence[float] | None = None, text_weight: float = 1.0,
-                         no_match: float | None = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+                         no_match: float | None = None, chain_penalty: float = 0.0,
+                         anchor: float | None = None, trunk_floor: float | None = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(S_cos (K1, K2) float32, hungarian pairs (P, 2) int32, M_sink (K1, K2) float32) per pair.
 
     The matching score is ``S = text_weight * S_cos - sum_f w_f (f_a - f_b)^2`` over per-bone
@@ -184,6 +186,17 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
         feature_weights: (F,) weights w_f >= 0.
         text_weight: weight of S_cos in S.
         no_match: threshold tau on S below which a bone stays unmatched, or None.
+        chain_penalty: with features, subtracted from S where the two bones' chain codes (the
+            second-last feature column, :func:`.structure.chain_kinds`) differ: a bone of the trunk
+            never meets a hand, an arm never a hind leg, unless their names say so (``anchor``).
+        anchor: with features, S of two bones whose name codes (the last column,
+            :func:`.structure.name_keys`) are equal is raised to at least this score (set it above
+            ``no_match``): a bone with a same-named or synonym counterpart is never left unmatched
+            for want of a score, whatever the chains say.
+        trunk_floor: with features, two trunk bones (third-last column, their arc-length position
+            from the pelvis, 0, to the head, 1; -1 off the trunk) score at least
+            ``trunk_floor - |arc_a - arc_b|``: the spines are aligned as sequences by position,
+            whatever their names (``LowerBack``, ``Abdomen``, ``Spine1``, ``Chest``).
     """
     if len(emb_a) != len(emb_b):
         raise ValueError(f"emb_a, emb_b: expected equal lengths, got {len(emb_a)} and {len(emb_b)}")
@@ -197,7 +210,8 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
             fa = None if feat_a is None else feat_a[i:i + chunk]
             fb = None if feat_b is None else feat_b[i:i + chunk]
             out.extend(_correspondence_chunk(emb_a[i:i + chunk], emb_b[i:i + chunk], temperature, fa, fb,
-                                             feature_weights, text_weight, no_match))
+                                             feature_weights, text_weight, no_match, chain_penalty, anchor,
+                                             trunk_floor))
     finally:
         torch.set_num_threads(threads)
     return out
@@ -229,8 +243,30 @@ def feature_penalty(fa: torch.Tensor, fb: torch.Tensor, weights: Sequence[float]
     return torch.bmm(left, right.transpose(1, 2)).clamp_(min=0.0)
 
 
+def chain_scores(scores: torch.Tensor, fa: torch.Tensor, fb: torch.Tensor, chain_penalty: float = 0.0,
+                 anchor: float | None = None, trunk_floor: float | None = None, k1: torch.Tensor | None = None,
+                 k2: torch.Tensor | None = None) -> torch.Tensor:
+    """(B, P1, P2) scores of :func:`correspondence_batch`'s chain rules, from the last three columns
+    of fa (B, P1, F) and fb (B, P2, F): trunk arc position, chain code, name code; k1, k2 (B,) the
+    valid sizes (padding rows do not count as trunk bones)."""
+    if trunk_floor is not None:
+        ta, tb = fa[:, :, None, -3], fb[:, None, :, -3]
+        rows = torch.arange(fa.shape[1])[None, :] < (k1[:, None] if k1 is not None else fa.shape[1])
+        cols = torch.arange(fb.shape[1])[None, :] < (k2[:, None] if k2 is not None else fb.shape[1])
+        spines = ((((fa[:, :, -3] >= 0) & rows).sum(1) >= MIN_TRUNK)
+                  & (((fb[:, :, -3] >= 0) & cols).sum(1) >= MIN_TRUNK))[:, None, None]
+        floor = torch.where((ta >= 0) & (tb >= 0) & spines, trunk_floor - (ta - tb).abs(), torch.tensor(-torch.inf))
+        scores = torch.maximum(scores, floor.to(scores.dtype))
+    if chain_penalty:
+        scores = scores - chain_penalty * (fa[:, :, None, -2] != fb[:, None, :, -2]).to(scores.dtype)
+    if anchor is not None:
+        same = fa[:, :, None, -1] == fb[:, None, :, -1]
+        scores = torch.where(same, scores.clamp(min=float(anchor)), scores)
+    return scores
+
+
 def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, weights=None, text_weight=1.0,
-                          no_match=None):
+                          no_match=None, chain_penalty=0.0, anchor=None, trunk_floor=None):
     n = len(emb_a)
     if n == 0:
         return []
@@ -246,6 +282,7 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
         if not (torch.isfinite(fa).all() and torch.isfinite(fb).all()):
             raise ValueError("feat_a, feat_b: expected finite features, got NaN or inf")
         scores = text_weight * cosines - feature_penalty(fa, fb, weights)
+        scores = chain_scores(scores, fa, fb, chain_penalty, anchor, trunk_floor, k1, k2)
     sink = sinkhorn_padded(scores, k1, k2, temperature, chunk=n, dustbin=no_match)
     bad = ~(_row_errors(sink, k1, no_match) <= 1e-4)  # also catches NaN
     if bad.any():  # over-relaxed sweeps that overflowed (seen with a dustbin on 81 x 241 bones): classic sweeps
@@ -259,7 +296,12 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
     out = []
     for i in range(n):
         c = cosines[i, : k1[i], : k2[i]]
-        out.append((c.copy(), hungarian_pairs(scores[i, : k1[i], : k2[i]], no_match), sink[i, : k1[i], : k2[i]].copy()))
+        si = scores[i, : k1[i], : k2[i]]
+        if trunk_floor is not None:
+            pairs = chain_hungarian_pairs(si, feat_a[i][:, -3], feat_b[i][:, -3], no_match)
+        else:
+            pairs = hungarian_pairs(si, no_match)
+        out.append((c.copy(), pairs, sink[i, : k1[i], : k2[i]].copy()))
     return out
 
 
@@ -268,6 +310,50 @@ def _row_errors(sink: torch.Tensor, k1: torch.Tensor, no_match: float | None) ->
     want_rows = (torch.arange(sink.shape[1])[None, :] < k1[:, None]).to(sink.dtype)
     excess = sink.sum(dim=2) - want_rows
     return (excess if no_match is None else excess.clamp(min=0)).abs().amax(dim=1)
+
+
+def monotone_pairs(gain: np.ndarray) -> list[tuple[int, int]]:
+    """The order-preserving matching of two sequences with the largest total gain (DP alignment).
+
+    ``gain`` (n, m): the gain of matching link i of the first sequence with link j of the second
+    (links in order along their chains); pairs (i, j) with i and j both increasing, gains > 0 only.
+    """
+    n, m = gain.shape
+    best = np.zeros((n + 1, m + 1))
+    for i in range(n):
+        for j in range(m):
+            best[i + 1, j + 1] = max(best[i, j + 1], best[i + 1, j], best[i, j] + max(gain[i, j], 0.0))
+    out, i, j = [], n, m
+    while i and j:
+        if best[i, j] == best[i - 1, j]:
+            i -= 1
+        elif best[i, j] == best[i, j - 1]:
+            j -= 1
+        else:
+            out.append((i - 1, j - 1))
+            i, j = i - 1, j - 1
+    return out[::-1]
+
+
+def chain_hungarian_pairs(scores: np.ndarray, arc_a: np.ndarray, arc_b: np.ndarray, no_match: float) -> np.ndarray:
+    """(P, 2) int32 pairs: the trunks aligned as sequences, every other bone by :func:`hungarian_pairs`.
+
+    ``arc_a`` (K1,), ``arc_b`` (K2,): trunk arc positions (-1 off the trunk). The trunk bones of
+    both skeletons, in order of position, are matched by :func:`monotone_pairs` on ``S - no_match``,
+    so a spine bone never skips past another; the rest of the matrix goes to the Hungarian. A
+    skeleton with fewer than :data:`MIN_TRUNK` trunk bones has no spine to align: all Hungarian.
+    """
+    ta, tb = np.flatnonzero(arc_a >= 0), np.flatnonzero(arc_b >= 0)
+    if len(ta) < MIN_TRUNK or len(tb) < MIN_TRUNK:  # no spine to align (a fish's one trunk bone)
+        return hungarian_pairs(scores, no_match)
+    ta, tb = ta[np.argsort(arc_a[ta], kind="stable")], tb[np.argsort(arc_b[tb], kind="stable")]
+    rest_a, rest_b = np.setdiff1d(np.arange(len(arc_a)), ta), np.setdiff1d(np.arange(len(arc_b)), tb)
+    pairs = [(ta[i], tb[j]) for i, j in monotone_pairs(scores[np.ix_(ta, tb)] - no_match)]
+    if len(rest_a) and len(rest_b):
+        sub = hungarian_pairs(scores[np.ix_(rest_a, rest_b)], no_match)
+        pairs += [(rest_a[i], rest_b[j]) for i, j in sub]
+    out = np.array(sorted(pairs), np.int32).reshape(-1, 2)
+    return out
 
 
 def hungarian_pairs(scores: np.ndarray, no_match: float | None = None) -> np.ndarray:

@@ -40,7 +40,8 @@ from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
 from datagen.correspond.canonical import canonicalize_names
 from datagen.correspond.structure import skeleton_features
 
-FEATURES = ("side", "limb_axial", "centre_axial", "along", "chain_hop", "limb_hop", "pelvis", "trunk", "neck", "head", "tail", "depth", "x", "y", "z")
+FEATURES = ("side", "limb_axial", "centre_axial", "along", "chain_hop", "limb_hop", "pelvis", "trunk", "neck", "head",
+            "tail", "depth", "x", "y", "z", "trunk_arc", "chain", "name_key")  # the last three: weight 0 here
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,9 @@ class MatchMethod:
     part: float = 0.0
     depth: float = 0.0
     position: float = 0.0
+    chain: float = 0.0
+    anchor: float | None = None
+    trunk: float | None = None
     no_match: float | None = None
     temperature: float = DEFAULT_TEMPERATURE
 
@@ -69,7 +73,7 @@ class MatchMethod:
     def feature_weights(self) -> list[float]:
         """Weights of :data:`FEATURES` (the columns of :meth:`SkeletonFeatures.matrix`)."""
         return [self.side, self.limb_axial, self.centre_axial, self.along, self.chain_hop, self.limb_hop,
-                self.pelvis] + [self.part / 2] * 4 + [self.depth] + [self.position] * 3
+                self.pelvis] + [self.part / 2] * 4 + [self.depth] + [self.position] * 3 + [0.0, 0.0, 0.0]
 
     def params_json(self) -> str:
         """The method's name, weights, threshold and temperature as a JSON object (stored per pair)."""
@@ -80,7 +84,7 @@ METHODS = {
     "text": MatchMethod("text"),
     "structure": MatchMethod("structure", text=1.0, side=0.5, limb_axial=0.6, centre_axial=0.3, along=0.2,
                              chain_hop=1.5, limb_hop=2.0, pelvis=0.6, part=0.3, depth=0.1, position=0.05,
-                             no_match=0.45),
+                             chain=1.0, anchor=0.55, trunk=0.7, no_match=0.45),
 }
 DEFAULT_METHOD = "structure"
 
@@ -114,4 +118,5 @@ def match_batch(method: MatchMethod, emb_a, emb_b, feat_a=None, feat_b=None):
         raise ValueError(f"method {method.name!r} needs each skeleton's parents and keypoints")
     return correspondence_batch(emb_a, emb_b, method.temperature, feat_a=feat_a, feat_b=feat_b,
                                 feature_weights=method.feature_weights(), text_weight=method.text,
-                                no_match=method.no_match)
+                                no_match=method.no_match, chain_penalty=method.chain, anchor=method.anchor,
+                                trunk_floor=method.trunk)
