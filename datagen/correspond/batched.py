@@ -193,10 +193,11 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
             :func:`.structure.name_keys`) are equal is raised to at least this score (set it above
             ``no_match``): a bone with a same-named or synonym counterpart is never left unmatched
             for want of a score, whatever the chains say.
-        trunk_floor: with features, two trunk bones (third-last column, their arc-length position
-            from the pelvis, 0, to the head, 1; -1 off the trunk) score at least
+        trunk_floor: with features, two trunk bones (sequence id 0 in the fourth-last column, their
+            arc-length position from the pelvis, 0, to the head, 1, in the third-last) score at least
             ``trunk_floor - |arc_a - arc_b|``: the spines are aligned as sequences by position,
-            whatever their names (``LowerBack``, ``Abdomen``, ``Spine1``, ``Chest``).
+            whatever their names (``LowerBack``, ``Abdomen``, ``Spine1``, ``Chest``); the Hungarian
+            pairs are then :func:`chain_hungarian_pairs` (trunk and limbs aligned in order).
     """
     if len(emb_a) != len(emb_b):
         raise ValueError(f"emb_a, emb_b: expected equal lengths, got {len(emb_a)} and {len(emb_b)}")
@@ -246,16 +247,17 @@ def feature_penalty(fa: torch.Tensor, fb: torch.Tensor, weights: Sequence[float]
 def chain_scores(scores: torch.Tensor, fa: torch.Tensor, fb: torch.Tensor, chain_penalty: float = 0.0,
                  anchor: float | None = None, trunk_floor: float | None = None, k1: torch.Tensor | None = None,
                  k2: torch.Tensor | None = None) -> torch.Tensor:
-    """(B, P1, P2) scores of :func:`correspondence_batch`'s chain rules, from the last three columns
-    of fa (B, P1, F) and fb (B, P2, F): trunk arc position, chain code, name code; k1, k2 (B,) the
-    valid sizes (padding rows do not count as trunk bones)."""
+    """(B, P1, P2) scores of :func:`correspondence_batch`'s chain rules, from the last four columns
+    of fa (B, P1, F) and fb (B, P2, F): sequence id and position, chain code, name code
+    (:class:`.structure.SkeletonFeatures`); k1, k2 (B,) the valid sizes (padding rows do not count
+    as trunk bones)."""
     if trunk_floor is not None:
-        ta, tb = fa[:, :, None, -3], fb[:, None, :, -3]
+        on_a, on_b = fa[:, :, -4] == 0, fb[:, :, -4] == 0  # trunk bones
         rows = torch.arange(fa.shape[1])[None, :] < (k1[:, None] if k1 is not None else fa.shape[1])
         cols = torch.arange(fb.shape[1])[None, :] < (k2[:, None] if k2 is not None else fb.shape[1])
-        spines = ((((fa[:, :, -3] >= 0) & rows).sum(1) >= MIN_TRUNK)
-                  & (((fb[:, :, -3] >= 0) & cols).sum(1) >= MIN_TRUNK))[:, None, None]
-        floor = torch.where((ta >= 0) & (tb >= 0) & spines, trunk_floor - (ta - tb).abs(), torch.tensor(-torch.inf))
+        spines = (((on_a & rows).sum(1) >= MIN_TRUNK) & ((on_b & cols).sum(1) >= MIN_TRUNK))[:, None, None]
+        gap = (fa[:, :, None, -3] - fb[:, None, :, -3]).abs()
+        floor = torch.where(on_a[:, :, None] & on_b[:, None, :] & spines, trunk_floor - gap, torch.tensor(-torch.inf))
         scores = torch.maximum(scores, floor.to(scores.dtype))
     if chain_penalty:
         scores = scores - chain_penalty * (fa[:, :, None, -2] != fb[:, None, :, -2]).to(scores.dtype)
@@ -298,7 +300,7 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
         c = cosines[i, : k1[i], : k2[i]]
         si = scores[i, : k1[i], : k2[i]]
         if trunk_floor is not None:
-            pairs = chain_hungarian_pairs(si, feat_a[i][:, -3], feat_b[i][:, -3], no_match)
+            pairs = chain_hungarian_pairs(si, feat_a[i][:, -4:-1], feat_b[i][:, -4:-1], no_match)
         else:
             pairs = hungarian_pairs(si, no_match)
         out.append((c.copy(), pairs, sink[i, : k1[i], : k2[i]].copy()))
@@ -335,25 +337,59 @@ def monotone_pairs(gain: np.ndarray) -> list[tuple[int, int]]:
     return out[::-1]
 
 
-def chain_hungarian_pairs(scores: np.ndarray, arc_a: np.ndarray, arc_b: np.ndarray, no_match: float) -> np.ndarray:
-    """(P, 2) int32 pairs: the trunks aligned as sequences, every other bone by :func:`hungarian_pairs`.
-
-    ``arc_a`` (K1,), ``arc_b`` (K2,): trunk arc positions (-1 off the trunk). The trunk bones of
-    both skeletons, in order of position, are matched by :func:`monotone_pairs` on ``S - no_match``,
-    so a spine bone never skips past another; the rest of the matrix goes to the Hungarian. A
-    skeleton with fewer than :data:`MIN_TRUNK` trunk bones has no spine to align: all Hungarian.
-    """
-    ta, tb = np.flatnonzero(arc_a >= 0), np.flatnonzero(arc_b >= 0)
-    if len(ta) < MIN_TRUNK or len(tb) < MIN_TRUNK:  # no spine to align (a fish's one trunk bone)
-        return hungarian_pairs(scores, no_match)
-    ta, tb = ta[np.argsort(arc_a[ta], kind="stable")], tb[np.argsort(arc_b[tb], kind="stable")]
-    rest_a, rest_b = np.setdiff1d(np.arange(len(arc_a)), ta), np.setdiff1d(np.arange(len(arc_b)), tb)
-    pairs = [(ta[i], tb[j]) for i, j in monotone_pairs(scores[np.ix_(ta, tb)] - no_match)]
-    if len(rest_a) and len(rest_b):
-        sub = hungarian_pairs(scores[np.ix_(rest_a, rest_b)], no_match)
-        pairs += [(rest_a[i], rest_b[j]) for i, j in sub]
-    out = np.array(sorted(pairs), np.int32).reshape(-1, 2)
+def _sequences(seq: np.ndarray) -> dict[int, np.ndarray]:
+    """Per sequence id (0 trunk, > 0 a limb's main path) its bone indices in order of position."""
+    out = {}
+    for sid in np.unique(seq[:, 0]):
+        if sid >= 0:
+            idx = np.flatnonzero(seq[:, 0] == sid)
+            out[int(sid)] = idx[np.argsort(seq[idx, 1], kind="stable")]
     return out
+
+
+def chain_hungarian_pairs(scores: np.ndarray, seq_a: np.ndarray, seq_b: np.ndarray, no_match: float) -> np.ndarray:
+    """(P, 2) int32 pairs: trunks and limbs aligned as sequences, every other bone by the Hungarian.
+
+    ``seq_a`` (K1, 3), ``seq_b`` (K2, 3): per bone its sequence id (0 the trunk, b + 1 the main path
+    of the limb based at b, -1 none), its position in it and its chain code (the feature columns
+    of :class:`.structure.SkeletonFeatures`). The trunks (pelvis to below the neck, when both have
+    :data:`MIN_TRUNK` bones or more) are matched by :func:`monotone_pairs` on ``S - no_match``, so a
+    spine bone never skips past another. Limbs are paired by the Hungarian on the totals of their
+    alignments, only limbs of one chain code (kind and side) with each other, and each pair of
+    limbs is aligned link by link in order, so a link never jumps to another limb nor crosses its
+    neighbour. Every bone left unmatched (fingers off a limb's main path, heads, tails, limbs
+    without a partner, links an alignment skipped) goes to :func:`hungarian_pairs` on what is left.
+    """
+    sa, sb = _sequences(seq_a), _sequences(seq_b)
+    pairs = []
+    used_a, used_b = np.zeros(len(seq_a), bool), np.zeros(len(seq_b), bool)
+    if 0 in sa and 0 in sb and len(sa[0]) >= MIN_TRUNK and len(sb[0]) >= MIN_TRUNK:
+        ta, tb = sa[0], sb[0]
+        pairs += [(ta[i], tb[j]) for i, j in monotone_pairs(scores[np.ix_(ta, tb)] - no_match)]
+    limbs_a = [s for s in sa if s > 0]
+    limbs_b = [s for s in sb if s > 0]
+    if limbs_a and limbs_b:
+        total = np.zeros((len(limbs_a), len(limbs_b)))
+        aligned = {}
+        for x, la in enumerate(limbs_a):
+            for y, lb in enumerate(limbs_b):
+                ia, ib = sa[la], sb[lb]
+                if seq_a[ia[0], 2] != seq_b[ib[0], 2]:
+                    continue
+                gain = scores[np.ix_(ia, ib)] - no_match
+                got = monotone_pairs(gain)
+                aligned[x, y] = [(ia[i], ib[j]) for i, j in got]
+                total[x, y] = sum(gain[i, j] for i, j in got)
+        rows, cols = linear_sum_assignment(total, maximize=True)
+        for x, y in zip(rows, cols):
+            if total[x, y] > 0:
+                pairs += aligned[x, y]
+    for i, j in pairs:
+        used_a[i], used_b[j] = True, True
+    rest_a, rest_b = np.flatnonzero(~used_a), np.flatnonzero(~used_b)
+    if len(rest_a) and len(rest_b):
+        pairs += [(rest_a[i], rest_b[j]) for i, j in hungarian_pairs(scores[np.ix_(rest_a, rest_b)], no_match)]
+    return np.array(sorted(pairs), np.int32).reshape(-1, 2)
 
 
 def hungarian_pairs(scores: np.ndarray, no_match: float | None = None) -> np.ndarray:

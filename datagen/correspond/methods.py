@@ -41,7 +41,7 @@ from datagen.correspond.canonical import canonicalize_names
 from datagen.correspond.structure import skeleton_features
 
 FEATURES = ("side", "limb_axial", "centre_axial", "along", "chain_hop", "limb_hop", "pelvis", "trunk", "neck", "head",
-            "tail", "depth", "x", "y", "z", "trunk_arc", "chain", "name_key")  # the last three: weight 0 here
+            "tail", "depth", "x", "y", "z", "seq_id", "seq_pos", "chain", "name_key")  # the last four: weight 0
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ class MatchMethod:
     def feature_weights(self) -> list[float]:
         """Weights of :data:`FEATURES` (the columns of :meth:`SkeletonFeatures.matrix`)."""
         return [self.side, self.limb_axial, self.centre_axial, self.along, self.chain_hop, self.limb_hop,
-                self.pelvis] + [self.part / 2] * 4 + [self.depth] + [self.position] * 3 + [0.0, 0.0, 0.0]
+                self.pelvis] + [self.part / 2] * 4 + [self.depth] + [self.position] * 3 + [0.0] * 4
 
     def params_json(self) -> str:
         """The method's name, weights, threshold and temperature as a JSON object (stored per pair)."""
@@ -83,7 +83,7 @@ class MatchMethod:
 METHODS = {
     "text": MatchMethod("text"),
     "structure": MatchMethod("structure", text=1.0, side=0.5, limb_axial=0.6, centre_axial=0.3, along=0.2,
-                             chain_hop=1.5, limb_hop=2.0, pelvis=0.6, part=0.3, depth=0.1, position=0.05,
+                             chain_hop=1.5, limb_hop=3.0, pelvis=0.6, part=0.3, depth=0.1, position=0.05,
                              chain=1.0, anchor=0.55, trunk=0.7, no_match=0.45),
 }
 DEFAULT_METHOD = "structure"

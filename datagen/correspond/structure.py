@@ -62,19 +62,22 @@ class SkeletonFeatures:
     part: np.ndarray      # (K, 4)
     depth: np.ndarray     # (K,)
     position: np.ndarray  # (K, 3)
-    trunk_arc: np.ndarray  # (K,) arc-length position pelvis (0) to head (1) on the trunk, -1 off it
+    seq_id: np.ndarray    # (K,) sequence: 0 the trunk, b + 1 the main path of the limb based at b, -1 none
+    seq_pos: np.ndarray   # (K,) position in it: trunk arc length pelvis (0) to head (1); limb path rank
     chain: np.ndarray     # (K,) chain kind code (:func:`chain_kinds`)
     name_key: np.ndarray  # (K,) name class code (:func:`name_keys`)
 
     def matrix(self) -> np.ndarray:
-        """(K, 18) columns side, limb_axial, centre_axial, along, chain_hop, limb_hop, pelvis, trunk, neck,
+        """(K, 19) columns side, limb_axial, centre_axial, along, chain_hop, limb_hop, pelvis, trunk, neck,
         head, tail, depth, x, y, z (``axial`` split into limb and centre bones, weighted apart), then
-        ``trunk_arc`` and the two codes ``chain`` and ``name_key`` (compared for equality, never
-        subtracted): these three are read by :func:`datagen.correspond.batched.chain_scores`."""
+        ``seq_id``, ``seq_pos`` and the two codes ``chain`` and ``name_key`` (compared for equality,
+        never subtracted): these four are read by :func:`datagen.correspond.batched.chain_scores` and
+        :func:`datagen.correspond.batched.chain_hungarian_pairs`."""
         limb = self.side != 0
         return np.column_stack([self.side, np.where(limb, self.axial, 0), np.where(limb, 0, self.axial), self.along,
                                 self.chain_hop, self.limb_hop, self.pelvis, self.part, self.depth,
-                                self.position, self.trunk_arc, self.chain, self.name_key]).astype(np.float32)
+                                self.position, self.seq_id, self.seq_pos, self.chain,
+                                self.name_key]).astype(np.float32)
 
 
 # Canonical names that name the same bone (deliver: the no-match rule never drops these): the body
@@ -271,6 +274,29 @@ def _arc_fraction(base, parents, order, kp) -> np.ndarray:
     return np.where(reach[base] > 1e-9, dist / np.maximum(reach[base], 1e-9), 0.0)
 
 
+def _limb_paths(base, parents, side, along, hops) -> tuple[np.ndarray, np.ndarray]:
+    """(K,) sequence ids (base + 1 on a limb's main path, else -1) and (K,) ranks on that path / its length.
+
+    A limb's main path runs from its base to its farthest bone (largest ``along``, then deepest):
+    an arm's shoulder to hand to middle finger tip; the other fingers are branches, left out.
+    """
+    k = len(base)
+    seq_id, seq_pos = np.full(k, -1.0), np.zeros(k)
+    for b in np.flatnonzero((base == np.arange(k)) & (side != 0)):
+        members = np.flatnonzero((base == b) & (side != 0))
+        leaf = int(members[np.lexsort((hops[members], along[members]))[-1]])
+        path, j = [], leaf
+        while j >= 0 and base[j] == b:
+            path.append(j)
+            if j == b:
+                break
+            j = int(parents[j])
+        path = path[::-1]
+        seq_id[path] = b + 1
+        seq_pos[path] = np.arange(len(path)) / max(len(path), 1)
+    return seq_id, seq_pos
+
+
 def _limb_attachment(base, side, parents, main, head, position, reach, canonical=None) -> np.ndarray:
     """(K,) per limb base: 0 at the rearmost limb's attachment, 1 at the foremost, 1.5 on the head.
 
@@ -368,7 +394,13 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
         limb_axial = _limb_attachment(base, side, parents, main, head, position, reach, canonical)[base]
         axial = np.where(side != 0, limb_axial, axial)
     if keypoints is not None and k:
-        limb_hops = limb_hops - _connector_limbs(base, parents, side, position)[base]
+        connector = _connector_limbs(base, parents, side, position)
+        mirror = {t: i for i, t in enumerate(canonical) if base[i] == i and side[i] != 0}
+        for b, t in enumerate(canonical):  # a limb is a connector when its mirror image is (asymmetric rests)
+            other = mirror.get(t.replace("left", "\0").replace("right", "left").replace("\0", "right"))
+            if base[b] == b and other is not None and connector[other]:
+                connector[b] = 1.0
+        limb_hops = limb_hops - connector[base]
     limb_hop = np.where(side != 0, limb_hops, 0) / HOP_SCALE
     part = _body_parts(canonical, parents, side, main, head)
     chain_hop = np.zeros(k)
@@ -392,6 +424,7 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
             first = path[1]
     if first is not None:
         pelvis[first] = 1.0
+    seq_id, seq_pos = _limb_paths(base, parents, side, along, hops)
     trunk_arc = np.full(k, -1.0)
     if first is not None and keypoints is not None and first != head:
         run = path[path.index(first):]  # pelvis .. head
@@ -399,9 +432,12 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
         if steps[-1] > 1e-9:
             trunk_arc[run] = steps / steps[-1]
         trunk_arc[(part[:, 0] == 0)] = -1.0  # the neck and the head keep their own chains
+    seq_id = np.where(trunk_arc >= 0, 0.0, seq_id)
+    seq_pos = np.where(trunk_arc >= 0, trunk_arc, seq_pos)
     depth = hops / max(int(hops[main].max()) if k else 1, 1)
     return SkeletonFeatures(side.astype(np.float32), np.clip(axial, -3, 3).astype(np.float32),
                             along.astype(np.float32), chain_hop.astype(np.float32), pelvis.astype(np.float32),
                             limb_hop.astype(np.float32), part, np.clip(depth, 0, 2).astype(np.float32),
-                            np.clip(position, -5, 5).astype(np.float32), trunk_arc.astype(np.float32),
+                            np.clip(position, -5, 5).astype(np.float32), seq_id.astype(np.float32),
+                            seq_pos.astype(np.float32),
                             chain_kinds(side, part, limb_axial), name_keys(canonical))
