@@ -26,6 +26,7 @@ from typing import Sequence
 
 import numpy as np
 import torch
+from numba import njit
 from scipy.optimize import linear_sum_assignment
 
 DEFAULT_TEMPERATURE = 0.1
@@ -295,12 +296,19 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
             raise RuntimeError(f"Sinkhorn did not converge (row marginal error {row_error:.1e}); "
                                f"use a higher temperature than {temperature}")
     sink, cosines, scores = sink.numpy(), cosines.numpy(), scores.numpy()
-    out = []
+    out, seqs = [], {}  # each skeleton's sequences once (its feature array recurs across pairs)
+
+    def sequences_of(f):
+        if id(f) not in seqs:
+            seqs[id(f)] = (f, _sequences(f[:, -4:-1]))
+        return seqs[id(f)][1]
+
     for i in range(n):
         c = cosines[i, : k1[i], : k2[i]]
         si = scores[i, : k1[i], : k2[i]]
         if trunk_floor is not None:
-            pairs = chain_hungarian_pairs(si, feat_a[i][:, -4:-1], feat_b[i][:, -4:-1], no_match)
+            pairs = chain_hungarian_pairs(si, feat_a[i][:, -4:-1], feat_b[i][:, -4:-1], no_match,
+                                          (sequences_of(feat_a[i]), sequences_of(feat_b[i])))
         else:
             pairs = hungarian_pairs(si, no_match)
         out.append((c.copy(), pairs, sink[i, : k1[i], : k2[i]].copy()))
@@ -319,35 +327,48 @@ def monotone_pairs(gain: np.ndarray) -> list[tuple[int, int]]:
 
     ``gain`` (n, m): the gain of matching link i of the first sequence with link j of the second
     (links in order along their chains); pairs (i, j) with i and j both increasing, gains > 0 only.
+    The dynamic programme is compiled (numba, :func:`_monotone_kernel`).
     """
+    out = _monotone_kernel(np.ascontiguousarray(gain, dtype=np.float64))
+    return [(int(i), int(j)) for i, j in out]
+
+
+@njit(cache=True)
+def _monotone_kernel(gain):
+    """(P, 2) int64 pairs of :func:`monotone_pairs`: best[i+1, j+1] = max(best[i, j+1], best[i+1, j],
+    best[i, j] + max(gain[i, j], 0)), then the path back from best[n, m]."""
     n, m = gain.shape
     best = np.zeros((n + 1, m + 1))
     for i in range(n):
         for j in range(m):
-            best[i + 1, j + 1] = max(best[i, j + 1], best[i + 1, j], best[i, j] + max(gain[i, j], 0.0))
-    out, i, j = [], n, m
-    while i and j:
+            g = gain[i, j] if gain[i, j] > 0.0 else 0.0
+            best[i + 1, j + 1] = max(best[i, j + 1], best[i + 1, j], best[i, j] + g)
+    out = np.empty((min(n, m), 2), np.int64)
+    k, i, j = 0, n, m
+    while i > 0 and j > 0:
         if best[i, j] == best[i - 1, j]:
             i -= 1
         elif best[i, j] == best[i, j - 1]:
             j -= 1
         else:
-            out.append((i - 1, j - 1))
-            i, j = i - 1, j - 1
-    return out[::-1]
+            out[k, 0], out[k, 1] = i - 1, j - 1
+            k += 1
+            i -= 1
+            j -= 1
+    return out[:k][::-1]
 
 
 def _sequences(seq: np.ndarray) -> dict[int, np.ndarray]:
     """Per sequence id (0 trunk, > 0 a limb's main path) its bone indices in order of position."""
-    out = {}
-    for sid in np.unique(seq[:, 0]):
-        if sid >= 0:
-            idx = np.flatnonzero(seq[:, 0] == sid)
-            out[int(sid)] = idx[np.argsort(seq[idx, 1], kind="stable")]
-    return out
+    order = np.lexsort((seq[:, 1], seq[:, 0]))
+    order = order[seq[order, 0] >= 0]
+    ids = seq[order, 0]
+    cuts = np.flatnonzero(np.diff(ids)) + 1
+    return {int(ids[c]): part for c, part in zip(np.r_[0, cuts], np.split(order, cuts))} if len(order) else {}
 
 
-def chain_hungarian_pairs(scores: np.ndarray, seq_a: np.ndarray, seq_b: np.ndarray, no_match: float) -> np.ndarray:
+def chain_hungarian_pairs(scores: np.ndarray, seq_a: np.ndarray, seq_b: np.ndarray, no_match: float,
+                          sequences: tuple[dict, dict] | None = None) -> np.ndarray:
     """(P, 2) int32 pairs: trunks and limbs aligned as sequences, every other bone by the Hungarian.
 
     ``seq_a`` (K1, 3), ``seq_b`` (K2, 3): per bone its sequence id (0 the trunk, b + 1 the main path
@@ -371,11 +392,12 @@ def chain_hungarian_pairs(scores: np.ndarray, seq_a: np.ndarray, seq_b: np.ndarr
     if limbs_a and limbs_b:
         total = np.zeros((len(limbs_a), len(limbs_b)))
         aligned = {}
+        code_b = {}
+        for y, lb in enumerate(limbs_b):
+            code_b.setdefault(seq_b[sb[lb][0], 2], []).append(y)
         for x, la in enumerate(limbs_a):
-            for y, lb in enumerate(limbs_b):
-                ia, ib = sa[la], sb[lb]
-                if seq_a[ia[0], 2] != seq_b[ib[0], 2]:
-                    continue
+            for y in code_b.get(seq_a[sa[la][0], 2], ()):
+                ia, ib = sa[la], sb[limbs_b[y]]
                 gain = scores[np.ix_(ia, ib)] - no_match
                 got = monotone_pairs(gain)
                 aligned[x, y] = [(ia[i], ib[j]) for i, j in got]
