@@ -12,6 +12,7 @@ positions: the same limb segment, the same trunk bone. Where a chain has no clea
 """
 from __future__ import annotations
 
+import itertools
 import json
 import re
 import struct
@@ -254,18 +255,28 @@ def rigs(assets_dir):
     return {n: load_rig(assets_dir, n) for n in names}
 
 
-def _labelled_hits(rigs, method):
-    hits, per_pair = 0, {}
-    for (src, tgt), labels in LABELLED.items():
+def _labelled_hits(rigs, method, labelled=LABELLED):
+    """Share of labelled bones matched as labelled, over ``labelled`` and per pair, and the dropped
+    labelled source bones (left unmatched) per pair."""
+    hits, per_pair, dropped = 0, {}, {}
+    for (src, tgt), labels in labelled.items():
         na, pa, ka = rigs[src]
         nb, pb, kb = rigs[tgt]
         _, h, m = correspondence_for_skeletons(na, pa, ka, nb, pb, kb, method=method)
         got = {na[i]: nb[j] for i, j in h}
         ok = sum(got.get(a) == b for a, b in labels)
         per_pair[(src, tgt)] = ok / len(labels)
+        dropped[(src, tgt)] = [a for a, _ in labels if a not in got]
         hits += ok
         assert m.shape == (len(na), len(nb)) and np.all(m.sum(1) <= 1 + 1e-4)
-    return hits / sum(len(v) for v in LABELLED.values()), per_pair
+    return hits / sum(len(v) for v in labelled.values()), per_pair, dropped
+
+
+def _match(rigs, src, tgt, method="structure"):
+    na, pa, ka = rigs[src]
+    nb, pb, kb = rigs[tgt]
+    _, h, _ = correspondence_for_skeletons(na, pa, ka, nb, pb, kb, method=method)
+    return {na[i]: nb[j] for i, j in h}
 
 
 def test_readers_agree_with_the_files(rigs):
@@ -278,19 +289,116 @@ def test_readers_agree_with_the_files(rigs):
     assert len(names) == 224 and names[parents[names.index("左ひじ")]] == "左腕捩"
     for name, (n, p, k) in rigs.items():
         assert len(n) == len(p) == len(k) and np.isfinite(k).all() and (p < len(n)).all(), name
-    for (src, tgt), labels in LABELLED.items():  # every label names real bones
+    for (src, tgt), labels in {**LABELLED, **TUNED, **HELD_OUT}.items():  # every label names real bones
         assert all(a in rigs[src][0] and b in rigs[tgt][0] for a, b in labels), (src, tgt)
+        assert len({a for a, _ in labels}) == len(labels), (src, tgt)  # one label a source bone
+    assert not set(TUNED) & set(HELD_OUT) and not set(LABELLED) & set(HELD_OUT)
+    names, parents, pos = rigs["Quaternius_MechGeorge"]  # a table: parents by name, heads as read
+    assert names[parents[names.index("MidLeg.L")]] == "UpperLeg.L" and parents[names.index("Foot.L")] == -1
+    np.testing.assert_allclose(pos[names.index("Head")], [0.072, 4.917, -0.083])
 
 
 def test_structure_method_matches_hand_labelled_real_rig_bones(rigs):
-    structure, per_pair = _labelled_hits(rigs, "structure")
-    text, text_per_pair = _labelled_hits(rigs, "text")
+    structure, per_pair, _ = _labelled_hits(rigs, "structure")
+    text, text_per_pair, _ = _labelled_hits(rigs, "text")
     print(f"\nhand-labelled real-rig bones matched as labelled: structure {structure:.1%}, text {text:.1%}")
     for key in per_pair:
         print(f"  {key[0]:24s} -> {key[1]:24s} structure {per_pair[key]:5.0%}  text {text_per_pair[key]:5.0%}")
-    assert structure >= 0.8
+    assert structure >= 0.9
     assert structure > text
     # identical skeletons match bone for bone
     assert per_pair[("Quaternius_Stegosaurus", "Quaternius_Triceratops")] == 1.0
     # a humanoid's arms go to the front legs, its legs to the hind legs (the issue's failures)
     assert per_pair[("Quaternius_Farmer", "Quaternius_Horse")] >= 0.9
+
+
+@pytest.mark.parametrize("split", ["tuned", "held_out"])
+def test_agreement_on_new_rig_pairs_across_kinds(rigs, split):
+    """The issue's bar on pairs across kinds (robot, quadruped, winged insect, mocap, game rigs): at
+    least 90% of labelled bones matched as labelled by ``structure``, on the pairs tuned on and on
+    the held-out ones, reported per pair with ``text`` and the labelled bones left unmatched."""
+    labelled = TUNED if split == "tuned" else HELD_OUT
+    structure, per_pair, dropped = _labelled_hits(rigs, "structure", labelled)
+    text, text_per_pair, _ = _labelled_hits(rigs, "text", labelled)
+    print(f"\n{split}: structure {structure:.1%}, text {text:.1%}")
+    for key in per_pair:
+        print(f"  {key[0]:30s} -> {key[1]:28s} structure {per_pair[key]:5.0%}  text {text_per_pair[key]:5.0%}"
+              f"  dropped by structure: {dropped[key] or '-'}")
+    assert structure >= 0.9 and structure > text
+
+
+# The issue's failures (source bone -> wanted), on the rigs it names: a mocap skeleton (CMU), a
+# robot (a Quaternius mech, and RobotExpressive in its own naming style), a knight, a soldier and
+# a wolf. On the Quaternius wolf (and the husky, the same skeleton) BackLeg is the femur below the
+# BackShoulder connector: a robot's upper leg is BackLeg by the bones, as the hand labels above
+# have it; the issue's "UpperLeg.L -> BackUpperLeg.L" read the words. What the issue asks of the
+# chain (no link shifted, none on another chain) is checked link by link.
+ISSUE_CASES = [
+    ("CMU_02_01", "Quaternius_MechGeorge", {"Hips": "Body", "Spine1": "Chest", "Head": "Head"}),
+    ("CMU_02_01", "RobotExpressive", {"Hips": "Body", "LeftFoot": "FootL", "RightFoot": "FootR"}),
+    ("Quaternius_Knight", "Quaternius_MechGeorge", {"Body": "Body", "Torso": "Chest", "Foot.L": "Foot.L"}),
+    ("CMU_02_01", "Quaternius_Soldier", {"Hips": "Hips", "LowerBack": "Abdomen", "Spine": "Torso", "Spine1": "Chest"}),
+    ("Quaternius_MechGeorge", "Quaternius_Wolf", {"UpperLeg.L": "BackLeg.L", "MidLeg.L": "BackUpperLeg.L",
+                                                 "LowerLeg.L": "BackLowerLeg.L", "UpperLeg.R": "BackLeg.R",
+                                                 "MidLeg.R": "BackUpperLeg.R", "LowerLeg.R": "BackLowerLeg.R"}),
+    ("RobotExpressive", "Quaternius_Husky", {"UpperLegL": "BackLeg.L", "LowerLegL": "BackUpperLeg.L",
+                                            "UpperArmL": "FrontUpperLeg.L", "LowerArmL": "FrontLowerLeg.L"}),
+    ("Quaternius_Rat", "Quaternius_Horse", {"BackLeg.L": "BackShoulder.L", "BackUpLeg.L": "BackLeg.L",
+                                           "BackLowLeg.L": "BackUpperLeg.L"}),
+]
+
+
+@pytest.mark.parametrize("src, tgt, want", ISSUE_CASES, ids=[f"{a}->{b}" for a, b, _ in ISSUE_CASES])
+def test_the_issues_failures(rigs, src, tgt, want):
+    got = _match(rigs, src, tgt)
+    assert {a: got.get(a) for a in want} == want
+    if src == "CMU_02_01":  # the mocap feet are never dropped (their names are the robots' feet)
+        assert got.get("LeftFoot") and got.get("RightFoot")
+
+
+def test_text_method_sends_a_spine_to_a_finger_and_structure_does_not(rigs):
+    """The issue's text failure, kept as published (``text`` is the paper's method); the default
+    never matches a centre bone to a sided one unless their names agree."""
+    assert _match(rigs, "CMU_02_01", "Quaternius_MechGeorge", "text")["Spine1"] == "Pinky1.L"
+    assert _match(rigs, "CMU_02_01", "Quaternius_MechGeorge")["Spine1"] == "Chest"
+
+
+def _features(rig):
+    from datagen.correspond.canonical import canonicalize_names
+    from datagen.correspond.structure import skeleton_features
+
+    names, parents, kp = rig
+    return skeleton_features(canonicalize_names(names), parents, kp)
+
+
+def test_chains_are_matched_as_sequences_on_every_labelled_pair(rigs):
+    """On every pair (tuned or not: a property, not a score): a bone meets only a bone of the same
+    chain kind and side (:data:`CHAIN_KINDS`) unless their names are the same or synonyms; trunk
+    bones never meet a limb's (a hand, a foot); two links of one trunk or limb path matched into
+    one path keep their order, so no link jumps past its neighbour."""
+    for (src, tgt) in {**LABELLED, **TUNED, **HELD_OUT}:
+        fa, fb = _features(rigs[src]), _features(rigs[tgt])
+        na, pa, ka = rigs[src]
+        nb, pb, kb = rigs[tgt]
+        _, h, _ = correspondence_for_skeletons(na, pa, ka, nb, pb, kb)
+        for i, j in h:
+            same_name = fa.name_key[i] == fb.name_key[j]
+            assert fa.chain[i] == fb.chain[j] or same_name, (src, tgt, na[i], nb[j])
+            assert (fa.seq_id[i] == 0) <= (fb.side[j] == 0), (src, tgt, na[i], nb[j])
+        for (i1, j1), (i2, j2) in itertools.combinations(h.tolist(), 2):
+            if fa.seq_id[i1] == fa.seq_id[i2] >= 0 and fb.seq_id[j1] == fb.seq_id[j2] >= 0:
+                assert (fa.seq_pos[i1] - fa.seq_pos[i2]) * (fb.seq_pos[j1] - fb.seq_pos[j2]) >= 0, \
+                    (src, tgt, na[i1], nb[j1], na[i2], nb[j2])
+
+
+def test_no_match_rule_never_drops_a_bone_with_a_same_named_or_synonym_counterpart(rigs):
+    """Per pair: every source bone whose canonical name (after the synonyms hips / pelvis / body,
+    chest / upper spine; foot / ankle are one word already) is a target bone's is matched, unless
+    every such target bone is taken by another match (one-to-one)."""
+    for (src, tgt) in {**LABELLED, **TUNED, **HELD_OUT}:
+        fa, fb = _features(rigs[src]), _features(rigs[tgt])
+        got = _match(rigs, src, tgt)
+        names, taken = rigs[src][0], set(got.values())
+        free = {fb.name_key[j] for j, n in enumerate(rigs[tgt][0]) if n not in taken}
+        lost = [names[i] for i in range(len(names)) if fa.name_key[i] in free and names[i] not in got]
+        assert not lost, (src, tgt, lost)

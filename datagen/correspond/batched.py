@@ -309,6 +309,8 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
         if trunk_floor is not None:
             pairs = chain_hungarian_pairs(si, feat_a[i][:, -4:-1], feat_b[i][:, -4:-1], no_match,
                                           (sequences_of(feat_a[i]), sequences_of(feat_b[i])))
+        if anchor is not None:
+            pairs = same_name_pairs(si, pairs, feat_a[i][:, -1], feat_b[i][:, -1])
         else:
             pairs = hungarian_pairs(si, no_match)
         out.append((c.copy(), pairs, sink[i, : k1[i], : k2[i]].copy()))
@@ -412,6 +414,24 @@ def chain_hungarian_pairs(scores: np.ndarray, seq_a: np.ndarray, seq_b: np.ndarr
     if len(rest_a) and len(rest_b):
         pairs += [(rest_a[i], rest_b[j]) for i, j in hungarian_pairs(scores[np.ix_(rest_a, rest_b)], no_match)]
     return np.array(sorted(pairs), np.int32).reshape(-1, 2)
+
+
+def same_name_pairs(scores: np.ndarray, pairs: np.ndarray, name_a: np.ndarray, name_b: np.ndarray) -> np.ndarray:
+    """``pairs`` (P, 2) plus, among the rows and columns they leave free, the bones of equal name
+    codes ``name_a`` (K1,) / ``name_b`` (K2,), the best scored first: the no-match rule never leaves
+    a bone out while a same-named or synonym counterpart is free too."""
+    free_a, free_b = np.ones(len(name_a), bool), np.ones(len(name_b), bool)
+    free_a[pairs[:, 0]], free_b[pairs[:, 1]] = False, False
+    rows, cols = np.nonzero((name_a[:, None] == name_b[None, :]) & free_a[:, None] & free_b[None, :])
+    if not len(rows):
+        return pairs
+    extra = []
+    for k in np.argsort(-scores[rows, cols], kind="stable"):
+        r, c = rows[k], cols[k]
+        if free_a[r] and free_b[c]:
+            extra.append((r, c))
+            free_a[r], free_b[c] = False, False
+    return np.array(sorted(pairs.tolist() + extra), np.int32).reshape(-1, 2)
 
 
 def hungarian_pairs(scores: np.ndarray, no_match: float | None = None) -> np.ndarray:

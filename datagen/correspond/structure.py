@@ -125,7 +125,9 @@ def _attach_detached(parents: np.ndarray, main: np.ndarray, kp: np.ndarray | Non
     """Parents (K,) with each root outside the main tree hung from the main-tree bone nearest its head.
 
     IK targets and an IK foot kept as a root of its own (a Quaternius mech's ``Foot.L``, a horse's
-    ``IKBackLeg.L``) then continue the limb they sit at; without keypoints they hang from the main root.
+    ``IKBackLeg.L``) then continue the limb they sit at; a root at the very head of that bone becomes
+    its sibling (the mech's ``Foot.L``, which skins the foot, beside its ``FootBack.L``, a claw);
+    without keypoints they hang from the main root.
     """
     out = parents.copy()
     pool = np.flatnonzero(main)
@@ -133,7 +135,14 @@ def _attach_detached(parents: np.ndarray, main: np.ndarray, kp: np.ndarray | Non
         return out
     main_root = int(pool[parents[pool] < 0][0])
     for r in np.flatnonzero((parents < 0) & ~main):
-        out[r] = main_root if kp is None else int(pool[np.argmin(np.linalg.norm(kp[pool] - kp[r], axis=1))])
+        if kp is None:
+            out[r] = main_root
+            continue
+        gap = np.linalg.norm(kp[pool] - kp[r], axis=1)
+        near = int(pool[np.argmin(gap)])
+        # at the very head of that bone (an IK foot where the leg's last bone starts): its sibling
+        out[r] = parents[near] if gap.min() < 1e-6 * max(float(np.ptp(kp[pool], axis=0).max()), 1e-9) \
+            and parents[near] >= 0 else near
     return out
 
 
@@ -274,17 +283,19 @@ def _arc_fraction(base, parents, order, kp) -> np.ndarray:
     return np.where(reach[base] > 1e-9, dist / np.maximum(reach[base], 1e-9), 0.0)
 
 
-def _limb_paths(base, parents, side, along, hops) -> tuple[np.ndarray, np.ndarray]:
+def _limb_paths(base, parents, side, along, hops, canonical) -> tuple[np.ndarray, np.ndarray]:
     """(K,) sequence ids (base + 1 on a limb's main path, else -1) and (K,) ranks on that path / its length.
 
-    A limb's main path runs from its base to its farthest bone (largest ``along``, then deepest):
-    an arm's shoulder to hand to middle finger tip; the other fingers are branches, left out.
+    A limb's main path runs from its base to its farthest bone (largest ``along``, then deepest,
+    then the plainest name, fewest words: ``foot`` before ``foot back`` at the same place): an
+    arm's shoulder to hand to middle finger tip; the other fingers are branches, left out.
     """
     k = len(base)
     seq_id, seq_pos = np.full(k, -1.0), np.zeros(k)
+    plain = -np.array([len(t.split()) for t in canonical], float)
     for b in np.flatnonzero((base == np.arange(k)) & (side != 0)):
         members = np.flatnonzero((base == b) & (side != 0))
-        leaf = int(members[np.lexsort((hops[members], along[members]))[-1]])
+        leaf = int(members[np.lexsort((plain[members], hops[members], along[members]))[-1]])
         path, j = [], leaf
         while j >= 0 and base[j] == b:
             path.append(j)
@@ -424,7 +435,7 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
             first = path[1]
     if first is not None:
         pelvis[first] = 1.0
-    seq_id, seq_pos = _limb_paths(base, parents, side, along, hops)
+    seq_id, seq_pos = _limb_paths(base, parents, side, along, hops, canonical)
     trunk_arc = np.full(k, -1.0)
     if first is not None and keypoints is not None and first != head:
         run = path[path.index(first):]  # pelvis .. head
