@@ -429,7 +429,7 @@ def same_name_pairs(scores: np.ndarray, pairs: np.ndarray, name_a: np.ndarray, n
     for k in np.argsort(-scores[rows, cols], kind="stable"):
         r, c = rows[k], cols[k]
         if free_a[r] and free_b[c]:
-            extra.append((r, c))
+            extra.append([int(r), int(c)])
             free_a[r], free_b[c] = False, False
     return np.array(sorted(pairs.tolist() + extra), np.int32).reshape(-1, 2)
 
