@@ -29,8 +29,16 @@ For one skeleton with K bones (canonical names, ``parents``, rest ``keypoints``)
   from (a humanoid's hips, Rigify's ``spine``, a horse's ``Back``, an insect's thorax), else 0:
   the bone a ground-level root or a ``Spine`` above the hips must not be mistaken for.
 - ``part`` (K, 4): one-hot trunk / neck / head / tail of the centre bones (see :func:`_body_parts`).
-- ``depth`` (K,): hops from the skeleton's root divided by the deepest bone's hops (detached
-  trees such as IK targets count from their own root).
+- ``depth`` (K,): hops from the skeleton's root divided by the deepest bone's hops.
+- ``seq_id``, ``seq_pos`` (K,): the sequences matched in order (:mod:`.methods`): the trunk (id
+  0, pelvis to below the neck, position its arc length from the pelvis over the pelvis-to-head
+  length) and each limb's main path (id base + 1, base to farthest bone, position its rank); -1
+  for other bones.
+- ``chain`` (K,): the chain kind and side (:func:`chain_kinds`); ``name_key`` (K,): a code of the
+  canonical name after :data:`NAME_SYNONYMS` (:func:`name_keys`).
+
+Trees apart from the largest (IK targets, an IK foot kept as its own root) are first hung from the
+main-tree bone nearest their root's head (:func:`_attach_detached`).
 
 The head is the shallowest centre bone whose name has the word ``head``; without one, the centre
 bone farthest along y + z from the mean (a head is up or forward in the dataset frame).
