@@ -43,7 +43,7 @@ class PairRecord:
         Column("pair_id", "scalar", "string", doc="`<source_id>-><target_id>`"),
         Column("source_id", "scalar", "string", doc="source character ID"),
         Column("target_id", "scalar", "string", doc="target character ID"),
-        Column("split", "scalar", "string", doc="split both characters belong to"),
+        Column("split", "scalar", "string", doc="split both characters belong to, or \"across\" for pairs between characters of different splits (correspond --pairs-across-splits)"),
         Column("k1", "scalar", "int32", doc="source keypoint count K1"),
         Column("k2", "scalar", "int32", doc="target keypoint count K2"),
         Column("s_cos", "list", "float32", reshape=("k1", "k2"), doc="(K1*K2,) stored row-major, (K1, K2) in memory: cosine similarity"),

@@ -11,7 +11,7 @@ from datagen.zoo.build import build_skeleton
 from datagen.zoo.naming import HUMANOID_STYLES, bone_names
 from datagen.zoo.plan import CharacterSpec
 from mimicbench.cli import main
-from schemas.shards import read_records
+from schemas.shards import read_records, splits_of
 from schemas.validate import validate_dataset
 
 
@@ -109,3 +109,29 @@ def test_on_the_fly_pair_and_cli(small_zoo, tmp_path, capsys):
     assert len(read_records(root, "pairs", "train")) == 6
     assert main(["datagen", "correspond", str(root), "--pairs", "4", "--method", "text", "--quiet"]) == 0
     assert {p.method for p in read_records(root, "pairs", "train")} == {"text"}
+
+
+def test_pairs_across_splits(small_zoo, tmp_path):
+    """``--pairs-across-splits``: every ordered pair of characters of different splits, as the pair
+    split ``across`` (counted by a naive loop over the characters); a run without it removes them."""
+    root = tmp_path / "zoo"
+    shutil.copytree(small_zoo, root)
+    chars = read_records(root, "characters")
+    want = {(a.character_id, b.character_id) for a in chars for b in chars
+            if a.split != b.split and a.num_joints and b.num_joints}
+    assert want  # the small zoo has several splits
+    assert main(["datagen", "correspond", str(root), "--all-pairs", "--pairs-across-splits", "--method", "text",
+                 "--quiet"]) == 0
+    assert validate_dataset(root) == []
+    across = read_records(root, "pairs", "across")
+    assert {(p.source_id, p.target_id) for p in across} == want and len(across) == len(want)
+    split_of = {c.character_id: c.split for c in chars}
+    assert all(p.split == "across" and split_of[p.source_id] != split_of[p.target_id] for p in across)
+    within = [p for s in ("train", "val", "test") if s in splits_of(root, "pairs") for p in read_records(root, "pairs", s)]
+    assert all(split_of[p.source_id] == split_of[p.target_id] == p.split for p in within)
+    summary = correspond_dataset(root, pairs=5, progress=False, method="text", across_splits=True, unordered=True)
+    across = read_records(root, "pairs", "across")
+    assert summary["pairs"]["across"] == len(across) == 5
+    assert all(p.source_id < p.target_id and split_of[p.source_id] != split_of[p.target_id] for p in across)
+    correspond_dataset(root, pairs=3, progress=False, method="text")
+    assert "across" not in splits_of(root, "pairs") and validate_dataset(root) == []

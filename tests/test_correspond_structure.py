@@ -63,7 +63,11 @@ def test_features_do_not_depend_on_bone_order_or_facing():
     ref = skeleton_features(names, parents, kp).matrix()
     order = np.random.default_rng(0).permutation(len(TOY))
     n2, p2, k2 = toy(order)
-    np.testing.assert_allclose(skeleton_features(n2, p2, k2).matrix(), ref[order], atol=1e-5)
+    got = skeleton_features(n2, p2, k2).matrix()
+    seq = FEATURES.index("seq_id")  # an identifier: the same sequences, whatever their numbers
+    keep = [c for c in range(ref.shape[1]) if c != seq]
+    np.testing.assert_allclose(got[:, keep], ref[order][:, keep], atol=1e-5)
+    assert len({(a, b) for a, b in zip(got[:, seq], ref[order, seq])}) == len(set(ref[:, seq]))
     turn = np.array([[-1, 0, 0], [0, 1, 0], [0, 0, -1.0]])  # the same rig facing -Z (left at -X)
     np.testing.assert_allclose(skeleton_features(names, parents, kp @ turn.T * 3.0).matrix(), ref, atol=1e-5)
 
@@ -155,3 +159,94 @@ def test_role_map_classes():
                                               "left/hindlimb", "tail"]
     with pytest.raises(ValueError, match="role map"):
         role_classes(["left/antler"], "quadruped")
+
+
+def test_monotone_pairs_is_the_best_order_preserving_matching():
+    from datagen.correspond.batched import monotone_pairs
+
+    rng = np.random.default_rng(5)
+    for n, m in [(1, 1), (3, 4), (4, 3), (5, 5), (2, 6)]:
+        gain = rng.uniform(-0.5, 1.0, size=(n, m))
+        got = monotone_pairs(gain)
+        assert all(i2 > i1 and j2 > j1 for (i1, j1), (i2, j2) in zip(got, got[1:]))
+        assert all(gain[i, j] > 0 for i, j in got)
+        best = 0.0  # brute force: every increasing choice of rows and of columns
+        for r in range(0, min(n, m) + 1):
+            for rows in itertools.combinations(range(n), r):
+                for cols in itertools.combinations(range(m), r):
+                    best = max(best, sum(max(gain[i, j], 0) for i, j in zip(rows, cols)))
+        assert np.isclose(sum(gain[i, j] for i, j in got), best)
+
+
+def test_chain_scores_equal_a_naive_loop():
+    from datagen.correspond.batched import chain_scores
+
+    rng = np.random.default_rng(2)
+    k1, k2 = 6, 7
+    fa = np.zeros((1, k1, 6), np.float32)
+    fb = np.zeros((1, k2, 6), np.float32)
+    for f, k in ((fa, k1), (fb, k2)):  # columns -4..-1: seq id, seq pos, chain code, name code
+        f[0, :, -4] = rng.choice([-1, 0, 0, 3], size=k)
+        f[0, :, -3] = rng.uniform(0, 1, size=k)
+        f[0, :, -2] = rng.choice([1, 4, 7], size=k)
+        f[0, :, -1] = rng.choice([10, 11, 12, 13], size=k)
+    s = rng.uniform(-0.2, 1.0, size=(1, k1, k2)).astype(np.float32)
+    got = chain_scores(torch.from_numpy(s), torch.from_numpy(fa), torch.from_numpy(fb), 1.0, 0.55, 0.7).numpy()
+    trunks = (fa[0, :, -4] == 0).sum() >= 3 and (fb[0, :, -4] == 0).sum() >= 3
+    for i in range(k1):
+        for j in range(k2):
+            want = s[0, i, j]
+            if trunks and fa[0, i, -4] == 0 and fb[0, j, -4] == 0:
+                want = max(want, 0.7 - abs(fa[0, i, -3] - fb[0, j, -3]))
+            if fa[0, i, -2] != fb[0, j, -2]:
+                want -= 1.0
+            if fa[0, i, -1] == fb[0, j, -1]:
+                want = max(want, 0.55)
+            assert got[0, i, j] == pytest.approx(want, abs=1e-6)
+
+
+def test_name_keys_and_chain_kinds_of_a_hand_built_skeleton():
+    from datagen.correspond.structure import CHAIN_KINDS, name_keys
+
+    keys = name_keys(["hips", "pelvis", "body", "chest", "upper spine", "left foot", "right foot", "spine"])
+    assert keys[0] == keys[1] == keys[2] and keys[3] == keys[4] and len(set(keys[[0, 3, 5, 6, 7]])) == 5
+    names, parents, kp = toy()
+    f = skeleton_features(names, parents, kp)
+    kind = {n: (CHAIN_KINDS[int(c) // 3], int(c) % 3 - 1) for n, c in zip(names, f.chain)}
+    assert kind["spine"] == kind["neck"] == ("trunk", 0) and kind["jaw"] == ("head", 0)
+    assert kind["tail 2"] == ("tail", 0)
+    assert kind["left hand"] == ("fore", 1) and kind["right shoulder"] == ("fore", -1)
+    assert kind["left foot"] == ("hind", 1) and kind["right upper leg"] == ("hind", -1)
+    # sequences: the trunk from the pelvis (hips) by arc length, each limb's path in order
+    i = {n: k for k, n in enumerate(names)}
+    assert f.seq_id[i["hips"]] == f.seq_id[i["spine"]] == 0 and f.seq_id[i["neck"]] == -1
+    assert f.seq_pos[i["hips"]] == 0 and 0 < f.seq_pos[i["spine"]] < 1
+    arm = [f.seq_pos[i[n]] for n in ("left shoulder", "left upper arm", "left lower arm", "left hand")]
+    assert len({f.seq_id[i[n]] for n in ("left shoulder", "left hand")}) == 1 and arm == sorted(arm)
+
+
+def test_a_detached_ik_foot_joins_its_leg():
+    """An IK foot kept as a root of its own (a Quaternius mech's): it continues the leg it sits at,
+    or becomes the sibling of the bone whose head it shares; without keypoints, the main root's child."""
+    from datagen.correspond.structure import _attach_detached
+
+    names, parents, kp = toy()
+    names = names + ["left ik foot", "right ik foot"]
+    parents = np.r_[parents, -1, -1]
+    kp = np.vstack([kp, [0.1, 0.0, 0.05], kp[names.index("right foot")]])
+    main = np.r_[np.ones(len(TOY), bool), False, False]
+    out = _attach_detached(parents, main, kp)
+    assert names[out[-2]] == "left foot"  # nearest head
+    assert names[out[-1]] == "right lower leg"  # at the right foot's head: the foot's sibling
+    assert (_attach_detached(parents, main, None)[-2:] == 0).all()
+    f = skeleton_features(names, parents, kp)
+    assert f.side[-2] == 1 and f.limb_hop[-2] > f.limb_hop[names.index("left foot")]
+
+
+def test_same_named_bones_left_free_are_paired():
+    from datagen.correspond.batched import same_name_pairs
+
+    s = np.array([[0.9, 0.1, 0.2], [0.1, 0.1, 0.3], [0.2, 0.3, 0.1]])
+    pairs = np.array([[0, 0]], np.int32)
+    got = same_name_pairs(s, pairs, np.array([1.0, 2.0, 2.0]), np.array([1.0, 2.0, 5.0]))
+    assert got.tolist() == [[0, 0], [2, 1]]  # bone 2 scores 0.3 against target 1, bone 1 only 0.1

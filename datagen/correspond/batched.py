@@ -26,6 +26,7 @@ from typing import Sequence
 
 import numpy as np
 import torch
+from numba import njit
 from scipy.optimize import linear_sum_assignment
 
 DEFAULT_TEMPERATURE = 0.1
@@ -34,6 +35,7 @@ DEFAULT_TEMPERATURE = 0.1
 # 353 sweeps at w = 1.5 and 112 at w = 1.7 (w = 1.9 stalled).
 DUSTBIN_OMEGA = 1.7
 CHUNK = 256
+MIN_TRUNK = 3  # trunk bones (pelvis to below the neck) each skeleton needs for the trunk rules
 
 
 def sinkhorn_padded(scores: torch.Tensor, k1: torch.Tensor, k2: torch.Tensor, temperature: float,
@@ -164,7 +166,8 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
                          temperature: float = DEFAULT_TEMPERATURE, chunk: int = CHUNK,
                          feat_a: Sequence[np.ndarray] | None = None, feat_b: Sequence[np.ndarray] | None = None,
                          feature_weights: Sequence[float] | None = None, text_weight: float = 1.0,
-                         no_match: float | None = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+                         no_match: float | None = None, chain_penalty: float = 0.0,
+                         anchor: float | None = None, trunk_floor: float | None = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(S_cos (K1, K2) float32, hungarian pairs (P, 2) int32, M_sink (K1, K2) float32) per pair.
 
     The matching score is ``S = text_weight * S_cos - sum_f w_f (f_a - f_b)^2`` over per-bone
@@ -184,6 +187,18 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
         feature_weights: (F,) weights w_f >= 0.
         text_weight: weight of S_cos in S.
         no_match: threshold tau on S below which a bone stays unmatched, or None.
+        chain_penalty: with features, subtracted from S where the two bones' chain codes (the
+            second-last feature column, :func:`.structure.chain_kinds`) differ: a bone of the trunk
+            never meets a hand, an arm never a hind leg, unless their names say so (``anchor``).
+        anchor: with features, S of two bones whose name codes (the last column,
+            :func:`.structure.name_keys`) are equal is raised to at least this score (set it above
+            ``no_match``): a bone with a same-named or synonym counterpart is never left unmatched
+            for want of a score, whatever the chains say.
+        trunk_floor: with features, two trunk bones (sequence id 0 in the fourth-last column, their
+            arc-length position from the pelvis, 0, to the head, 1, in the third-last) score at least
+            ``trunk_floor - |arc_a - arc_b|``: the spines are aligned as sequences by position,
+            whatever their names (``LowerBack``, ``Abdomen``, ``Spine1``, ``Chest``); the Hungarian
+            pairs are then :func:`chain_hungarian_pairs` (trunk and limbs aligned in order).
     """
     if len(emb_a) != len(emb_b):
         raise ValueError(f"emb_a, emb_b: expected equal lengths, got {len(emb_a)} and {len(emb_b)}")
@@ -197,7 +212,8 @@ def correspondence_batch(emb_a: Sequence[np.ndarray], emb_b: Sequence[np.ndarray
             fa = None if feat_a is None else feat_a[i:i + chunk]
             fb = None if feat_b is None else feat_b[i:i + chunk]
             out.extend(_correspondence_chunk(emb_a[i:i + chunk], emb_b[i:i + chunk], temperature, fa, fb,
-                                             feature_weights, text_weight, no_match))
+                                             feature_weights, text_weight, no_match, chain_penalty, anchor,
+                                             trunk_floor))
     finally:
         torch.set_num_threads(threads)
     return out
@@ -229,8 +245,31 @@ def feature_penalty(fa: torch.Tensor, fb: torch.Tensor, weights: Sequence[float]
     return torch.bmm(left, right.transpose(1, 2)).clamp_(min=0.0)
 
 
+def chain_scores(scores: torch.Tensor, fa: torch.Tensor, fb: torch.Tensor, chain_penalty: float = 0.0,
+                 anchor: float | None = None, trunk_floor: float | None = None, k1: torch.Tensor | None = None,
+                 k2: torch.Tensor | None = None) -> torch.Tensor:
+    """(B, P1, P2) scores of :func:`correspondence_batch`'s chain rules, from the last four columns
+    of fa (B, P1, F) and fb (B, P2, F): sequence id and position, chain code, name code
+    (:class:`.structure.SkeletonFeatures`); k1, k2 (B,) the valid sizes (padding rows do not count
+    as trunk bones)."""
+    if trunk_floor is not None:
+        on_a, on_b = fa[:, :, -4] == 0, fb[:, :, -4] == 0  # trunk bones
+        rows = torch.arange(fa.shape[1])[None, :] < (k1[:, None] if k1 is not None else fa.shape[1])
+        cols = torch.arange(fb.shape[1])[None, :] < (k2[:, None] if k2 is not None else fb.shape[1])
+        spines = (((on_a & rows).sum(1) >= MIN_TRUNK) & ((on_b & cols).sum(1) >= MIN_TRUNK))[:, None, None]
+        gap = (fa[:, :, None, -3] - fb[:, None, :, -3]).abs()
+        floor = torch.where(on_a[:, :, None] & on_b[:, None, :] & spines, trunk_floor - gap, torch.tensor(-torch.inf))
+        scores = torch.maximum(scores, floor.to(scores.dtype))
+    if chain_penalty:
+        scores = scores - chain_penalty * (fa[:, :, None, -2] != fb[:, None, :, -2]).to(scores.dtype)
+    if anchor is not None:
+        same = fa[:, :, None, -1] == fb[:, None, :, -1]
+        scores = torch.where(same, scores.clamp(min=float(anchor)), scores)
+    return scores
+
+
 def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, weights=None, text_weight=1.0,
-                          no_match=None):
+                          no_match=None, chain_penalty=0.0, anchor=None, trunk_floor=None):
     n = len(emb_a)
     if n == 0:
         return []
@@ -246,6 +285,7 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
         if not (torch.isfinite(fa).all() and torch.isfinite(fb).all()):
             raise ValueError("feat_a, feat_b: expected finite features, got NaN or inf")
         scores = text_weight * cosines - feature_penalty(fa, fb, weights)
+        scores = chain_scores(scores, fa, fb, chain_penalty, anchor, trunk_floor, k1, k2)
     sink = sinkhorn_padded(scores, k1, k2, temperature, chunk=n, dustbin=no_match)
     bad = ~(_row_errors(sink, k1, no_match) <= 1e-4)  # also catches NaN
     if bad.any():  # over-relaxed sweeps that overflowed (seen with a dustbin on 81 x 241 bones): classic sweeps
@@ -256,10 +296,24 @@ def _correspondence_chunk(emb_a, emb_b, temperature, feat_a=None, feat_b=None, w
             raise RuntimeError(f"Sinkhorn did not converge (row marginal error {row_error:.1e}); "
                                f"use a higher temperature than {temperature}")
     sink, cosines, scores = sink.numpy(), cosines.numpy(), scores.numpy()
-    out = []
+    out, seqs = [], {}  # each skeleton's sequences once (its feature array recurs across pairs)
+
+    def sequences_of(f):
+        if id(f) not in seqs:
+            seqs[id(f)] = (f, _sequences(f[:, -4:-1]))
+        return seqs[id(f)][1]
+
     for i in range(n):
         c = cosines[i, : k1[i], : k2[i]]
-        out.append((c.copy(), hungarian_pairs(scores[i, : k1[i], : k2[i]], no_match), sink[i, : k1[i], : k2[i]].copy()))
+        si = scores[i, : k1[i], : k2[i]]
+        if trunk_floor is not None:
+            pairs = chain_hungarian_pairs(si, feat_a[i][:, -4:-1], feat_b[i][:, -4:-1], no_match,
+                                          (sequences_of(feat_a[i]), sequences_of(feat_b[i])))
+        if anchor is not None:
+            pairs = same_name_pairs(si, pairs, feat_a[i][:, -1], feat_b[i][:, -1])
+        else:
+            pairs = hungarian_pairs(si, no_match)
+        out.append((c.copy(), pairs, sink[i, : k1[i], : k2[i]].copy()))
     return out
 
 
@@ -268,6 +322,116 @@ def _row_errors(sink: torch.Tensor, k1: torch.Tensor, no_match: float | None) ->
     want_rows = (torch.arange(sink.shape[1])[None, :] < k1[:, None]).to(sink.dtype)
     excess = sink.sum(dim=2) - want_rows
     return (excess if no_match is None else excess.clamp(min=0)).abs().amax(dim=1)
+
+
+def monotone_pairs(gain: np.ndarray) -> list[tuple[int, int]]:
+    """The order-preserving matching of two sequences with the largest total gain (DP alignment).
+
+    ``gain`` (n, m): the gain of matching link i of the first sequence with link j of the second
+    (links in order along their chains); pairs (i, j) with i and j both increasing, gains > 0 only.
+    The dynamic programme is compiled (numba, :func:`_monotone_kernel`).
+    """
+    out = _monotone_kernel(np.ascontiguousarray(gain, dtype=np.float64))
+    return [(int(i), int(j)) for i, j in out]
+
+
+@njit(cache=True)
+def _monotone_kernel(gain):
+    """(P, 2) int64 pairs of :func:`monotone_pairs`: best[i+1, j+1] = max(best[i, j+1], best[i+1, j],
+    best[i, j] + max(gain[i, j], 0)), then the path back from best[n, m]."""
+    n, m = gain.shape
+    best = np.zeros((n + 1, m + 1))
+    for i in range(n):
+        for j in range(m):
+            g = gain[i, j] if gain[i, j] > 0.0 else 0.0
+            best[i + 1, j + 1] = max(best[i, j + 1], best[i + 1, j], best[i, j] + g)
+    out = np.empty((min(n, m), 2), np.int64)
+    k, i, j = 0, n, m
+    while i > 0 and j > 0:
+        if best[i, j] == best[i - 1, j]:
+            i -= 1
+        elif best[i, j] == best[i, j - 1]:
+            j -= 1
+        else:
+            out[k, 0], out[k, 1] = i - 1, j - 1
+            k += 1
+            i -= 1
+            j -= 1
+    return out[:k][::-1]
+
+
+def _sequences(seq: np.ndarray) -> dict[int, np.ndarray]:
+    """Per sequence id (0 trunk, > 0 a limb's main path) its bone indices in order of position."""
+    order = np.lexsort((seq[:, 1], seq[:, 0]))
+    order = order[seq[order, 0] >= 0]
+    ids = seq[order, 0]
+    cuts = np.flatnonzero(np.diff(ids)) + 1
+    return {int(ids[c]): part for c, part in zip(np.r_[0, cuts], np.split(order, cuts))} if len(order) else {}
+
+
+def chain_hungarian_pairs(scores: np.ndarray, seq_a: np.ndarray, seq_b: np.ndarray, no_match: float,
+                          sequences: tuple[dict, dict] | None = None) -> np.ndarray:
+    """(P, 2) int32 pairs: trunks and limbs aligned as sequences, every other bone by the Hungarian.
+
+    ``seq_a`` (K1, 3), ``seq_b`` (K2, 3): per bone its sequence id (0 the trunk, b + 1 the main path
+    of the limb based at b, -1 none), its position in it and its chain code (the feature columns
+    of :class:`.structure.SkeletonFeatures`). The trunks (pelvis to below the neck, when both have
+    :data:`MIN_TRUNK` bones or more) are matched by :func:`monotone_pairs` on ``S - no_match``, so a
+    spine bone never skips past another. Limbs are paired by the Hungarian on the totals of their
+    alignments, only limbs of one chain code (kind and side) with each other, and each pair of
+    limbs is aligned link by link in order, so a link never jumps to another limb nor crosses its
+    neighbour. Every bone left unmatched (fingers off a limb's main path, heads, tails, limbs
+    without a partner, links an alignment skipped) goes to :func:`hungarian_pairs` on what is left.
+    """
+    sa, sb = _sequences(seq_a), _sequences(seq_b)
+    pairs = []
+    used_a, used_b = np.zeros(len(seq_a), bool), np.zeros(len(seq_b), bool)
+    if 0 in sa and 0 in sb and len(sa[0]) >= MIN_TRUNK and len(sb[0]) >= MIN_TRUNK:
+        ta, tb = sa[0], sb[0]
+        pairs += [(ta[i], tb[j]) for i, j in monotone_pairs(scores[np.ix_(ta, tb)] - no_match)]
+    limbs_a = [s for s in sa if s > 0]
+    limbs_b = [s for s in sb if s > 0]
+    if limbs_a and limbs_b:
+        total = np.zeros((len(limbs_a), len(limbs_b)))
+        aligned = {}
+        code_b = {}
+        for y, lb in enumerate(limbs_b):
+            code_b.setdefault(seq_b[sb[lb][0], 2], []).append(y)
+        for x, la in enumerate(limbs_a):
+            for y in code_b.get(seq_a[sa[la][0], 2], ()):
+                ia, ib = sa[la], sb[limbs_b[y]]
+                gain = scores[np.ix_(ia, ib)] - no_match
+                got = monotone_pairs(gain)
+                aligned[x, y] = [(ia[i], ib[j]) for i, j in got]
+                total[x, y] = sum(gain[i, j] for i, j in got)
+        rows, cols = linear_sum_assignment(total, maximize=True)
+        for x, y in zip(rows, cols):
+            if total[x, y] > 0:
+                pairs += aligned[x, y]
+    for i, j in pairs:
+        used_a[i], used_b[j] = True, True
+    rest_a, rest_b = np.flatnonzero(~used_a), np.flatnonzero(~used_b)
+    if len(rest_a) and len(rest_b):
+        pairs += [(rest_a[i], rest_b[j]) for i, j in hungarian_pairs(scores[np.ix_(rest_a, rest_b)], no_match)]
+    return np.array(sorted(pairs), np.int32).reshape(-1, 2)
+
+
+def same_name_pairs(scores: np.ndarray, pairs: np.ndarray, name_a: np.ndarray, name_b: np.ndarray) -> np.ndarray:
+    """``pairs`` (P, 2) plus, among the rows and columns they leave free, the bones of equal name
+    codes ``name_a`` (K1,) / ``name_b`` (K2,), the best scored first: the no-match rule never leaves
+    a bone out while a same-named or synonym counterpart is free too."""
+    free_a, free_b = np.ones(len(name_a), bool), np.ones(len(name_b), bool)
+    free_a[pairs[:, 0]], free_b[pairs[:, 1]] = False, False
+    rows, cols = np.nonzero((name_a[:, None] == name_b[None, :]) & free_a[:, None] & free_b[None, :])
+    if not len(rows):
+        return pairs
+    extra = []
+    for k in np.argsort(-scores[rows, cols], kind="stable"):
+        r, c = rows[k], cols[k]
+        if free_a[r] and free_b[c]:
+            extra.append([int(r), int(c)])
+            free_a[r], free_b[c] = False, False
+    return np.array(sorted(pairs.tolist() + extra), np.int32).reshape(-1, 2)
 
 
 def hungarian_pairs(scores: np.ndarray, no_match: float | None = None) -> np.ndarray:

@@ -18,7 +18,9 @@ def register(subparsers) -> None:
         "from the root,\n"
         "             limb vs trunk vs neck vs head vs tail, where a limb attaches (arm ~ front leg ~ wing), rest "
         "positions in\n"
-        "             a body frame. Bones scoring at most --no-match (0.45) stay unmatched; M_sink has a "
+        "             a body frame; trunks and limbs aligned as ordered sequences, never across chains. Bones "
+        "scoring at most\n"
+        "             --no-match (0.45) stay unmatched, except same-named or synonym ones; M_sink has a "
         "no-match dustbin.\n"
         "  text       the paper's method (MimiCAT / PokeAnimDB): S_cos only, every slot matched, M_sink balanced "
         "to rows 1.\n"
@@ -26,6 +28,7 @@ def register(subparsers) -> None:
         "hidden role\n(per category pair; report in DATASET/correspond_report.json). Examples:\n"
         "  mimicbench datagen correspond data/zoo --all-pairs --jobs 2\n"
         "  mimicbench datagen correspond data/zoo --all-pairs --unordered   (one direction a pair)\n"
+        "  mimicbench datagen correspond data/zoo --all-pairs --pairs-across-splits   (cct pairs across splits too)\n"
         "  mimicbench datagen correspond data/zoo --pairs 20000 --method text\n"
         "  mimicbench datagen correspond data/zoo --pairs 20000 --encoder clip --clip-pretrained ~/ckpt/clip.pt",
         formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -37,6 +40,9 @@ def register(subparsers) -> None:
     p.add_argument("--unordered", action="store_true",
                    help="each pair of characters once (a->b, a's ID first): n(n-1)/2 pairs of a split of n instead of "
                         "n(n-1); PokeAnimDB's 384k pairs are C(877, 2), the unordered pairs of 90%% of 975 characters")
+    p.add_argument("--pairs-across-splits", action="store_true",
+                   help="also pairs between characters of different splits (cct cases made with --all-pairs use them), "
+                        "sampled like a split's (--pairs, --all-pairs, --unordered), as the pair split 'across'")
     p.add_argument("--jobs", type=job_count, default=1,
                    help=f"worker processes matching blocks of pairs, 1 to {MAX_JOBS} (default 1; each on one thread)")
     p.add_argument("--method", choices=("structure", "text"), default="structure",
@@ -61,7 +67,8 @@ def run(args) -> int:
 
     summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder, args.temperature, args.seed,
                                  args.clip_model, args.clip_pretrained, progress=not args.quiet, method=args.method,
-                                 no_match=args.no_match, engine=engine_from_args(args), unordered=args.unordered)
+                                 no_match=args.no_match, engine=engine_from_args(args), unordered=args.unordered,
+                                 across_splits=args.pairs_across_splits)
     for failure in summary["failed_blocks"]:
         print(f"  FAILED {failure}")
     print(f"pairs written: {summary['pairs']} with {summary['encoder']}, method {summary['method']}, in "

@@ -18,11 +18,14 @@ INTRA_FRACTION = 0.5
 
 
 def sample_pairs(characters: list, num_pairs: int | None, all_pairs: bool, seed: int = 0,
-                 unordered: bool = False) -> list[tuple]:
+                 unordered: bool = False, keep=None) -> list[tuple]:
     """(source, target) pairs of records from one split, in a deterministic order: ordered pairs, or
-    with ``unordered`` one (a, b) a pair of characters, a's ID before b's."""
+    with ``unordered`` one (a, b) a pair of characters, a's ID before b's. ``keep(a, b)``, when
+    given, chooses the candidate pairs (``--pairs-across-splits``: characters of different splits)."""
     chars = sorted(characters, key=lambda c: c.character_id)
     every = list((itertools.combinations if unordered else itertools.permutations)(chars, 2))
+    if keep is not None:
+        every = [(a, b) for a, b in every if keep(a, b)]
     if all_pairs or num_pairs is None or num_pairs >= len(every):
         return every
     rng = np.random.default_rng(seed)

@@ -29,6 +29,7 @@ from schemas.pair import PairRecord
 from schemas.shard_stream import ShardStream
 from schemas.shards import read_records, remove_split, splits_of, write_records
 
+ACROSS = "across"  # the pair split of pairs between characters of different splits
 BATCH = 2048  # pairs a block (one task): Sinkhorn runs them CHUNK at a time in one padded batch
 ROWS_PER_SHARD = 5000  # pairs a shard: memory holds one shard's matrices while writing
 TASK_RESOURCES = TaskResources(num_cpus=1, memory=1 << 30)
@@ -123,7 +124,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
                        temperature: float | None = None, seed: int = 0, clip_model: str = "ViT-B-32",
                        clip_pretrained: str | None = None, progress: bool = True, method: str = DEFAULT_METHOD,
                        no_match: float | None = None, engine: Engine | None = None, block: int = BATCH,
-                       unordered: bool = False) -> dict:
+                       unordered: bool = False, across_splits: bool = False) -> dict:
     """Write ``pairs/`` shards (one group per split) and ``correspond_report.json``; return a summary.
 
     Args:
@@ -142,6 +143,10 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
             answer is stored separately as M_hung. On 300 zoo pairs Sinkhorn needed a median of 21
             sweeps and at most 261; at 0.05 a few pairs needed thousands).
         seed: pair sampling seed.
+        across_splits: also the pairs between characters of different splits (as cct cases
+            built with ``--all-pairs`` use them), sampled like a split's (``pairs``, ``all_pairs``,
+            ``unordered``) and written as the pair split :data:`ACROSS` (``pairs/across-*.parquet``);
+            without it a previous run's ``across`` shards are removed.
         block: pairs a task (default ``BATCH``).
         engine: where blocks of ``block`` pairs are matched (:mod:`mimicbench.engines`; default this
             process). Names are embedded once in this process; each block is one task; shards of
@@ -163,11 +168,18 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     written, matched, statuses = {}, [], []
     config = stage_config({"stage": "correspond", "encoder": enc.name, "temperature": m.temperature, "seed": seed,
                            "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION, "method": params,
-                           **({"unordered": True} if unordered else {})},
+                           **({"unordered": True} if unordered else {}),
+                           **({"across_splits": True} if across_splits else {})},
                           tables_fingerprint(dataset_dir, ["characters"]))
     fn = partial(_match_block, method=m, emb=emb, feats=feats)
-    for split in splits_of(dataset_dir, "characters"):
-        chosen = sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed, unordered)
+    groups = [(split, sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed, unordered))
+              for split in splits_of(dataset_dir, "characters")]
+    if across_splits:
+        groups.append((ACROSS, sample_pairs(records, pairs, all_pairs, seed, unordered,
+                                            keep=lambda a, b: a.split != b.split)))
+    elif ACROSS in splits_of(dataset_dir, "pairs", allow_incomplete=True):  # a previous run's
+        remove_split(dataset_dir, "pairs", ACROSS)
+    for split, chosen in groups:
         blocks, ends = pair_blocks(chosen, ROWS_PER_SHARD, block)
         stream = ShardStream(dataset_dir, "pairs", split, ROWS_PER_SHARD, config)
         run: dict[int, PairRecord] = {}

@@ -29,8 +29,16 @@ For one skeleton with K bones (canonical names, ``parents``, rest ``keypoints``)
   from (a humanoid's hips, Rigify's ``spine``, a horse's ``Back``, an insect's thorax), else 0:
   the bone a ground-level root or a ``Spine`` above the hips must not be mistaken for.
 - ``part`` (K, 4): one-hot trunk / neck / head / tail of the centre bones (see :func:`_body_parts`).
-- ``depth`` (K,): hops from the skeleton's root divided by the deepest bone's hops (detached
-  trees such as IK targets count from their own root).
+- ``depth`` (K,): hops from the skeleton's root divided by the deepest bone's hops.
+- ``seq_id``, ``seq_pos`` (K,): the sequences matched in order (:mod:`.methods`): the trunk (id
+  0, pelvis to below the neck, position its arc length from the pelvis over the pelvis-to-head
+  length) and each limb's main path (id base + 1, base to farthest bone, position its rank); -1
+  for other bones.
+- ``chain`` (K,): the chain kind and side (:func:`chain_kinds`); ``name_key`` (K,): a code of the
+  canonical name after :data:`NAME_SYNONYMS` (:func:`name_keys`).
+
+Trees apart from the largest (IK targets, an IK foot kept as its own root) are first hung from the
+main-tree bone nearest their root's head (:func:`_attach_detached`).
 
 The head is the shallowest centre bone whose name has the word ``head``; without one, the centre
 bone farthest along y + z from the mean (a head is up or forward in the dataset frame).
@@ -44,7 +52,9 @@ import numpy as np
 
 SIDE_THRESHOLD = 0.08  # |x| / size beyond which an unnamed bone counts as sided
 HOP_SCALE = 4.0
-HELPER_WORDS = {"twist", "roll"}  # helper bones inside a limb segment (MMD's 腕捩 is "arm twist")
+HELPER_WORDS = {"twist", "roll"}
+HEAD_LIMB_WORDS = {"ear", "antenna", "horn", "antler"}  # limbs of the head wherever they hang
+IK_WORDS = {"ik", "pole", "target"}  # IK helpers: no limb of the body  # helper bones inside a limb segment (MMD's 腕捩 is "arm twist")
 
 
 @dataclass
@@ -60,14 +70,88 @@ class SkeletonFeatures:
     part: np.ndarray      # (K, 4)
     depth: np.ndarray     # (K,)
     position: np.ndarray  # (K, 3)
+    seq_id: np.ndarray    # (K,) sequence: 0 the trunk, b + 1 the main path of the limb based at b, -1 none
+    seq_pos: np.ndarray   # (K,) position in it: trunk arc length pelvis (0) to head (1); limb path rank
+    chain: np.ndarray     # (K,) chain kind code (:func:`chain_kinds`)
+    name_key: np.ndarray  # (K,) name class code (:func:`name_keys`)
 
     def matrix(self) -> np.ndarray:
-        """(K, 15) columns side, limb_axial, centre_axial, along, chain_hop, limb_hop, pelvis, trunk, neck,
-        head, tail, depth, x, y, z (``axial`` split into limb and centre bones, weighted apart)."""
+        """(K, 19) columns side, limb_axial, centre_axial, along, chain_hop, limb_hop, pelvis, trunk, neck,
+        head, tail, depth, x, y, z (``axial`` split into limb and centre bones, weighted apart), then
+        ``seq_id``, ``seq_pos`` and the two codes ``chain`` and ``name_key`` (compared for equality,
+        never subtracted): these four are read by :func:`datagen.correspond.batched.chain_scores` and
+        :func:`datagen.correspond.batched.chain_hungarian_pairs`."""
         limb = self.side != 0
         return np.column_stack([self.side, np.where(limb, self.axial, 0), np.where(limb, 0, self.axial), self.along,
                                 self.chain_hop, self.limb_hop, self.pelvis, self.part, self.depth,
-                                self.position]).astype(np.float32)
+                                self.position, self.seq_id, self.seq_pos, self.chain,
+                                self.name_key]).astype(np.float32)
+
+
+# Canonical names that name the same bone (deliver: the no-match rule never drops these): the body
+# root, the upper spine. ``foot``/``ankle`` and ``hips``/``pelvis`` are one word already (canonical).
+NAME_SYNONYMS = {"pelvis": "hips", "body": "hips", "upper spine": "chest", "upper chest": "chest"}
+# Chain kinds: the trunk (root to head, neck included), the head's bones, the tail (every other centre
+# bone), limbs attached fore (arms, front legs, wings), in the middle (an insect's middle legs), hind
+# (legs, hind legs), on the head (ears, antennae). A limb's kind is read from where its base attaches
+# along the body axis (``axial`` of its base: >= 1.25 on the head, >= 0.75 fore, <= 0.25 hind).
+CHAIN_KINDS = ("trunk", "head", "tail", "fore", "mid", "hind", "head limb")
+
+
+def name_keys(canonical: list[str]) -> np.ndarray:
+    """(K,) float32 code of each canonical name after :data:`NAME_SYNONYMS` (equal codes: equal names).
+
+    A CRC-32 of the name's text cut to 20 bits, so that float32 holds it exactly.
+    """
+    import zlib
+
+    def key(t: str) -> int:
+        sided = t.split(" ", 1)
+        if sided[0] in ("left", "right") and len(sided) > 1:
+            return zlib.crc32(f"{sided[0]} {NAME_SYNONYMS.get(sided[1], sided[1])}".encode()) & 0xFFFFF
+        return zlib.crc32(NAME_SYNONYMS.get(t, t).encode()) & 0xFFFFF
+
+    return np.array([key(t) for t in canonical], np.float32)
+
+
+def chain_kinds(side: np.ndarray, part: np.ndarray, limb_axial: np.ndarray | None) -> np.ndarray:
+    """(K,) float32 code ``3 * kind + side + 1`` of every bone (kinds in :data:`CHAIN_KINDS`).
+
+    Centre bones take their body part (trunk and neck are one chain); sided bones their limb's kind
+    from ``limb_axial`` (K,) (the limb base's attachment), or ``fore`` for every limb without it.
+    """
+    kind = np.where(part[:, 2] > 0, 1, np.where(part[:, 3] > 0, 2, 0))
+    if limb_axial is None:
+        limb = np.full(len(side), 3)
+    else:
+        limb = np.select([limb_axial >= 1.25, limb_axial >= 0.75, limb_axial <= 0.25], [6, 3, 5], 4)
+    kind = np.where(side != 0, limb, kind)
+    return (3 * kind + side + 1).astype(np.float32)
+
+
+def _attach_detached(parents: np.ndarray, main: np.ndarray, kp: np.ndarray | None) -> np.ndarray:
+    """Parents (K,) with each root outside the main tree hung from the main-tree bone nearest its head.
+
+    IK targets and an IK foot kept as a root of its own (a Quaternius mech's ``Foot.L``, a horse's
+    ``IKBackLeg.L``) then continue the limb they sit at; a root at the very head of that bone becomes
+    its sibling (the mech's ``Foot.L``, which skins the foot, beside its ``FootBack.L``, a claw);
+    without keypoints they hang from the main root.
+    """
+    out = parents.copy()
+    pool = np.flatnonzero(main)
+    if len(pool) == 0 or main.all():
+        return out
+    main_root = int(pool[parents[pool] < 0][0])
+    for r in np.flatnonzero((parents < 0) & ~main):
+        if kp is None:
+            out[r] = main_root
+            continue
+        gap = np.linalg.norm(kp[pool] - kp[r], axis=1)
+        near = int(pool[np.argmin(gap)])
+        # at the very head of that bone (an IK foot where the leg's last bone starts): its sibling
+        out[r] = parents[near] if gap.min() < 1e-6 * max(float(np.ptp(kp[pool], axis=0).max()), 1e-9) \
+            and parents[near] >= 0 else near
+    return out
 
 
 def _name_sides(canonical: list[str]) -> np.ndarray:
@@ -207,22 +291,54 @@ def _arc_fraction(base, parents, order, kp) -> np.ndarray:
     return np.where(reach[base] > 1e-9, dist / np.maximum(reach[base], 1e-9), 0.0)
 
 
-def _limb_attachment(base, side, parents, main, head, position, reach) -> np.ndarray:
+def _limb_paths(base, parents, side, along, hops, canonical) -> tuple[np.ndarray, np.ndarray]:
+    """(K,) sequence ids (base + 1 on a limb's main path, else -1) and (K,) ranks on that path / its length.
+
+    A limb's main path runs from its base to its farthest bone (largest ``along``, then deepest,
+    then the plainest name, fewest words: ``foot`` before ``foot back`` at the same place): an
+    arm's shoulder to hand to middle finger tip; the other fingers are branches, left out.
+    """
+    k = len(base)
+    seq_id, seq_pos = np.full(k, -1.0), np.zeros(k)
+    plain = -np.array([len(t.split()) for t in canonical], float)
+    for b in np.flatnonzero((base == np.arange(k)) & (side != 0)):
+        members = np.flatnonzero((base == b) & (side != 0))
+        leaf = int(members[np.lexsort((plain[members], hops[members], along[members]))[-1]])
+        path, j = [], leaf
+        while j >= 0 and base[j] == b:
+            path.append(j)
+            if j == b:
+                break
+            j = int(parents[j])
+        path = path[::-1]
+        seq_id[path] = b + 1
+        seq_pos[path] = np.arange(len(path)) / max(len(path), 1)
+    return seq_id, seq_pos
+
+
+def _limb_attachment(base, side, parents, main, head, position, reach, canonical=None) -> np.ndarray:
     """(K,) per limb base: 0 at the rearmost limb's attachment, 1 at the foremost, 1.5 on the head.
 
     Extremes come from the limbs of two or more bones in the main tree that do not hang from the
-    head (or from all such limbs when those do not spread); ears and antennae get 1.5.
+    head (or from all such limbs when those do not spread); ears and antennae get 1.5, also when
+    they hang from a neck bone beside the head (a Quaternius wolf's) as their names say
+    (:data:`HEAD_LIMB_WORDS`). Limbs of IK helpers (:data:`IK_WORDS`: an MMD leg's IK parent at
+    the ground, pole targets) do not set the extremes.
     """
     k = len(base)
+    words = [set(t.split()) for t in canonical] if canonical is not None else [set()] * k
+    named_head = np.array([bool(HEAD_LIMB_WORDS & w) for w in words])  # by the limb base's own name
+    helper = np.array([bool(IK_WORDS & w) for w in words])
     on_head = np.zeros(k, bool)
     for i in range(k):  # walk up to the root: does the limb hang below the head?
         j = int(parents[i])
         while j >= 0 and not on_head[i]:
             on_head[i] = j == head
             j = int(parents[j])
+    on_head |= named_head
     starts = np.flatnonzero((base == np.arange(k)) & (side != 0) & main & ~on_head)
     z = position[:, 2]
-    pool = starts[reach[starts] >= 1]
+    pool = starts[(reach[starts] >= 1) & ~helper[starts]]
     if len(pool) == 0 or np.ptp(z[pool]) < 0.05:
         pool = starts
     out = np.full(k, 1.5)
@@ -251,6 +367,11 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
     hops, root = _hop_depths(parents)
     sizes = np.bincount(root, minlength=k)
     main = root == int(np.argmax(sizes)) if k else np.zeros(0, bool)
+    if k and not main.all():  # detached trees (IK targets) join the bone they sit at
+        kp0 = None if keypoints is None else np.asarray(keypoints, np.float64).reshape(k, 3)
+        parents = _attach_detached(parents, main, kp0 if kp0 is not None and np.isfinite(kp0).all() else None)
+        hops, root = _hop_depths(parents)
+        main = np.ones(k, bool)
     side = _name_sides(canonical)
     position = np.zeros((k, 3))
     axial = np.zeros(k)
@@ -287,10 +408,18 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
     along = np.where(side != 0, limb_hops / np.maximum(reach[base], 1), 0.0)
     if keypoints is not None and k:
         along = np.where(side != 0, 0.5 * (along + _arc_fraction(base, parents, order, kp)), along)
+    limb_axial = None
     if keypoints is not None and k:
-        axial = np.where(side != 0, _limb_attachment(base, side, parents, main, head, position, reach)[base], axial)
+        limb_axial = _limb_attachment(base, side, parents, main, head, position, reach, canonical)[base]
+        axial = np.where(side != 0, limb_axial, axial)
     if keypoints is not None and k:
-        limb_hops = limb_hops - _connector_limbs(base, parents, side, position)[base]
+        connector = _connector_limbs(base, parents, side, position)
+        mirror = {t: i for i, t in enumerate(canonical) if base[i] == i and side[i] != 0}
+        for b, t in enumerate(canonical):  # a limb is a connector when its mirror image is (asymmetric rests)
+            other = mirror.get(t.replace("left", "\0").replace("right", "left").replace("\0", "right"))
+            if base[b] == b and other is not None and connector[other]:
+                connector[b] = 1.0
+        limb_hops = limb_hops - connector[base]
     limb_hop = np.where(side != 0, limb_hops, 0) / HOP_SCALE
     part = _body_parts(canonical, parents, side, main, head)
     chain_hop = np.zeros(k)
@@ -302,11 +431,32 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
     pelvis = np.zeros(k)
     path = _root_path(parents, head)
     limb_parents = {int(parents[i]) for i in range(k) if side[i] != 0 and base[i] == i and parents[i] >= 0}
-    first = next((j for j in path if j in limb_parents), None)
+    body_limbs = {int(parents[i]) for i in range(k) if side[i] != 0 and base[i] == i and parents[i] >= 0
+                  and reach[i] >= 1 and not IK_WORDS & set(canonical[i].split())}
+    first = next((j for j in path if j in (body_limbs or limb_parents)), None)
+    if first is not None and first == path[0] and len(path) > 1 and keypoints is not None:
+        # a ground-level root that the legs hang from (a Quaternius soldier's Root): the pelvis is the
+        # next bone up when the legs' heads are three times nearer that bone's head than the root's
+        kids = [i for i in range(k) if parents[i] == first and side[i] != 0]
+        legs = position[kids].mean(0)
+        if 3 * np.linalg.norm(legs - position[path[1]]) < np.linalg.norm(legs - position[first]):
+            first = path[1]
     if first is not None:
         pelvis[first] = 1.0
+    seq_id, seq_pos = _limb_paths(base, parents, side, along, hops, canonical)
+    trunk_arc = np.full(k, -1.0)
+    if first is not None and keypoints is not None and first != head:
+        run = path[path.index(first):]  # pelvis .. head
+        steps = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(kp[run], axis=0), axis=1))]
+        if steps[-1] > 1e-9:
+            trunk_arc[run] = steps / steps[-1]
+        trunk_arc[(part[:, 0] == 0)] = -1.0  # the neck and the head keep their own chains
+    seq_id = np.where(trunk_arc >= 0, 0.0, seq_id)
+    seq_pos = np.where(trunk_arc >= 0, trunk_arc, seq_pos)
     depth = hops / max(int(hops[main].max()) if k else 1, 1)
     return SkeletonFeatures(side.astype(np.float32), np.clip(axial, -3, 3).astype(np.float32),
                             along.astype(np.float32), chain_hop.astype(np.float32), pelvis.astype(np.float32),
                             limb_hop.astype(np.float32), part, np.clip(depth, 0, 2).astype(np.float32),
-                            np.clip(position, -5, 5).astype(np.float32))
+                            np.clip(position, -5, 5).astype(np.float32), seq_id.astype(np.float32),
+                            seq_pos.astype(np.float32),
+                            chain_kinds(side, part, limb_axial), name_keys(canonical))
