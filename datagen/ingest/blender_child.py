@@ -35,7 +35,7 @@ itself is part of every bone's world matrix. Frame f of a clip is at file time `
 ``t0`` the clip's first key in the file's own clock (:func:`_import`). Per frame and bone: the
 rotation and symmetric stretch of the polar decomposition ``M = R U`` of the bone's world change
 from rest, and the posed head position. Blender's mesh at two frames of each clip, for the
-reproduction error, comes from a fresh import of the file for that clip alone.
+reproduction error, comes from a second import of the file (each clip from the file's defaults).
 
 Unweighted vertices (no deform-bone weight) of a mesh hung from a bone follow that bone; those of
 a mesh hung from no bone follow an object no joint carries, and are left out with their faces
@@ -538,7 +538,9 @@ def _unplayed_curves(bindings, frame: float) -> int:
 
 
 def _reproduce(path: str, options: dict, scratch: str, plan: list, mesh_names: list, keep: np.ndarray) -> dict:
-    """Blender's own mesh at the evaluation frames of every planned clip, each from a fresh import.
+    """Blender's own mesh at the evaluation frames of every planned clip, in a second import of the
+    file (not the scene the clips were sampled in): each clip starts from the file's default pose
+    (:func:`_start_clip`), and a clip whose check raised gets a fresh import for the next one.
 
     Args:
         plan: ``(clip name, [(action name, object name, slot identifier or None)], [Blender frames])``.
@@ -549,13 +551,14 @@ def _reproduce(path: str, options: dict, scratch: str, plan: list, mesh_names: l
         clip name -> ((E, N', 3) evaluated vertices of the kept vertices, F-curves not played), or
         an error string for the clip.
     """
-    out = {}
+    out, st = {}, None
     for name, refs, frames in plan:
         try:
-            st = _load(path, options, scratch)
-            if st["failed"]:
-                raise RuntimeError(st["failed"])
-            st["arm"].data.pose_position = "POSE"
+            if st is None:
+                st = _load(path, options, scratch)
+                if st["failed"]:
+                    raise RuntimeError(st["failed"])
+                st["arm"].data.pose_position = "POSE"
             objects = {o.name: o for o in st["scene"].objects}
             meshes = [objects[n] for n in mesh_names]  # in the first import's order
             bindings = []
@@ -572,6 +575,7 @@ def _reproduce(path: str, options: dict, scratch: str, plan: list, mesh_names: l
             out[name] = (np.stack(evaluated), unplayed)
         except Exception as exc:  # this clip's check failed; the clip is reported
             out[name] = f"{type(exc).__name__}: {exc}"
+            st = None
     return out
 
 
@@ -580,7 +584,7 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
     result dict that :func:`run_job` writes as JSON.
 
     Every clip is sampled in this scene; Blender's mesh at two of its frames (for
-    ``reproduction_error``) comes from a fresh import of the file per clip (:func:`_reproduce`),
+    ``reproduction_error``) comes from a second import of the file (:func:`_reproduce`),
     where every key curve of the clip must also show on its object, or the clip fails.
     """
     options = options or {}
@@ -669,7 +673,7 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
         check = checked.get(clip["name"])
         if isinstance(check, str) or (check is not None and check[1]):
             reason = check if isinstance(check, str) else (
-                f"Blender does not play {check[1]} of the clip's key curves in a fresh import")
+                f"Blender does not play {check[1]} of the clip's key curves in a second import")
             clip_errors.append({"name": clip["name"], "reason": reason})
             for key in [k for k in arrays if k.startswith(f"clip{ci}_")]:
                 del arrays[key]

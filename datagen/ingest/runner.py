@@ -143,8 +143,8 @@ def category_for(asset: Path, category_map: dict | None) -> str:
 def reproduction_error(char: CharacterRecord, transforms: np.ndarray, scale: np.ndarray | None, frames: np.ndarray,
                        evaluated: np.ndarray) -> dict:
     """Mean and max distance (percent of height) between the stored clip posed by LBS and the
-    mesh Blender evaluated from the file at ``frames`` (in a fresh import of the file for that
-    clip alone, not the scene the clip was sampled in: :func:`datagen.ingest.blender_child._reproduce`)."""
+    mesh Blender evaluated from the file at ``frames`` (in a second import of the file,
+    each clip from the file's defaults, not the scene the clip was sampled in: :func:`datagen.ingest.blender_child._reproduce`)."""
     if not len(char.vertices) or not char.height:
         return {}
     pred = linear_blend_skinning(char.vertices, char.keypoints, char.weights, transforms[frames],
