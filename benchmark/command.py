@@ -2,11 +2,15 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 from mimicbench.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
+from mimicbench.summary import StageSummary
 
 SPLIT_CHOICES = ("train", "val", "test", "all")
+CASES_CONFIG_KEYS = {"command": "bench", "bench_command": "cases", "debug": False, "no_verify": False}
+"""Keys the cases' config has always recorded (from the parsed command line) beside the options."""
 
 
 def _method_names(text: str) -> tuple[str, ...]:
@@ -121,10 +125,10 @@ def run_cases(args) -> int:
     protocols = list(args.protocols)
     cases = build_cases(args.dataset, split, args.h2h_pairs, args.h2h_poses, args.cct_pairs, args.cct_poses,
                         args.seed, all_pairs=args.all_pairs, protocols=protocols)
-    config = {"stage": "bench cases", **{k: v for k, v in vars(args).items() if k != "func"}, "split": split}
+    config = {"stage": "bench cases", **CASES_CONFIG_KEYS, **dataclasses.asdict(args), "split": split}
     counts = write_cases(args.dataset, cases, config)
     print(f"cases in {args.dataset}: " + ", ".join(f"{p} {n}" for p, n in counts.items()))
-    return 0
+    return StageSummary(sum(counts.values()), out=str(args.dataset))
 
 
 def run_run(args) -> int:
@@ -143,7 +147,8 @@ def run_run(args) -> int:
               f"supported by their method), {summary['skipped']} already done; results in {args.out}")
     for reason in summary["unavailable"].values():
         print(f"mimicbench: error: not run: {reason}", file=sys.stderr)
-    return 1 if summary["unavailable"] else 0
+    return StageSummary(summary["computed"] - summary["failed"] - summary["not_supported"], summary["failed"],
+                        out=str(args.out), exit_code=1 if summary["unavailable"] else 0)
 
 
 def run_leaderboard(args) -> int:
@@ -152,10 +157,11 @@ def run_leaderboard(args) -> int:
 
     from benchmark.leaderboard import default_out
 
-    paths = write_leaderboard(args.results, args.out or default_out(args.results), pictures=not args.no_pictures)
+    out = args.out or default_out(args.results)
+    paths = write_leaderboard(args.results, out, pictures=not args.no_pictures)
     print(markdown_tables(aggregate(args.results)))
     print("wrote " + ", ".join(str(p) for p in paths.values()))
-    return 0
+    return StageSummary(len(paths), out=str(out))
 
 
 def run_methods(args) -> int:

@@ -27,6 +27,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -176,7 +177,10 @@ def load_pipeline(path, workdir=None) -> Pipeline:
     root = Path(workdir if workdir is not None else head.get("workdir", "."))
     for i, step in enumerate(steps, 1):
         _check_step_folders(path, i, step, root)
-    return Pipeline(str(head.get("name", path.stem)), root, steps, engine, head.get("ray_address"), jobs, path)
+    pipeline = Pipeline(str(head.get("name", path.stem)), root, steps, engine, head.get("ray_address"), jobs, path)
+    for step in steps:
+        step_options(step, pipeline)  # every option typed and checked before anything runs
+    return pipeline
 
 
 def _check_step_folders(path: Path, i: int, step: Step, workdir: Path) -> None:
@@ -200,8 +204,41 @@ def _check_step_folders(path: Path, i: int, step: Step, workdir: Path) -> None:
                                  f"<results>{LEADERBOARD_SUFFIX})")
 
 
+def step_options(step: Step, pipeline: Pipeline, parser=None) -> tuple[Callable, object]:
+    """The command function of ``step`` and its options dataclass (folders resolved, engine settings added).
+
+    ``parser``: the toolkit's parser (:func:`mimicbench.cli.build_parser`; built when None).
+
+    Raises:
+        ValueError: naming the file and the step: an unknown option, a wrong-typed or out-of-range value.
+    """
+    from mimicbench.cli import command_parser
+    from mimicbench.options import from_mapping
+
+    spec = step.spec
+    command = command_parser(spec.command, parser)
+    positional = [a.dest for a in command._actions if not a.option_strings]
+    options = dict(step.options)
+    if step.kind == "leaderboard":
+        options.setdefault("out", None)  # beside the results (step.folder), never into them
+    values = {}
+    for key, value in options.items():
+        if key in spec.folders:
+            folders = [str(p) for p in step.folder(key, pipeline.workdir)]
+            value = folders if isinstance(value, list) or key == "paths" else folders[0]
+        values[positional[spec.positional.index(key)] if key in spec.positional else key] = value
+    if spec.engine:
+        values.update(engine=pipeline.engine, **{"ray_address": pipeline.ray_address} if pipeline.ray_address else {})
+    if spec.jobs and pipeline.jobs > 1:
+        values["jobs"] = pipeline.jobs
+    index = pipeline.steps.index(step) + 1
+    where = f"{pipeline.source}: step {index} ({step.name})" if pipeline.source else f"step {index} ({step.name})"
+    return command.get_default("func"), from_mapping(command, values, where)
+
+
 def step_argv(step: Step, pipeline: Pipeline) -> list[str]:
-    """The `mimicbench` command line of ``step`` (folders resolved, engine settings added)."""
+    """The `mimicbench` command line equivalent to ``step`` (folders resolved, engine settings added), for
+    ``--dry-run`` and the progress lines; the pipeline itself calls :func:`step_options`' function."""
     spec = step.spec
     argv = list(spec.command)
     for key in spec.positional:
