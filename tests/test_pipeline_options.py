@@ -90,3 +90,33 @@ def test_a_wrong_option_is_refused_before_anything_runs(tmp_path, capsys, step, 
 def test_a_summary_says_its_exit_status():
     assert StageSummary(5).exit_code == 0 and StageSummary(5, 1).exit_code == 1
     assert StageSummary(5, 1, exit_code=0).exit_code == 0  # bench run: failed cases are results, not an error
+
+
+def test_the_demo_is_its_bundled_pipeline_file_and_its_help_states_the_files_values():
+    import re
+
+    from benchmark.demo import DEMO_PIPELINE, OPTION_STEPS
+
+    pipeline = load_pipeline(DEMO_PIPELINE, workdir="demo-output")  # every step's options checked
+    steps = {s.name: s for s in pipeline.steps}
+    helps = {a.dest: a.help or "" for a in command_parser(("demo",))._actions}
+    for option, names in OPTION_STEPS.items():
+        stated = re.search(r"\(default (\d+)\)", helps[option])  # "zoo size (default 16)"
+        values = {steps[n].options[option] for n in names}
+        assert len(values) == 1 and (stated is None or int(stated.group(1)) == values.pop()), option
+    assert [s.kind for s in pipeline.steps] == ["zoo", "resample", "correspond", "cases", "bench", "apparel", "cases",
+                                                "bench", "leaderboard", "leaderboard"]
+
+
+def test_a_restart_step_starts_its_folder_again_when_its_inputs_changed(tmp_path):
+    path = tmp_path / "p.toml"
+    board = "[[steps]]\nname = '{0}'\nrun = 'leaderboard'\nresults = 'zoo'\nout = '{0}'\nno_pictures = true\n"
+    path.write_text(HEAD + ZOO + board.format("kept") + board.format("restarted") + "restart = true\n")
+    pipeline = load_pipeline(path, workdir=tmp_path / "w")
+    run_pipeline(pipeline, progress=False)
+    for name in ("kept", "restarted"):
+        (tmp_path / "w" / name / "stray.txt").write_text("left by an earlier run")
+    (tmp_path / "w" / "zoo" / "extra.txt").write_text("the folder it reads changed")
+    assert [r.status for r in run_pipeline(pipeline, progress=False)] == ["skipped", "done", "done"]
+    assert (tmp_path / "w" / "kept" / "stray.txt").exists() and not (tmp_path / "w" / "restarted" / "stray.txt").exists()
+    assert (tmp_path / "w" / "restarted" / "leaderboard.json").exists()

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import shlex
+import shutil
 import sys
 import time
 from dataclasses import dataclass
@@ -63,6 +64,10 @@ def run_pipeline(pipeline: Pipeline, progress: bool = True, force: tuple[str, ..
             continue
         if progress:
             tqdm.write(f"[{i}/{len(pipeline.steps)}] {command}", file=sys.stderr)
+        if step.restart and step.name in state.steps:  # it finished from other inputs: start its folders again
+            for key, _ in step.spec.writes:
+                for folder in step.folder(key, pipeline.workdir):
+                    shutil.rmtree(folder, ignore_errors=True)
         state.forget(step)
         start = time.perf_counter()
         summary, note = None, ""

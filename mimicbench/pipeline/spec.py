@@ -15,7 +15,9 @@ characters = 16
 Every other key of a step is the command's option with ``_`` for ``-`` (``all_pairs = true`` is
 ``--all-pairs``; a list is joined with commas); ``help`` is refused (it would print the help and
 run nothing). The folders a step writes must lie inside the workdir (``../../etc`` or an absolute
-path elsewhere is refused) unless the step says ``allow_outside = true``. A leaderboard step
+path elsewhere is refused) unless the step says ``allow_outside = true``. A step with
+``restart = true`` (the demo's bench steps) deletes the folders it writes before it runs again
+after it finished from other inputs or options (results scored on other cases). A leaderboard step
 without ``out`` writes beside its results, into ``<results>-leaderboard``, never into the
 results folder it reads (that would change the bench step's output and its own input, so a
 finished pipeline would redo both on every run). :data:`STEP_KINDS` says, per kind, which keys are
@@ -92,6 +94,7 @@ class Step:
     kind: str
     options: dict = field(default_factory=dict)
     allow_outside: bool = False
+    restart: bool = False
 
     @property
     def spec(self) -> StepKind:
@@ -164,10 +167,14 @@ def load_pipeline(path, workdir=None) -> Pipeline:
             if key and HELP.startswith(key.replace("_", "-")):
                 raise ValueError(f"{path}: step {i} ({name}): {key} = ... is not a step option (it would print and "
                                  f"run nothing); see `mimicbench {' '.join(STEP_KINDS[kind].command)} --help`")
-        allow_outside = raw.pop("allow_outside", False)
-        if not isinstance(allow_outside, bool):
-            raise ValueError(f"{path}: step {i} ({name}): allow_outside = {allow_outside!r}; expected true or false")
-        steps.append(Step(name, kind, raw, allow_outside))
+        flags = {key: raw.pop(key, False) for key in ("allow_outside", "restart")}
+        for key, value in flags.items():
+            if not isinstance(value, bool):
+                raise ValueError(f"{path}: step {i} ({name}): {key} = {value!r}; expected true or false")
+        if flags["restart"] and (flags["allow_outside"] or not all(t is None for _, t in STEP_KINDS[kind].writes)):
+            raise ValueError(f"{path}: step {i} ({name}): restart = true only for a step that writes whole folders "
+                             f"inside the workdir (bench, leaderboard)")
+        steps.append(Step(name, kind, raw, **flags))
     engine = head.get("engine", "local")
     if engine not in ("local", "ray"):
         raise ValueError(f"{path}: [pipeline] engine = {engine!r}; expected \"local\" or \"ray\"")
