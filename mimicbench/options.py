@@ -96,6 +96,8 @@ def from_mapping(parser: argparse.ArgumentParser, values: dict, where: str):
                              f"{' or '.join(_NAMES[t] for t in accepted)} ({action.help or key})")
         if isinstance(value, list) and list in accepted and not all(isinstance(v, (str, int, float)) for v in value):
             raise ValueError(f"{where}: {key} = {value!r}; expected a list of strings or numbers")
+        if isinstance(value, str) and action.nargs in ("+", "*"):
+            value = [value]  # one item, as on a command line
         try:
             given[key] = value if isinstance(value, bool) else _parse(action, value)
         except (argparse.ArgumentTypeError, ValueError, TypeError) as exc:

@@ -31,6 +31,11 @@ def test_the_options_dataclass_has_the_parsers_defaults_and_both_fillers_agree()
     assert from_cli == from_file == cls(in_dataset="a", out_dataset="b", faces=800, backend="pymeshlab", jobs=2)
     with pytest.raises(dataclasses.FrozenInstanceError):
         from_file.faces = 1
+    zoo = command_parser(("zoo",))  # nargs="+": a list, or one string as one item; a comma type: a list joined
+    assert from_mapping(zoo, {"out": "z", "categories": "fish"}, "here").categories == ["fish"]
+    assert from_mapping(zoo, {"out": "z", "categories": ["fish", "bird"], "export": ["obj", "bvh"]}, "here") == \
+        from_namespace(zoo, build_parser().parse_args(["zoo", "--out", "z", "--categories", "fish", "bird",
+                                                       "--export", "obj,bvh"]))
 
 
 def test_a_stage_function_called_with_its_dataclass_returns_its_summary(tmp_path):
