@@ -13,7 +13,8 @@ characters = 16
 ```
 
 Every other key of a step is the command's option with ``_`` for ``-`` (``all_pairs = true`` is
-``--all-pairs``; a list is joined with commas); ``help`` is refused (it would print the help and
+``--all-pairs``; a list gives several values, or one comma-separated value), typed and checked
+when the file is loaded (:mod:`mimicbench.options`); ``help`` is refused (it would print the help and
 run nothing). The folders a step writes must lie inside the workdir (``../../etc`` or an absolute
 path elsewhere is refused) unless the step says ``allow_outside = true``. A step with
 ``restart = true`` (the demo's bench steps) deletes the folders it writes before it runs again
@@ -185,8 +186,11 @@ def load_pipeline(path, workdir=None) -> Pipeline:
     for i, step in enumerate(steps, 1):
         _check_step_folders(path, i, step, root)
     pipeline = Pipeline(str(head.get("name", path.stem)), root, steps, engine, head.get("ray_address"), jobs, path)
+    from mimicbench.cli import build_parser
+
+    parser = build_parser()
     for step in steps:
-        step_options(step, pipeline)  # every option typed and checked before anything runs
+        step_options(step, pipeline, parser)  # every option typed and checked before anything runs
     return pipeline
 
 
