@@ -2,11 +2,16 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 from mimicbench.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
+from mimicbench.summary import StageSummary
 
 SPLIT_CHOICES = ("train", "val", "test", "all")
+CASES_CONFIG_KEYS = {"command": "bench", "bench_command": "cases", "debug": False, "no_verify": False}
+"""Keys the cases' config has always recorded (from the parsed command line) beside the options
+(``--apparel-windows`` only when given, so configs made before it stay the same)."""
 
 
 def _method_names(text: str) -> tuple[str, ...]:
@@ -58,6 +63,8 @@ def register(subparsers) -> None:
     c.add_argument("--protocols", default=("h2h", "cct"), type=_protocol_names,
                    help="comma-separated protocols to make cases of (default h2h,cct); apparel: windows of "
                         "16 frames of every clip that `datagen apparel` simulated, 10 per clip")
+    c.add_argument("--apparel-windows", type=positive_int, default=None, metavar="N",
+                   help="apparel protocol: 16-frame windows per simulated clip, >= 1 (default 10)")
     c.set_defaults(func=run_cases)
 
     r = sub.add_parser("run", help="run methods on the cases and store per-case results",
@@ -120,11 +127,13 @@ def run_cases(args) -> int:
     split = "all" if args.all_pairs else (args.split or "test")
     protocols = list(args.protocols)
     cases = build_cases(args.dataset, split, args.h2h_pairs, args.h2h_poses, args.cct_pairs, args.cct_poses,
-                        args.seed, all_pairs=args.all_pairs, protocols=protocols)
-    config = {"stage": "bench cases", **{k: v for k, v in vars(args).items() if k != "func"}, "split": split}
+                        args.seed, all_pairs=args.all_pairs, protocols=protocols,
+                        sizes=None if args.apparel_windows is None else {"apparel": (None, args.apparel_windows)})
+    options = {k: v for k, v in dataclasses.asdict(args).items() if not (k == "apparel_windows" and v is None)}
+    config = {"stage": "bench cases", **CASES_CONFIG_KEYS, **options, "split": split}
     counts = write_cases(args.dataset, cases, config)
     print(f"cases in {args.dataset}: " + ", ".join(f"{p} {n}" for p, n in counts.items()))
-    return 0
+    return StageSummary(sum(counts.values()), out=str(args.dataset))
 
 
 def run_run(args) -> int:
@@ -143,7 +152,8 @@ def run_run(args) -> int:
               f"supported by their method), {summary['skipped']} already done; results in {args.out}")
     for reason in summary["unavailable"].values():
         print(f"mimicbench: error: not run: {reason}", file=sys.stderr)
-    return 1 if summary["unavailable"] else 0
+    return StageSummary(summary["computed"] - summary["failed"] - summary["not_supported"], summary["failed"],
+                        out=str(args.out), exit_code=1 if summary["unavailable"] else 0)
 
 
 def run_leaderboard(args) -> int:
@@ -152,10 +162,11 @@ def run_leaderboard(args) -> int:
 
     from benchmark.leaderboard import default_out
 
-    paths = write_leaderboard(args.results, args.out or default_out(args.results), pictures=not args.no_pictures)
+    out = args.out or default_out(args.results)
+    paths = write_leaderboard(args.results, out, pictures=not args.no_pictures)
     print(markdown_tables(aggregate(args.results)))
     print("wrote " + ", ".join(str(p) for p in paths.values()))
-    return 0
+    return StageSummary(len(paths), out=str(out))
 
 
 def run_methods(args) -> int:

@@ -1,7 +1,8 @@
 """The ``mimicbench`` command line: one entry point, one sub-command per job.
 
 Each sub-command lives in its own module exposing ``register(subparsers)``, which adds a parser
-whose ``func`` default takes the parsed arguments and returns an exit code. Modules import their
+whose ``func`` default takes the command's options (a dataclass derived from that parser, see
+:mod:`mimicbench.options`) and returns a :class:`~mimicbench.summary.StageSummary` or an exit code. Modules import their
 heavy dependencies inside ``func``, so ``mimicbench --help`` stays fast.
 
 User errors (:class:`~schemas.errors.UserError` and its subclasses such as ``DatasetError``,
@@ -19,6 +20,8 @@ import os
 import sys
 
 from mimicbench import __version__
+from mimicbench.options import from_namespace
+from mimicbench.summary import StageSummary
 from schemas.errors import UserError
 
 # Exceptions that mean "the user asked for something impossible", not "mimicbench has a bug".
@@ -121,7 +124,21 @@ def build_parser() -> argparse.ArgumentParser:
         module.register(target)
     for sub in _subparsers_of(parser):
         _add_global_flags(sub, top=False)
+        sub.set_defaults(command_parser=sub)  # the deepest one wins: its options become the dataclass
     return parser
+
+
+def command_parser(words: tuple[str, ...], parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    """The parser of the command ``words`` (e.g. ``("datagen", "resample")``)."""
+    parser = parser or build_parser()
+    for word in words:
+        parser = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[word]
+    return parser
+
+
+def exit_code(result) -> int:
+    """A command function's exit status: its :class:`StageSummary`'s, or the int it returned."""
+    return result.exit_code if isinstance(result, StageSummary) else int(result or 0)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -134,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        return exit_code(args.func(from_namespace(args.command_parser, args)))
     except KeyboardInterrupt:
         print("interrupted; work already written is kept, re-run to resume", file=sys.stderr)
         return 130

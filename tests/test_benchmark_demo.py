@@ -9,11 +9,11 @@ from mimicbench.cli import main
 @pytest.mark.slow
 def test_demo_prints_a_leaderboard_with_five_methods_and_two_protocols(tmp_path, capsys):
     out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--characters", "14", "--h2h-poses", "4", "--cct-pairs", "8",
-                 "--cct-poses", "2"]) == 0
+    options = ["demo", "--out", str(out), "--characters", "14", "--h2h-poses", "4", "--cct-pairs", "8", "--cct-poses", "2"]
+    assert main(options) == 0
     printed = capsys.readouterr().out
-    assert "leaderboard: " in printed and (out / "results" / "leaderboard.html").exists()
-    board = json.loads((out / "results" / "leaderboard.json").read_text())
+    assert "leaderboard: " in printed and (out / "results-leaderboard" / "leaderboard.html").exists()
+    board = json.loads((out / "results-leaderboard" / "leaderboard.json").read_text())
     assert set(board["protocols"]) == {"h2h", "cct"}
     for protocol, entries in board["protocols"].items():
         assert {e["method"] for e in entries} == {"identity", "name_copy", "nearest_joint", "text_soft", "mimicat"}
@@ -33,6 +33,10 @@ def test_demo_prints_a_leaderboard_with_five_methods_and_two_protocols(tmp_path,
     assert set(apparel) == set(BUNDLED_APPAREL) == {"lbs_kinematic", "body_only", "mmdmc"}
     assert all(e["complete"] and e["ok"] > 0 and e["failed"] == 0 for e in apparel.values())
     assert apparel["lbs_kinematic"]["pmd_body"] == pytest.approx(0.0, abs=1e-9) and apparel["lbs_kinematic"]["pmd_apparel"] > 0.0
-    assert "apparel leaderboard: " in printed and (out / "results-apparel" / "leaderboard.html").exists()
-    # a second run resumes: nothing is recomputed
-    assert main(["demo", "--out", str(out), "--characters", "14"]) == 0
+    assert "apparel leaderboard: " in printed and (out / "results-apparel-leaderboard" / "leaderboard.html").exists()
+    # the demo is its bundled pipeline file: a second run resumes and recomputes nothing
+    parts = {p: p.stat().st_mtime_ns for p in out.rglob("*.parquet")}
+    assert main(options) == 0
+    summary = capsys.readouterr().out.split("pipeline demo in ")[1].splitlines()
+    assert any(line.startswith("  10 skipped;") for line in summary), summary
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*.parquet")} == parts

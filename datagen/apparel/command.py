@@ -5,6 +5,7 @@ import argparse
 import dataclasses
 
 from mimicbench.engines import add_engine_arguments
+from mimicbench.summary import StageSummary
 from mimicbench.argtypes import float_in, nonnegative_int, positive_int
 
 MIN_PHYSICS_FPS = 30.0
@@ -70,4 +71,4 @@ def run(args) -> int:
           f"characters with apparel in {s['seconds']:.1f} s; apparel inside the body {fmt(s['inside_pct_mean'])} % "
           f"(new {fmt(s['new_inside_pct_mean'])} %), secondary motion {fmt(s['secondary_motion_pct_mean'])} % of "
           f"height, max edge stretch {fmt(s['max_edge_stretch'])} -> {args.out_dataset}")
-    return 1 if s["failed"] else 0
+    return StageSummary(s["simulated"] + s["reused"], s["failed"], s["seconds"], str(args.out_dataset))

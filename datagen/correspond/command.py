@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from mimicbench.engines import add_engine_arguments
+from mimicbench.summary import StageSummary
 from mimicbench.argtypes import MAX_JOBS, job_count, nonnegative_int, positive_float, positive_int
 
 
@@ -73,4 +74,5 @@ def run(args) -> int:
         print(f"  FAILED {failure}")
     print(f"pairs written: {summary['pairs']} with {summary['encoder']}, method {summary['method']}, in "
           f"{summary['seconds']:.1f} s (report: {args.dataset}/correspond_report.json)")
-    return 1 if summary["failed_blocks"] else 0
+    return StageSummary(sum(summary["pairs"].values()), len(summary["failed_blocks"]), summary["seconds"],
+                        str(args.dataset))

@@ -6,6 +6,7 @@ import argparse
 from datagen.ingest.clip_length import MAX_CLIP_FRAMES
 from mimicbench.argtypes import MAX_JOBS, comma_choices, job_count, positive_float, positive_int
 from mimicbench.engines import add_engine_arguments
+from mimicbench.summary import StageSummary
 
 EXPORT_FORMATS = ("obj", "bvh")  # as datagen.ingest.runner.EXPORT_FORMATS (kept here so --help stays fast)
 
@@ -117,4 +118,4 @@ def run(args) -> int:
         print(f"warning: {w}")
     print(f"{s['characters']} characters and {s['motions']} clips in {args.out} ({s['skipped']} already done, "
           f"{s['failed']} failed, {s['failed_clips']} clips unreadable) in {s['seconds']:.1f} s")
-    return 1 if s["failed"] else 0
+    return StageSummary(s["characters"], s["failed"], s["seconds"], str(args.out))

@@ -6,6 +6,7 @@ import argparse
 from datagen.resample import MAX_FACES, MIN_FACES
 from mimicbench.argtypes import MAX_JOBS, int_in, job_count
 from mimicbench.engines import add_engine_arguments
+from mimicbench.summary import StageSummary
 
 
 def register(subparsers) -> None:
@@ -48,4 +49,4 @@ def run(args) -> int:
     print(f"{s['resampled']} resampled, {s['already_done']} already done, {s['failed']} failed in {s['seconds']:.1f} s; "
           f"mean Hausdorff {h if h is None else round(h, 3)} %, mean transfer error {t if t is None else round(t, 3)} % "
           f"of height -> {args.out_dataset}")
-    return 1 if s["failed"] else 0
+    return StageSummary(s["resampled"] + s["already_done"], s["failed"], s["seconds"], str(args.out_dataset))

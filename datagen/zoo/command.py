@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from mimicbench.engines import add_engine_arguments
+from mimicbench.summary import StageSummary
 from mimicbench.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonnegative_int
 
 MAX_CHARACTERS = 100_000
@@ -75,4 +76,4 @@ def run(args: argparse.Namespace) -> int:
           f"joints {s['joints'][0]}-{s['joints'][2]}, faces {s['faces'][0]}-{s['faces'][2]}; "
           f"H2H family {s['h2h_family']}; splits {s['splits']}; {s['failed']} failed; "
           f"{s['seconds']:.1f} s -> {s['out']} (see CARD.md)")
-    return 1 if s["failed"] else 0
+    return StageSummary(s["characters"], s["failed"], s["seconds"], str(args.out))

@@ -13,9 +13,12 @@ characters = 16
 ```
 
 Every other key of a step is the command's option with ``_`` for ``-`` (``all_pairs = true`` is
-``--all-pairs``; a list is joined with commas); ``help`` is refused (it would print the help and
+``--all-pairs``; a list gives several values, or one comma-separated value), typed and checked
+when the file is loaded (:mod:`mimicbench.options`); ``help`` is refused (it would print the help and
 run nothing). The folders a step writes must lie inside the workdir (``../../etc`` or an absolute
-path elsewhere is refused) unless the step says ``allow_outside = true``. A leaderboard step
+path elsewhere is refused) unless the step says ``allow_outside = true``. A step with
+``restart = true`` (the demo's bench steps) deletes the folders it writes before it runs again
+after it finished from other inputs or options (results scored on other cases). A leaderboard step
 without ``out`` writes beside its results, into ``<results>-leaderboard``, never into the
 results folder it reads (that would change the bench step's output and its own input, so a
 finished pipeline would redo both on every run). :data:`STEP_KINDS` says, per kind, which keys are
@@ -27,6 +30,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -91,6 +95,7 @@ class Step:
     kind: str
     options: dict = field(default_factory=dict)
     allow_outside: bool = False
+    restart: bool = False
 
     @property
     def spec(self) -> StepKind:
@@ -163,10 +168,14 @@ def load_pipeline(path, workdir=None) -> Pipeline:
             if key and HELP.startswith(key.replace("_", "-")):
                 raise ValueError(f"{path}: step {i} ({name}): {key} = ... is not a step option (it would print and "
                                  f"run nothing); see `mimicbench {' '.join(STEP_KINDS[kind].command)} --help`")
-        allow_outside = raw.pop("allow_outside", False)
-        if not isinstance(allow_outside, bool):
-            raise ValueError(f"{path}: step {i} ({name}): allow_outside = {allow_outside!r}; expected true or false")
-        steps.append(Step(name, kind, raw, allow_outside))
+        flags = {key: raw.pop(key, False) for key in ("allow_outside", "restart")}
+        for key, value in flags.items():
+            if not isinstance(value, bool):
+                raise ValueError(f"{path}: step {i} ({name}): {key} = {value!r}; expected true or false")
+        if flags["restart"] and (flags["allow_outside"] or not all(t is None for _, t in STEP_KINDS[kind].writes)):
+            raise ValueError(f"{path}: step {i} ({name}): restart = true only for a step that writes whole folders "
+                             f"inside the workdir (bench, leaderboard)")
+        steps.append(Step(name, kind, raw, **flags))
     engine = head.get("engine", "local")
     if engine not in ("local", "ray"):
         raise ValueError(f"{path}: [pipeline] engine = {engine!r}; expected \"local\" or \"ray\"")
@@ -176,7 +185,13 @@ def load_pipeline(path, workdir=None) -> Pipeline:
     root = Path(workdir if workdir is not None else head.get("workdir", "."))
     for i, step in enumerate(steps, 1):
         _check_step_folders(path, i, step, root)
-    return Pipeline(str(head.get("name", path.stem)), root, steps, engine, head.get("ray_address"), jobs, path)
+    pipeline = Pipeline(str(head.get("name", path.stem)), root, steps, engine, head.get("ray_address"), jobs, path)
+    from mimicbench.cli import build_parser
+
+    parser = build_parser()
+    for step in steps:
+        step_options(step, pipeline, parser)  # every option typed and checked before anything runs
+    return pipeline
 
 
 def _check_step_folders(path: Path, i: int, step: Step, workdir: Path) -> None:
@@ -200,8 +215,41 @@ def _check_step_folders(path: Path, i: int, step: Step, workdir: Path) -> None:
                                  f"<results>{LEADERBOARD_SUFFIX})")
 
 
+def step_options(step: Step, pipeline: Pipeline, parser=None) -> tuple[Callable, object]:
+    """The command function of ``step`` and its options dataclass (folders resolved, engine settings added).
+
+    ``parser``: the toolkit's parser (:func:`mimicbench.cli.build_parser`; built when None).
+
+    Raises:
+        ValueError: naming the file and the step: an unknown option, a wrong-typed or out-of-range value.
+    """
+    from mimicbench.cli import command_parser
+    from mimicbench.options import from_mapping
+
+    spec = step.spec
+    command = command_parser(spec.command, parser)
+    positional = [a.dest for a in command._actions if not a.option_strings]
+    options = dict(step.options)
+    if step.kind == "leaderboard":
+        options.setdefault("out", None)  # beside the results (step.folder), never into them
+    values = {}
+    for key, value in options.items():
+        if key in spec.folders:
+            folders = [str(p) for p in step.folder(key, pipeline.workdir)]
+            value = folders if isinstance(value, list) or key == "paths" else folders[0]
+        values[positional[spec.positional.index(key)] if key in spec.positional else key] = value
+    if spec.engine:
+        values.update(engine=pipeline.engine, **{"ray_address": pipeline.ray_address} if pipeline.ray_address else {})
+    if spec.jobs and pipeline.jobs > 1:
+        values["jobs"] = pipeline.jobs
+    index = pipeline.steps.index(step) + 1
+    where = f"{pipeline.source}: step {index} ({step.name})" if pipeline.source else f"step {index} ({step.name})"
+    return command.get_default("func"), from_mapping(command, values, where)
+
+
 def step_argv(step: Step, pipeline: Pipeline) -> list[str]:
-    """The `mimicbench` command line of ``step`` (folders resolved, engine settings added)."""
+    """The `mimicbench` command line equivalent to ``step`` (folders resolved, engine settings added), for
+    ``--dry-run`` and the progress lines; the pipeline itself calls :func:`step_options`' function."""
     spec = step.spec
     argv = list(spec.command)
     for key in spec.positional:
