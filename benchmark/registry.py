@@ -28,6 +28,9 @@ BUILTIN = {
     "mimicat": "baselines.mimicat.method:Mimicat",
     "mimicat_naive_avg": "baselines.mimicat.method:MimicatNaiveAvg",
     "mimicat_no_prior": "baselines.mimicat.method:MimicatNoPrior",
+    "npt": "baselines.npt.method:Npt",
+    "cgt": "baselines.cgt.method:Cgt",
+    "sfpt": "baselines.sfpt.method:Sfpt",
 }
 
 _registered: dict[str, object] = {}

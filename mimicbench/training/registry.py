@@ -18,6 +18,9 @@ from mimicbench.training.stage import TrainStage
 BUILTIN = {
     "mimicat": "baselines.mimicat.training",
     "mmdmc": "baselines.mmdmc.training",
+    "npt": "baselines.npt.training",
+    "cgt": "baselines.cgt.training",
+    "sfpt": "baselines.sfpt.training",
 }
 
 
