@@ -16,8 +16,9 @@ from pathlib import Path
 from mimicbench.argtypes import positive_int
 
 BUNDLED = ("identity", "name_copy", "nearest_joint", "text_soft",
-           "mimicat")  # the MimiCAT reference with its shipped checkpoint (baselines/mimicat/checkpoints)
-BUNDLED_APPAREL = ("lbs_kinematic", "body_only", "mmdmc")  # mmdmc: the shipped checkpoint, no training
+           "mimicat",  # the MimiCAT reference with its shipped checkpoint (baselines/mimicat/checkpoints)
+           "npt", "cgt", "sfpt")  # the published baselines re-implemented from their papers, shipped checkpoints
+BUNDLED_APPAREL = ("lbs_kinematic", "body_only", "mmdmc", "sfpt")  # mmdmc, sfpt: shipped checkpoints, no training
 """Methods run on the apparel protocol (motion transfer on simulated apparel)."""
 
 
@@ -27,7 +28,7 @@ def register(subparsers) -> None:
         description="Run the whole toolkit offline on a small procedural zoo: zoo -> resample (5,000 faces) "
         "-> correspondences (MiniLM bone-name embeddings) -> h2h and cct cases -> every bundled method -> "
         "leaderboard (Markdown, CSV, JSON, HTML); then the apparel characters' clips simulated with Bullet -> "
-        "apparel cases -> lbs_kinematic, body_only and mmdmc (shipped weights) -> the apparel table. Example:\n  mimicbench demo --out demo-output",
+        "apparel cases -> lbs_kinematic, body_only, mmdmc and sfpt (shipped weights) -> the apparel table. Example:\n  mimicbench demo --out demo-output",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="demo-output", help="folder for the datasets and results (default demo-output)")
     p.add_argument("--characters", type=int, default=16, help="zoo size (default 16)")

@@ -8,7 +8,7 @@
   identity coordinates, and a final SPAdaIN -> 1x1 conv to xyz, squashed by 2 tanh.
 
 Paper widths (c1, c2, c3) = (64, 128, 1024); the ``small`` preset narrows them for CPU training.
-Inputs and outputs are in the centred unit-height frames of :mod:`baselines.npt.placement`.
+Inputs and outputs are in the centred unit-size frames of :mod:`baselines.npt.placement`.
 """
 from __future__ import annotations
 
@@ -76,7 +76,7 @@ class NeuralPoseTransfer(nn.Module):
         self.decoder = SPAdaINDecoder(widths[-1], widths[-1])
 
     def forward(self, posed_source: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
-        """posed_source (B, Ns, 3), identity (B, Nt, 3), centred unit-height frames -> (B, Nt, 3)."""
+        """posed_source (B, Ns, 3), identity (B, Nt, 3), centred unit-size frames -> (B, Nt, 3)."""
         code = self.encoder(posed_source.transpose(1, 2))
         nt = identity.shape[1]
         return self.decoder(code[:, :, None].expand(-1, -1, nt), identity.transpose(1, 2)).transpose(1, 2)
