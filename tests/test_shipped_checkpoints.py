@@ -12,6 +12,7 @@ import pytest
 
 from baselines.mimicat.method import BUNDLED, Mimicat, MimicatNaiveAvg, MimicatNoPrior
 from baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMask, MmdmcNoRefine
+from baselines.cgt.method import Cgt
 from baselines.npt.method import Npt
 from baselines.sfpt.method import Sfpt
 
@@ -22,6 +23,7 @@ SHIPPED = {
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "6",
               "91d5b822f8f918ea90243bbfc16d01abd686f4b1055335fddeabc7c11e4f0bea"),
+    "cgt": (Cgt.shipped, (Cgt,), "1", "3158ee9dc2be433c1b558b2d2112ae451a449f7a30f709487994eb1e629313ce"),
     "npt": (Npt.shipped, (Npt,), "1", "5fe4232608fdcc97b790f7997b48b7479fe4d336c10d3f22288a5f311d5f5d15"),
     "sfpt": (Sfpt.shipped, (Sfpt,), "1", "4e72e1e72735edfdcd6cae92ec24c38da013d46aa8cbd06565bdf912bee7e89a"),
 }
@@ -78,7 +80,7 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
     (run / "refine.safetensors").write_bytes(b"other")
     assert Mmdmc().weights_fingerprint() != full and MmdmcBodyOnly().weights_fingerprint() == body_only
 
-    for method in (Npt, Sfpt):  # one file each, shipped as <stage>.safetensors or a run's <stage>/model.safetensors
+    for method in (Npt, Cgt, Sfpt):  # one file each, shipped as <stage>.safetensors or a run's <stage>/model.safetensors
         shipped_file = method.shipped / f"{method.stage}.safetensors"
         assert method().weights_fingerprint() == by_hand({method.stage: shipped_file})
         run = tmp_path / method.stage / method.stage
@@ -94,6 +96,6 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
 
 
 def test_shipped_published_baselines_are_small():
-    for method in (Npt, Sfpt):
+    for method in (Npt, Cgt, Sfpt):
         size = (method.shipped / f"{method.stage}.safetensors").stat().st_size
         assert size < 3 * 2**20, (method.metadata.name, size)
