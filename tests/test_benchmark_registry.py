@@ -38,3 +38,15 @@ def test_runtime_registration_and_entry_points(tmp_path, monkeypatch):
     assert "my_method" in available_methods()
     assert type(get_method("my_method")).__name__ == "Mine"
     sys.modules.pop("thirdparty_pose", None)
+
+
+def test_published_baselines_are_registered_with_their_papers_and_protocols():
+    from mimicbench.training.registry import available_trainables, trainable
+
+    expected = {"npt": ("h2h", "cct"), "cgt": ("h2h", "cct"), "sfpt": ("h2h", "cct", "apparel")}
+    for name, protocols in expected.items():
+        meta = get_method(name).metadata
+        assert meta.name == name and meta.licence == "MIT" and meta.needs_training
+        assert "re-implemented from the paper" in meta.citation and meta.protocols == protocols
+        assert name in available_trainables() and [s.name for s in trainable(name).stages] == [name]
+        assert {"small", "paper"} <= set(trainable(name).configs)
