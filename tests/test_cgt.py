@@ -84,4 +84,4 @@ def test_shipped_self_transfer_comes_back_close_to_the_posed_source(small_zoo):
     from tests.test_npt import self_transfer_pmd
 
     got, identity = self_transfer_pmd(Cgt(), small_zoo)
-    assert got < 0.5 * identity, (got, identity)
+    assert got < 0.5 * identity, (got, identity)  # shipped: 9.02 against identity's 21.2

@@ -104,7 +104,7 @@ def test_shipped_self_transfer_comes_back_close_to_the_posed_source(small_zoo):
     from tests.test_npt import self_transfer_pmd
 
     got, identity = self_transfer_pmd(Sfpt(), small_zoo)
-    assert got < 0.5 * identity, (got, identity)
+    assert got < 0.15 * identity, (got, identity)  # shipped: 1.76 against identity's 21.2
 
 
 def test_motion_requests_get_every_frame(small_zoo):
