@@ -16,9 +16,13 @@ the last lines are each method's time per case over the peer's.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path.pop(0)  # run as a script, this file's own name would hide the `baselines` package
 
 import numpy as np
 import torch
