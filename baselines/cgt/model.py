@@ -54,7 +54,7 @@ class Cgt(nn.Module):
     def forward(self, posed_source: torch.Tensor, identity: torch.Tensor, pose_rows: torch.Tensor | None = None,
                 identity_rows: torch.Tensor | None = None, index: torch.Tensor | None = None,
                 weight: torch.Tensor | None = None) -> torch.Tensor:
-        """posed_source (B, Ns, 3), identity (B, Nt, 3) centred unit-height frames -> (B, Nt, 3).
+        """posed_source (B, Ns, 3), identity (B, Nt, 3) centred unit-size frames -> (B, Nt, 3).
 
         With ``pose_rows`` (Ms,) and ``identity_rows`` (Mt,) attention runs over those points only and
         ``index``/``weight`` (Nt, k) (:func:`baselines.cgt.sampling.interpolation`) carry the attended
