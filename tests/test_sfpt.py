@@ -107,15 +107,27 @@ def test_shipped_self_transfer_comes_back_close_to_the_posed_source(small_zoo):
     assert got < 0.15 * identity, (got, identity)  # shipped: 1.76 against identity's 21.2
 
 
-def test_motion_requests_get_every_frame(small_zoo):
+def test_motion_requests_transfer_each_frames_body_pose_onto_the_character(small_zoo):
+    """Each frame of a motion answer is the transfer request of that frame: the character posed by its
+    body bones alone (body_only's weights, LBS) as the source, its own rest mesh as the target."""
+    from baselines.body_only import body_weights
     from baselines.sfpt.method import Sfpt
-    from benchmark.request import MotionRequest, Rig
+    from benchmark.request import MotionRequest, Rig, TransferRequest
+    from mimicbench.skinning import linear_blend_skinning
+    from mimicbench.weights import SparseWeights
     from schemas.shards import read_records
 
     rec = next(r for r in read_records(small_zoo, "characters") if r.category == "apparel")
     motion = next(m for m in read_records(small_zoo, "motions") if m.character_id == rec.character_id)
     rig = Rig(rec.character_id, rec.category, rec.vertices, rec.faces, rec.keypoints, rec.parents, rec.weights,
               rec.bone_names)
-    frames = np.asarray(motion.transforms, np.float32)[:3]
-    out = Sfpt().transfer_motion([MotionRequest(rig, frames, ~np.asarray(rec.apparel_bone_mask, bool), 30.0)])[0]
-    assert out.shape == (3, len(rec.vertices), 3) and np.isfinite(out).all()
+    frames = np.asarray(motion.transforms, np.float32)[:5]
+    body = ~np.asarray(rec.apparel_bone_mask, bool)
+    method = Sfpt()
+    out = method.transfer_motion([MotionRequest(rig, frames, body, 30.0)])[0]
+    assert out.shape == (5, len(rec.vertices), 3) and np.isfinite(out).all()
+    weights = SparseWeights.from_dense(body_weights(rig, body))
+    for f in (0, 4):  # chunks of 4 frames: the first and the fifth frame come from different chunks
+        posed = linear_blend_skinning(rig.vertices, rig.keypoints, weights, frames[f])
+        single = method.transfer([TransferRequest(rig, posed, rig)])[0]
+        np.testing.assert_allclose(out[f], single, atol=1e-4)

@@ -47,6 +47,7 @@ class Sfpt(PoseTransferMethod):
         self.device = "cpu"
         self.module = None
         self.knn = 8
+        self.chunk = 4  # motion frames through the networks at once
         self._chars: dict = {}
 
     def weights_fingerprint(self) -> str:
@@ -80,6 +81,8 @@ class Sfpt(PoseTransferMethod):
         return self._chars[key]
 
     def _pose_onto(self, source_vertices, source_key, source_posed: np.ndarray, target_vertices, target_key):
+        """(F, Nt, 3) float32 metres: the target posed like each of the source's posed meshes (F, Ns, 3),
+        ``chunk`` frames through the networks at a time."""
         import torch
 
         from baselines.sfpt.handles import deform
@@ -88,19 +91,24 @@ class Sfpt(PoseTransferMethod):
 
         rest_s, nb_s, w_s = self._character(source_vertices, source_key)
         rest_t, _, w_t = self._character(target_vertices, target_key)
-        posed = torch.as_tensor(unit_frame(source_posed, source_vertices), device=self.device)[None]
-        with torch.no_grad():
-            r, t = self.module.pose(rest_s, posed, w_s, nb_s)
-            out = deform(rest_t, w_t, r, t)[0].cpu().numpy().astype(np.float64)
         centre, height = unit_height_frame(target_vertices)
-        return (out * height + centre).astype(np.float32)
+        out = []
+        for i in range(0, len(source_posed), self.chunk):
+            posed = torch.as_tensor(np.stack([unit_frame(p, source_vertices) for p in source_posed[i:i + self.chunk]]),
+                                    device=self.device)
+            f = len(posed)
+            with torch.no_grad():
+                r, t = self.module.pose(rest_s.expand(f, -1, -1), posed, w_s.expand(f, -1, -1), nb_s)
+                moved = deform(rest_t.expand(f, -1, -1), w_t.expand(f, -1, -1), r, t).cpu().numpy()
+            out.append(moved.astype(np.float64) * height + centre)
+        return np.concatenate(out).astype(np.float32)
 
     def transfer(self, requests):
         if self.module is None:
             self.setup(self.device)
-        return [self._pose_onto(r.source.vertices, (r.source.character_id, len(r.source.vertices)), r.source_posed,
-                                r.target.vertices, (r.target.character_id, len(r.target.vertices)))
-                for r in requests]
+        return [self._pose_onto(r.source.vertices, (r.source.character_id, len(r.source.vertices)),
+                                np.asarray(r.source_posed)[None], r.target.vertices,
+                                (r.target.character_id, len(r.target.vertices)))[0] for r in requests]
 
     def transfer_motion(self, requests):
         """(F, N, 3) float32 per motion request (see the module docstring)."""
@@ -116,5 +124,5 @@ class Sfpt(PoseTransferMethod):
             weights = SparseWeights.from_dense(body_weights(rig, r.body_bones))
             body = linear_blend_skinning(rig.vertices, rig.keypoints, weights, np.asarray(r.transforms, np.float32))
             key = (rig.character_id, len(rig.vertices))
-            out.append(np.stack([self._pose_onto(rig.vertices, key, frame, rig.vertices, key) for frame in body]))
+            out.append(self._pose_onto(rig.vertices, key, body, rig.vertices, key))
         return out
