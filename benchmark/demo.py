@@ -30,8 +30,8 @@ def _methods(step: str) -> tuple[str, ...]:
     return tuple(next(s for s in tomllib.loads(DEMO_PIPELINE.read_text())["steps"] if s.get("name", s["run"]) == step)["methods"])
 
 
-BUNDLED = _methods("bench")  # identity, name_copy, nearest_joint, text_soft, mimicat (its shipped checkpoint)
-BUNDLED_APPAREL = _methods("apparel-bench")  # lbs_kinematic, body_only, mmdmc (the shipped checkpoint)
+BUNDLED = _methods("bench")  # identity, name_copy, nearest_joint, text_soft, mimicat, npt, cgt, sfpt (shipped checkpoints)
+BUNDLED_APPAREL = _methods("apparel-bench")  # lbs_kinematic, body_only, mmdmc, sfpt (shipped checkpoints)
 """Methods run on the apparel protocol (motion transfer on simulated apparel)."""
 
 
@@ -41,7 +41,7 @@ def register(subparsers) -> None:
         description="Run the whole toolkit offline on a small procedural zoo: zoo -> resample (5,000 faces) "
         "-> correspondences (MiniLM bone-name embeddings) -> h2h and cct cases -> every bundled method -> "
         "leaderboard (Markdown, CSV, JSON, HTML); then the apparel characters' clips simulated with Bullet -> "
-        "apparel cases -> lbs_kinematic, body_only and mmdmc (shipped weights) -> the apparel table. Example:\n  mimicbench demo --out demo-output",
+        "apparel cases -> lbs_kinematic, body_only, mmdmc and sfpt (shipped weights) -> the apparel table. Example:\n  mimicbench demo --out demo-output",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="demo-output", help="folder for the datasets and results (default demo-output)")
     p.add_argument("--characters", type=int, default=None, help="zoo size (default 16)")

@@ -27,6 +27,9 @@ BUILTIN = {
     "mimicat_naive_avg": "baselines.mimicat.method:MimicatNaiveAvg",
     "mimicat_no_prior": "baselines.mimicat.method:MimicatNoPrior",
     "mimicat_init_only": "baselines.mimicat.method:MimicatInitOnly",
+    "npt": "baselines.npt.method:Npt",
+    "cgt": "baselines.cgt.method:Cgt",
+    "sfpt": "baselines.sfpt.method:Sfpt",
 }
 
 METHODS = Registry("method", BUILTIN, ENTRY_POINT_GROUP)

@@ -7,7 +7,7 @@ from mimicbench.cli import main
 
 
 @pytest.mark.slow
-def test_demo_prints_a_leaderboard_with_five_methods_and_two_protocols(tmp_path, capsys):
+def test_demo_prints_a_leaderboard_with_eight_methods_and_two_protocols(tmp_path, capsys):
     out = tmp_path / "demo"
     options = ["demo", "--out", str(out), "--characters", "14", "--h2h-poses", "4", "--cct-pairs", "8", "--cct-poses", "2"]
     assert main(options) == 0
@@ -16,11 +16,12 @@ def test_demo_prints_a_leaderboard_with_five_methods_and_two_protocols(tmp_path,
     board = json.loads((out / "results-leaderboard" / "leaderboard.json").read_text())
     assert set(board["protocols"]) == {"h2h", "cct"}
     for protocol, entries in board["protocols"].items():
-        assert {e["method"] for e in entries} == {"identity", "name_copy", "nearest_joint", "text_soft", "mimicat"}
+        assert {e["method"] for e in entries} == {"identity", "name_copy", "nearest_joint", "text_soft", "mimicat",
+                                                   "npt", "cgt", "sfpt"}
         assert all(e["complete"] for e in entries)
     h2h = {e["method"]: e["pmd"] for e in board["protocols"]["h2h"]}
     assert h2h["identity"] == max(h2h.values()) and h2h["name_copy"] < 1.0
-    # the apparel table: both bundled apparel methods on every case of the zoo's 2 apparel characters;
+    # the apparel table: the bundled apparel methods on every case of the zoo's 2 apparel characters;
     # lbs_kinematic moves body vertices exactly as the ground truth does (PMD_b = 0) but not apparel
     from benchmark.aggregate import aggregate
     from benchmark.demo import BUNDLED_APPAREL
@@ -30,7 +31,7 @@ def test_demo_prints_a_leaderboard_with_five_methods_and_two_protocols(tmp_path,
     for name in BUNDLED_APPAREL:  # each row names the method's version (the shipped weights' for mmdmc)
         assert f"| {name} v{get_method(name).metadata.version} |" in printed, name
     apparel = {e["method"]: e for e in aggregate(out / "results-apparel")["protocols"]["apparel"]}
-    assert set(apparel) == set(BUNDLED_APPAREL) == {"lbs_kinematic", "body_only", "mmdmc"}
+    assert set(apparel) == set(BUNDLED_APPAREL) == {"lbs_kinematic", "body_only", "mmdmc", "sfpt"}
     assert all(e["complete"] and e["ok"] > 0 and e["failed"] == 0 for e in apparel.values())
     assert apparel["lbs_kinematic"]["pmd_body"] == pytest.approx(0.0, abs=1e-9) and apparel["lbs_kinematic"]["pmd_apparel"] > 0.0
     assert "apparel leaderboard: " in printed and (out / "results-apparel-leaderboard" / "leaderboard.html").exists()

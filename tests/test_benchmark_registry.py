@@ -84,3 +84,15 @@ def test_a_broken_method_is_left_out_and_the_others_run(broken_plugin, small_zoo
             "(ModuleNotFoundError: No module named 'broken_pose_missing')") in err.splitlines()
     assert (out / "identity").is_dir() and not (out / broken_plugin).exists()
     assert "identity" in stdout and "0 failed" in stdout
+
+
+def test_published_baselines_are_registered_with_their_papers_and_protocols():
+    from mimicbench.training.registry import available_trainables, trainable
+
+    expected = {"npt": ("h2h", "cct"), "cgt": ("h2h", "cct"), "sfpt": ("h2h", "cct", "apparel")}
+    for name, protocols in expected.items():
+        meta = get_method(name).metadata
+        assert meta.name == name and meta.licence == "MIT" and meta.needs_training
+        assert "re-implemented from the paper" in meta.citation and meta.protocols == protocols
+        assert name in available_trainables() and [s.name for s in trainable(name).stages] == [name]
+        assert {"small", "paper"} <= set(trainable(name).configs)

@@ -12,6 +12,9 @@ import pytest
 
 from baselines.mimicat.method import BUNDLED, Mimicat, MimicatInitOnly, MimicatNaiveAvg, MimicatNoPrior
 from baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMask, MmdmcNoRefine
+from baselines.cgt.method import Cgt
+from baselines.npt.method import Npt
+from baselines.sfpt.method import Sfpt
 
 # version of every method reading the folder -> sha256 over its .safetensors files (sorted by name,
 # each as name + NUL + bytes)
@@ -20,6 +23,9 @@ SHIPPED = {
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "6",
               "91d5b822f8f918ea90243bbfc16d01abd686f4b1055335fddeabc7c11e4f0bea"),
+    "cgt": (Cgt.shipped, (Cgt,), "1", "3158ee9dc2be433c1b558b2d2112ae451a449f7a30f709487994eb1e629313ce"),
+    "npt": (Npt.shipped, (Npt,), "1", "5fe4232608fdcc97b790f7997b48b7479fe4d336c10d3f22288a5f311d5f5d15"),
+    "sfpt": (Sfpt.shipped, (Sfpt,), "1", "4e72e1e72735edfdcd6cae92ec24c38da013d46aa8cbd06565bdf912bee7e89a"),
 }
 
 
@@ -73,3 +79,23 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
     assert Mmdmc().weights_fingerprint() == full
     (run / "refine.safetensors").write_bytes(b"other")
     assert Mmdmc().weights_fingerprint() != full and MmdmcBodyOnly().weights_fingerprint() == body_only
+
+    for method in (Npt, Cgt, Sfpt):  # one file each, shipped as <stage>.safetensors or a run's <stage>/model.safetensors
+        shipped_file = method.shipped / f"{method.stage}.safetensors"
+        assert method().weights_fingerprint() == by_hand({method.stage: shipped_file})
+        run = tmp_path / method.stage / method.stage
+        run.mkdir(parents=True)
+        shutil.copy(shipped_file, run / "model.safetensors")
+        monkeypatch.setenv(method.env, str(run.parent))
+        assert method().weights_fingerprint() == by_hand({method.stage: shipped_file})
+        data = bytearray(shipped_file.read_bytes())
+        data[-1] ^= 1
+        (run / "model.safetensors").write_bytes(bytes(data))
+        assert method().weights_fingerprint() != by_hand({method.stage: shipped_file})
+        monkeypatch.delenv(method.env)
+
+
+def test_shipped_published_baselines_are_small():
+    for method in (Npt, Cgt, Sfpt):
+        size = (method.shipped / f"{method.stage}.safetensors").stat().st_size
+        assert size < 3 * 2**20, (method.metadata.name, size)

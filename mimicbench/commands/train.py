@@ -22,18 +22,18 @@ W processes takes a W-th of every batch, and the weights match a one-process run
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "train",
-        help="train a learned reference (mimicat, mmdmc) on a dataset",
+        help="train a learned reference (mimicat, mmdmc) or published baseline (npt, cgt, sfpt) on a dataset",
         description="Train the stages of a bundled learned reference with AdamW, repeatable seeds, a progress "
         "bar, per-epoch checkpoints that resume, a loss plot per stage, and DistributedDataParallel when "
         "launched by torchrun (gloo on CPU, nccl on CUDA).",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("model", help="trainable model: mimicat or mmdmc")
+    p.add_argument("model", help="trainable model: mimicat, mmdmc, npt, cgt or sfpt")
     p.add_argument("dataset", help="dataset folder (e.g. the output of `mimicbench zoo`)")
     p.add_argument("--out", required=True, help="run folder for checkpoints, loss logs and config.json")
     p.add_argument("--stage", default="all",
                    help="stage to train (mimicat: shape, prior, corr, transfer, transfer_no_prior; mmdmc: seg, body, "
-                   "apparel, refine), or 'all' in order (default)")
+                   "apparel, refine; npt, cgt, sfpt: one stage of their own name), or 'all' in order (default)")
     p.add_argument("--config", default="small",
                    help="config preset: small (2 CPU cores, minutes) or paper (6 layers, 8 heads, width 256)")
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="where to train (default cpu)")

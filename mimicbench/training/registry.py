@@ -17,6 +17,9 @@ from schemas.errors import UserError
 BUILTIN = {
     "mimicat": "baselines.mimicat.training:TRAINABLE",
     "mmdmc": "baselines.mmdmc.training:TRAINABLE",
+    "npt": "baselines.npt.training:TRAINABLE",
+    "cgt": "baselines.cgt.training:TRAINABLE",
+    "sfpt": "baselines.sfpt.training:TRAINABLE",
 }
 
 

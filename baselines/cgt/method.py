@@ -1,0 +1,50 @@
+"""``cgt`` behind the adapter API: placement as NPT's (:mod:`baselines.npt.method`), attention capped.
+
+The posed source and the target rest mesh are centred and scaled as :mod:`baselines.npt.placement`
+says and the answer put back where the target stands. CGT's attention is dense over every pair of
+points in the paper; here it runs over at most ``cap`` points of each mesh (the checkpoint config's
+``cap``, 256 in the shipped one): a farthest-point subsample, the attended features carried back to
+every target vertex by inverse-distance interpolation (:mod:`baselines.cgt.sampling`). The decoder
+then runs on every target vertex.
+
+Weights: ``checkpoints/cgt.safetensors`` (shipped), ``checkpoint=`` or ``MIMICBENCH_CGT_CHECKPOINT``
+(``RUN/cgt/model.safetensors``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from benchmark.method import MethodMetadata
+from baselines.npt.method import Npt
+
+CITATION = ("Haoyu Chen, Hao Tang, Zitong Yu, Nicu Sebe, Guoying Zhao. Geometry-Contrastive Transformer for "
+            "Generalized 3D Pose Transfer. AAAI 2022 (re-implemented from the paper)")
+
+
+class Cgt(Npt):
+    """CGT with the shipped (or a given) checkpoint."""
+
+    metadata = MethodMetadata(name="cgt", version="1", licence="MIT", needs_training=True, citation=CITATION,
+                              tags=("learned", "published", "re-implemented from the paper"),
+                              description="CGT (NPT's encoder/decoder with cross-attention blocks; attention capped "
+                                          "at 256 farthest points on CPU), re-implemented from the paper")
+    stage = "cgt"
+    env = "MIMICBENCH_CGT_CHECKPOINT"
+    shipped = Path(__file__).resolve().parent / "checkpoints"
+
+    def setup(self, device: str = "cpu") -> None:
+        from mimicbench.training.checkpoint import read_header
+
+        from baselines.npt.method import checkpoint_path
+
+        super().setup(device)
+        self.cap = int(read_header(checkpoint_path(self.checkpoint, self.stage))["config"]["cap"])
+
+    def _answer(self, pose, identity):
+        import torch
+
+        from baselines.cgt.training import capped_rows
+
+        rows = {k: torch.as_tensor(v, device=self.device)
+                for k, v in capped_rows(pose[0].cpu().numpy(), identity[0].cpu().numpy(), self.cap).items()}
+        return self.module(pose, identity, **rows)

@@ -1,0 +1,53 @@
+"""CGT's training stage for the shared trainer (``mimicbench train cgt DATASET --out RUN``).
+
+One stage, ``cgt``, on NPT's batches (:func:`baselines.npt.training.pair_batches`: same-skeleton pairs
+and self-transfers, centred as :mod:`baselines.npt.placement` says) with NPT's loss; attention runs
+over at most ``cap`` points of each example's meshes (:func:`capped_rows`), as at inference.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from baselines.cgt.config import CONFIGS
+from baselines.cgt.model import Cgt
+from baselines.cgt.sampling import farthest_points, interpolation
+from baselines.npt.losses import npt_loss
+from baselines.npt.training import pair_batches
+from mimicbench.training.registry import make_trainable
+from mimicbench.training.stage import StageContext, TrainStage
+
+
+def build_cgt(config: dict, context: StageContext | None = None) -> Cgt:
+    return Cgt(config["widths"], config["blocks"], config["heads"])
+
+
+def capped_rows(pose: np.ndarray, identity: np.ndarray, cap: int) -> dict:
+    """What :meth:`Cgt.forward` needs to attend over ``cap`` points of each mesh: ``pose_rows``,
+    ``identity_rows`` and the interpolation ``index``/``weight`` back to every identity point; {} when
+    ``cap`` is 0 (dense)."""
+    if cap <= 0:
+        return {}
+    rows_t = farthest_points(identity, cap)
+    index, weight = interpolation(identity, rows_t)
+    return {"pose_rows": farthest_points(pose, cap), "identity_rows": rows_t, "index": index, "weight": weight}
+
+
+def batches_cgt(config: dict, context: StageContext, rng: np.random.Generator):
+    for batch in pair_batches(config, context, rng):
+        batch["capped"] = [capped_rows(p, i, int(config["cap"])) for p, i in zip(batch["pose"], batch["identity"])]
+        yield batch
+
+
+def loss_cgt(module, batch, context) -> dict:
+    device = batch["pose"].device
+    preds = []
+    for b, rows in enumerate(batch["capped"]):
+        rows = {k: torch.as_tensor(v, device=device) for k, v in rows.items()}
+        preds.append(module(batch["pose"][b:b + 1], batch["identity"][b:b + 1], **rows))
+    return npt_loss(torch.cat(preds), batch["truth"], batch["edges"], float(context.config["w_edge"]))
+
+
+STAGES = [TrainStage("cgt", build_cgt, batches_cgt, loss_cgt)]
+
+TRAINABLE = make_trainable("cgt", STAGES, CONFIGS)

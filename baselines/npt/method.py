@@ -1,0 +1,83 @@
+"""``npt`` behind the adapter API (and the base of ``cgt``).
+
+For each request the posed source and the target rest mesh are centred and scaled as
+:mod:`baselines.npt.placement` says (NPT ignores global translation, as its evaluation does), the
+network answers the posed target in that frame, and :func:`baselines.npt.placement.place` puts it
+back where the target stands, moved as the source moved. Every vertex of both meshes is used. The
+method reads no rig: neither skeleton nor skin weights.
+
+Weights: ``checkpoints/<stage>.safetensors`` next to this file (shipped), or a training run given as
+``checkpoint=`` or by the environment variable ``MIMICBENCH_NPT_CHECKPOINT`` (a ``mimicbench train npt
+... --out RUN`` folder, ``RUN/npt/model.safetensors``).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from benchmark.method import MethodMetadata, PoseTransferMethod
+
+CITATION = ("Jiashun Wang, Chao Wen, Yanwei Fu, Haitao Lin, Tianyun Zou, Xiangyang Xue, Yinda Zhang. Neural Pose "
+            "Transfer by Spatially Adaptive Instance Normalization. CVPR 2020 (re-implemented from the paper)")
+
+
+def checkpoint_path(folder: Path, stage: str) -> Path:
+    """``FOLDER/<stage>.safetensors`` (shipped layout) or ``FOLDER/<stage>/model.safetensors`` (a run)."""
+    for p in (folder / f"{stage}.safetensors", folder / stage / "model.safetensors"):
+        if p.is_file():
+            return p
+    raise FileNotFoundError(f"{folder}: no weights for {stage!r} (expected {stage}.safetensors or "
+                            f"{stage}/model.safetensors; train with `mimicbench train {stage} DATASET --out RUN`)")
+
+
+class Npt(PoseTransferMethod):
+    """Neural Pose Transfer with the shipped (or a given) checkpoint."""
+
+    metadata = MethodMetadata(name="npt", version="1", licence="MIT", needs_training=True, citation=CITATION,
+                              tags=("learned", "published", "re-implemented from the paper"),
+                              description="Neural Pose Transfer (SPAdaIN decoder, max-pool pose code), "
+                                          "re-implemented from the paper, trained on the zoo")
+    stage = "npt"
+    env = "MIMICBENCH_NPT_CHECKPOINT"
+    shipped = Path(__file__).resolve().parent / "checkpoints"
+
+    def __init__(self, checkpoint: str | os.PathLike | None = None):
+        self.checkpoint = Path(checkpoint or os.environ.get(self.env) or self.shipped)
+        self.device = "cpu"
+        self.module = None
+
+    def weights_fingerprint(self) -> str:
+        from schemas.fingerprint import files_fingerprint
+
+        return files_fingerprint({self.stage: checkpoint_path(self.checkpoint, self.stage)})
+
+    def setup(self, device: str = "cpu") -> None:
+        from mimicbench.training.checkpoint import load_module
+        from mimicbench.training.registry import trainable
+
+        self.device = device
+        stage = trainable(self.stage).stage(self.stage)
+        self.module = load_module(checkpoint_path(self.checkpoint, self.stage), lambda cfg: stage.build(cfg, None),
+                                  device)
+
+    def _answer(self, pose, identity):
+        """The network's centred answer (1, Nt, 3) for pose (1, Ns, 3) and identity (1, Nt, 3) tensors."""
+        return self.module(pose, identity)
+
+    def transfer(self, requests):
+        import torch
+
+        from baselines.npt.placement import centred, place
+
+        if self.module is None:
+            self.setup(self.device)
+        out = []
+        for r in requests:
+            pose = torch.as_tensor(centred(r.source_posed, r.source.vertices), device=self.device)[None]
+            identity = torch.as_tensor(centred(r.target.vertices, r.target.vertices), device=self.device)[None]
+            with torch.no_grad():
+                answer = self._answer(pose, identity)[0].cpu().numpy()
+            out.append(place(answer, r.source.vertices, r.source_posed, r.target.vertices))
+        return out

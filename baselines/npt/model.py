@@ -1,0 +1,82 @@
+"""The Neural Pose Transfer network (Wang et al., CVPR 2020, Fig. 2), re-implemented from the paper.
+
+- Pose encoder: PointNet-style 1x1 convolutions 3 -> c1 -> c2 -> c3 over the posed source's points,
+  each followed by instance norm and ReLU; a max over the points gives the pose code (the max-pool
+  variant, so source and target vertex counts may differ).
+- Decoder: the pose code repeated at every target point, concatenated with the point's identity
+  coordinates, a 1x1 conv to c3, then SPAdaIN residual blocks c3 -> c3/2 -> c3/4 conditioned on the
+  identity coordinates, and a final SPAdaIN -> 1x1 conv to xyz, squashed by 2 tanh.
+
+Paper widths (c1, c2, c3) = (64, 128, 1024); the ``small`` preset narrows them for CPU training.
+Inputs and outputs are in the centred unit-size frames of :mod:`baselines.npt.placement`.
+"""
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from baselines.npt.spadain import SPAdaIN, SPAdaINResBlock
+
+
+class PointFeatures(nn.Module):
+    """Per-point features (B, c3, N) of points (B, 3, N): 1x1 convs with instance norm and ReLU."""
+
+    def __init__(self, widths: tuple[int, int, int]):
+        super().__init__()
+        layers, c = [], 3
+        for w in widths:
+            layers += [nn.Conv1d(c, w, 1), nn.InstanceNorm1d(w), nn.ReLU()]
+            c = w
+        self.net = nn.Sequential(*layers)
+
+    def forward(self, points: torch.Tensor) -> torch.Tensor:
+        return self.net(points)
+
+
+class PoseEncoder(nn.Module):
+    """Pose code (B, c3) of posed points (B, 3, N): a max over :class:`PointFeatures`."""
+
+    def __init__(self, widths: tuple[int, int, int]):
+        super().__init__()
+        self.features = PointFeatures(widths)
+
+    def forward(self, points: torch.Tensor) -> torch.Tensor:
+        return self.features(points).max(dim=2).values
+
+
+class SPAdaINDecoder(nn.Module):
+    """Posed target (B, 3, N) from per-point pose features (B, c_pose, N) and identity points (B, 3, N)."""
+
+    def __init__(self, c_pose: int, width: int):
+        super().__init__()
+        self.inp = nn.Conv1d(c_pose + 3, width, 1)
+        self.blocks = nn.ModuleList([SPAdaINResBlock(width, width), SPAdaINResBlock(width, width // 2),
+                                     SPAdaINResBlock(width // 2, width // 4)])
+        self.out_norm = SPAdaIN(width // 4)
+        self.out = nn.Conv1d(width // 4, 3, 1)
+
+    def forward(self, pose_features: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
+        h = self.inp(torch.cat([pose_features, identity], dim=1))
+        for block in self.blocks:
+            h = block(h, identity)
+        return 2.0 * torch.tanh(self.out(torch.relu(self.out_norm(h, identity))))
+
+
+class NeuralPoseTransfer(nn.Module):
+    """NPT: pose encoder + SPAdaIN decoder.
+
+    Args:
+        widths: the pose encoder's (c1, c2, c3); the decoder is c3 wide.
+    """
+
+    def __init__(self, widths=(64, 128, 1024)):
+        super().__init__()
+        widths = tuple(int(w) for w in widths)
+        self.encoder = PoseEncoder(widths)
+        self.decoder = SPAdaINDecoder(widths[-1], widths[-1])
+
+    def forward(self, posed_source: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
+        """posed_source (B, Ns, 3), identity (B, Nt, 3), centred unit-size frames -> (B, Nt, 3)."""
+        code = self.encoder(posed_source.transpose(1, 2))
+        nt = identity.shape[1]
+        return self.decoder(code[:, :, None].expand(-1, -1, nt), identity.transpose(1, 2)).transpose(1, 2)

@@ -1,0 +1,127 @@
+"""Speed of the re-implemented published baselines (``npt``, ``cgt``, ``sfpt``): training steps per
+second and inference seconds per case, against the named peer ``nearest_joint``.
+
+Builds (or reuses) a 16-character zoo (seed 0) resampled to 5,000 faces with h2h and cct cases,
+then for each method:
+
+- training: steps per second of its stage with the shipped checkpoint's config (``small``), each a
+  loss, a backward pass and an AdamW step on one batch (two warm-up steps first);
+- inference: seconds per request on the cases' forward requests (every vertex of both meshes).
+
+The peer ``nearest_joint`` (bone matching and rotation copying, no network) answers the same requests;
+the last lines are each method's time per case over the peer's.
+
+    python benchmarks/baselines.py [--work DIR] [--device cpu|cuda] [--steps 10] [--cases 24]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path.pop(0)  # run as a script, this file's own name would hide the `baselines` package
+
+import numpy as np
+import torch
+
+METHODS = ("npt", "cgt", "sfpt")
+
+
+def dataset(work: Path) -> Path:
+    from benchmark.cases import build_cases, write_cases
+    from datagen.resample import resample_dataset
+    from datagen.zoo import build_zoo
+    from schemas.shards import has_table
+
+    zoo, data = work / "zoo", work / "zoo5k"
+    if not (zoo / "manifest.json").exists():
+        build_zoo(zoo, 16, seed=0, clips_per_character=3, progress=False)
+    if not (data / "manifest.json").exists():
+        resample_dataset(zoo, data, faces=5000, backend="fast", progress=False)
+    if not has_table(data, "cases"):
+        write_cases(data, build_cases(data, "all", h2h_pairs=24, h2h_poses=2, cct_pairs=24, cct_poses=1), {})
+    return data
+
+
+def training_steps_per_second(name: str, data: Path, device: torch.device, steps: int) -> float:
+    from baselines.npt.method import checkpoint_path
+    from benchmark.registry import get_method
+    from mimicbench.training.checkpoint import read_header
+    from mimicbench.training.loop import _to_device
+    from mimicbench.training.registry import trainable
+    from mimicbench.training.stage import StageContext
+
+    stage = trainable(name).stage(name)
+    config = read_header(checkpoint_path(get_method(name).shipped, name))["config"]
+    ctx = StageContext(data, device, config)
+    torch.manual_seed(0)
+    module = stage.build(config, ctx).to(device)
+    opt = torch.optim.AdamW(module.parameters(), lr=1e-4)
+    rng = np.random.default_rng(0)
+
+    def batches():
+        while True:
+            yield from stage.batches(config, ctx, rng)
+
+    it = batches()
+    for i in range(steps + 2):
+        if i == 2:
+            if device.type == "cuda":
+                torch.cuda.synchronize()
+            t0 = time.perf_counter()
+        loss = stage.loss(module, _to_device(next(it), device), ctx)["total"]
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    if device.type == "cuda":
+        torch.cuda.synchronize()
+    return steps / (time.perf_counter() - t0)
+
+
+def seconds_per_case(method, requests) -> float:
+    method.transfer(requests[:2])  # warm-up: weights, per-character caches
+    t0 = time.perf_counter()
+    method.transfer(requests)
+    return (time.perf_counter() - t0) / len(requests)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--work", default=None, help="folder for the data (default: a temporary folder)")
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--steps", type=int, default=10, help="timed training steps per method")
+    ap.add_argument("--cases", type=int, default=24, help="forward requests timed")
+    args = ap.parse_args()
+    from benchmark.evaluator import load_cases
+    from benchmark.protocols.base import EvalData
+    from benchmark.registry import get_method
+
+    device = torch.device(args.device)
+    data = dataset(Path(args.work or tempfile.mkdtemp(prefix="mimicbench-baselines-")))
+    print(f"device {device}, torch threads {torch.get_num_threads()}, data {data}")
+    for name in METHODS:
+        print(f"training {name}: {training_steps_per_second(name, data, device, args.steps):.2f} steps/s")
+    ev = EvalData.load(data)
+    by_protocol = load_cases(data, ("h2h", "cct"))
+    cases = [c for p in ("h2h", "cct") for c in by_protocol[p][:args.cases // 2]]
+    requests = [ev.request(ev.characters[c.source_id], ev.posed(ev.characters[c.source_id], c.source_transforms),
+                           ev.characters[c.target_id], c.case_id) for c in cases]
+    peer = get_method("nearest_joint")
+    peer.setup(args.device)
+    peer_s = seconds_per_case(peer, requests)
+    print(f"nearest_joint: {peer_s:.4f} s/case ({len(requests)} cases)")
+    times = {}
+    for name in METHODS:
+        method = get_method(name)
+        method.setup(args.device)
+        times[name] = seconds_per_case(method, requests)
+        print(f"{name}: {times[name]:.4f} s/case")
+    for name in METHODS:
+        print(f"{name} / nearest_joint time per case: {times[name] / peer_s:.2f}")
+
+
+if __name__ == "__main__":
+    main()
