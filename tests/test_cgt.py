@@ -1,7 +1,6 @@
 """CGT (baselines/cgt): farthest-point sampling against a naive loop, capped attention against the
 dense one, training steps, the checkpoint round trip and the shipped weights' self-transfer."""
 import numpy as np
-import pytest
 import torch
 
 from baselines.cgt.sampling import farthest_points, interpolate, interpolation

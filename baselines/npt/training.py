@@ -12,7 +12,6 @@ mesh. The loss is :func:`baselines.npt.losses.npt_loss`. CGT trains on the very 
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 from baselines.npt.config import CONFIGS
 from baselines.npt.losses import npt_loss
