@@ -22,6 +22,7 @@ BUILTIN = {
     "mmdmc": "baselines.mmdmc.method:Mmdmc",
     "mmdmc_body_only": "baselines.mmdmc.method:MmdmcBodyOnly",
     "mmdmc_no_refine": "baselines.mmdmc.method:MmdmcNoRefine",
+    "mmdmc_no_apparel": "baselines.mmdmc.method:MmdmcNoApparel",
     "mmdmc_gt_mask": "baselines.mmdmc.method:MmdmcGtMask",
     "mimicat": "baselines.mimicat.method:Mimicat",
     "mimicat_naive_avg": "baselines.mimicat.method:MimicatNaiveAvg",

@@ -135,3 +135,18 @@ def test_cli_runs_and_rejects_bad_options(toy_dataset, tmp_path, capsys):
     assert main(["datagen", "apparel", str(toy_dataset), str(tmp_path / "y"), "--params", str(params)]) == 2
     assert "expected a number >= 0 and <= 1" in capsys.readouterr().err
     assert main(["datagen", "apparel", str(toy_dataset), str(toy_dataset)]) == 2
+
+
+def test_cli_exit_status_follows_the_share_of_failed_clips(toy_dataset, tmp_path, capsys):
+    # gravity 10000 explodes both of toy/a's clips (toy/b has no apparel): 2 of 2 failed, a share of 1.0
+    params = tmp_path / "boom.json"
+    params.write_text(json.dumps({"simulation": {"gravity": 10000.0}}))
+    args = ["datagen", "apparel", str(toy_dataset), str(tmp_path / "a"), "--relax-frames", "4", "--params",
+            str(params), "--quiet"]
+    assert main(args) == 1  # default --max-failed 0.05
+    assert "2 failed clips (100.0 % of the clips" in capsys.readouterr().out
+    assert main(args[:3] + [str(tmp_path / "b")] + args[4:] + ["--max-failed", "1"]) == 0  # all may fail
+    assert len([r for r in read_records(tmp_path / "b", "status", "apparel") if r.status == "failed"]) == 2
+    with pytest.raises(SystemExit) as exc:
+        main(args + ["--max-failed", "1.5"])
+    assert exc.value.code == 2

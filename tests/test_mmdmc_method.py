@@ -11,7 +11,7 @@ from benchmark.request import MotionRequest, Rig
 from mimicbench.quaternion import quat_to_matrix
 from schemas.weights import SparseWeights
 
-NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_refine", "mmdmc_gt_mask")
+NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_refine", "mmdmc_no_apparel", "mmdmc_gt_mask")
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +50,7 @@ def test_methods_are_registered_for_the_apparel_protocol():
         m = get_method(name)
         assert m.metadata.name == name and m.metadata.protocols == ("apparel",) and m.metadata.needs_training
     assert "reads_gt_apparel_mask" in get_method("mmdmc_gt_mask").metadata.tags
-    assert not any("reads_gt_apparel_mask" in get_method(n).metadata.tags for n in NAMES[:3])
+    assert not any("reads_gt_apparel_mask" in get_method(n).metadata.tags for n in NAMES[:4])
 
 
 def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(character):
@@ -109,3 +109,27 @@ def test_gt_mask_variant_uses_the_mask_it_is_given(character):
     [with_gt] = m.transfer_motion([request(rig, window, rec, {"apparel_vertex_mask": mask})])
     [none] = m.transfer_motion([request(rig, window, rec, {"apparel_vertex_mask": np.zeros_like(mask)})])
     assert np.isfinite(with_gt).all() and not np.allclose(with_gt[:, mask], none[:, mask])
+
+
+def test_no_apparel_is_the_full_model_with_f_d_left_out(character):
+    # mmdmc_no_apparel: f_c's mask and f_s's skinning with it (as mmdmc), no displacement from f_d,
+    # then f_j; without f_j it is plain LBS of those weights (a loop over joints, the spec)
+    from baselines.mmdmc.pipeline import apparel_probability, mesh_weights
+
+    rig, window, rec = character
+    m = get_method("mmdmc_no_apparel")
+    [out] = m.transfer_motion([request(rig, window, rec)])
+    [full] = get_method("mmdmc").transfer_motion([request(rig, window, rec)])
+    mods, prep = m.modules, next(iter(m._prepared.values()))
+    mask = apparel_probability(mods.seg, prep, mods.mask_by_piece) > mods.threshold
+    assert mask.any()
+    moved = np.linalg.norm(full - out, axis=-1).max(axis=0)  # (N,) f_d's effect, through f_j too
+    assert moved[mask].mean() > 1e-4 * rec.height
+    w = mesh_weights(mods.body, prep, mask, mods.apparel_skinning, mods.weight_smoothing,
+                     mods.weight_smoothing_radius).numpy().astype(np.float64)
+    bones = np.flatnonzero(~np.asarray(rec.apparel_bone_mask, bool))
+    ref = naive_lbs(np.asarray(rig.vertices, np.float64), np.asarray(rig.keypoints, np.float64)[bones], w,
+                    window[:, bones].astype(np.float64))
+    m.modules = dataclasses.replace(mods, refine=None)
+    [unrefined] = m.transfer_motion([request(rig, window, rec)])
+    np.testing.assert_allclose(unrefined, ref, atol=2e-4)

@@ -3,6 +3,8 @@
 - ``mmdmc``: the full model (f_c mask, f_s body, f_d apparel, f_j refinement);
 - ``mmdmc_body_only``: the Body Module row (f_s alone: apparel skinned to body joints);
 - ``mmdmc_no_refine``: the Body + Apparel row (no f_j);
+- ``mmdmc_no_apparel``: the full model with f_d's displacement zero (same mask, skinning and f_j),
+  so ``mmdmc`` against it is f_d's effect alone: the paper's Body Module row for this model;
 - ``mmdmc_gt_mask``: Full Model + GT Mask (the dataset's apparel vertex mask instead of f_c's;
   the only variant that reads it).
 
@@ -26,7 +28,8 @@ ENV = "MIMICBENCH_MMDMC_CHECKPOINTS"
 CITATION = ("Rong Wang, Wei Mao, Changsheng Lu, Hongdong Li. Towards High-Quality 3D Motion Transfer with "
             "Realistic Apparel Animation. ECCV 2024.")
 STAGES = ("seg", "body", "apparel", "refine")
-VARIANT_STAGES = {"full": STAGES, "no_refine": ("seg", "body", "apparel"), "body_only": ("body",)}
+VARIANT_STAGES = {"full": STAGES, "no_refine": ("seg", "body", "apparel"), "body_only": ("body",),
+                  "no_apparel": STAGES}  # f_d's header holds the mask vote and apparel skinning it shares
 
 
 def checkpoint_path(stage: str, folder: str | os.PathLike | None = None) -> Path:
@@ -123,6 +126,14 @@ class MmdmcNoRefine(Mmdmc):
                               citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
                               description="MMDMC ablation: body + apparel modules, no refinement (Table 2)")
     variant = "no_refine"
+
+
+class MmdmcNoApparel(Mmdmc):
+    metadata = MethodMetadata(name="mmdmc_no_apparel", version="6", licence="MIT", needs_training=True,
+                              citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
+                              description="MMDMC ablation: full model with f_d's displacement zero (same mask, "
+                                          "skinning and refinement; f_d's effect is mmdmc against this)")
+    variant = "no_apparel"
 
 
 class MmdmcGtMask(Mmdmc):

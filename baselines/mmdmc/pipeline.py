@@ -162,6 +162,9 @@ def rollout_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
     return states[0]
 
 
+VARIANTS = ("full", "no_refine", "no_apparel", "body_only")
+
+
 @torch.no_grad()
 def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
             gt_mask: np.ndarray | None = None) -> np.ndarray:
@@ -169,11 +172,13 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
 
     Args:
         variant: ``full`` (body + apparel + refinement), ``no_refine`` (body + apparel),
-            ``body_only`` (the body module alone).
+            ``no_apparel`` (the full model with f_d's displacement zero: apparel vertices stay where
+            f_s's skinning with the same mask puts them, then the refinement), ``body_only`` (the
+            body module alone, apparel skinned to body joints as f_s scores them).
         gt_mask: (N,) bool apparel mask to use instead of f_c's (the ``GT Mask`` ablation).
     """
-    if variant not in ("full", "no_refine", "body_only"):
-        raise ValueError(f"variant: expected 'full', 'no_refine' or 'body_only', got {variant!r}")
+    if variant not in VARIANTS:
+        raise ValueError(f"variant: expected one of {', '.join(map(repr, VARIANTS))}, got {variant!r}")
     if variant == "body_only":
         w = mesh_weights(modules.body, prep, None, smoothing=modules.weight_smoothing,
                          radius=modules.weight_smoothing_radius)
@@ -184,11 +189,11 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
                      modules.weight_smoothing_radius)
     s = body_states(prep, w, transforms)  # (F, N, 3)
     y = s.clone()
-    if mask.any():
+    if mask.any() and variant != "no_apparel":
         idx, nb = apparel_layout(prep, mask, modules.knn)
         joints = to_unit(prep, torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body, 4:], device=s.device))
         y[:, torch.as_tensor(idx, device=s.device)] = rollout_from_body(modules.apparel, prep, s, joints, idx, nb)
-    if variant == "full" and modules.refine is not None:
+    if variant in ("full", "no_apparel") and modules.refine is not None:
         p = torch.as_tensor(np.array(mask if gt_mask is not None else prob), dtype=s.dtype, device=s.device)
         rest = torch.as_tensor(prep.rest_norm, device=s.device)
         y = y + modules.refine(s, y, p.expand(len(y), -1), rest[None])

@@ -26,7 +26,8 @@ class LinkSpec:
     ``angular_damping`` Bullet's per-link velocity damping (0..1 per second). ``hull`` (P, 3)
     metres relative to ``head`` at rest: the points of the link's convex collision shape (the
     hull of the vertices the bone owns), or None for the capsule. The capsule always gives the
-    link's inertia.
+    link's inertia, its axial moment raised to ``axial_share`` of its transverse one
+    (:func:`datagen.apparel.urdf.capsule_inertia`; 0: the capsule's own).
     """
 
     bone: int
@@ -39,6 +40,7 @@ class LinkSpec:
     angular_damping: float = 0.1
     friction: float = 0.3
     hull: np.ndarray | None = None
+    axial_share: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -103,7 +103,7 @@ def build_chains(keypoints: np.ndarray, parents: np.ndarray, bone_names: list[st
             links.append(LinkSpec(bone=b, head=keypoints[b].copy(), axis=axis, length=length,
                                   radius=spread * cp.radius_scale, mass=cp.link_mass,
                                   linear_damping=cp.linear_damping, angular_damping=cp.angular_damping,
-                                  friction=cp.friction, hull=hull))
+                                  friction=cp.friction, hull=hull, axial_share=cp.axial_inertia))
         heads = [link.head for link in links]
         centres = [link.head + 0.5 * link.length * link.axis for link in links]
         masses = [link.mass for link in links]

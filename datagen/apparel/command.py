@@ -9,6 +9,7 @@ from mimicbench.summary import StageSummary
 from mimicbench.argtypes import float_in, nonnegative_int, positive_int
 
 MIN_PHYSICS_FPS = 30.0
+DEFAULT_MAX_FAILED = 0.05  # share of clips that may fail (status rows) before the stage exits 1
 
 
 def register(subparsers) -> None:
@@ -24,13 +25,15 @@ def register(subparsers) -> None:
         "from rest into the first pose, simulated and dropped. Per-clip quality (apparel inside the body, edge "
         "stretch, jitter, secondary motion in % of height) goes in the character's meta['apparel']; a clip "
         "whose simulation explodes gets a 'failed' status row and keeps its kinematic clip. Deterministic; a "
-        "re-run into the same OUT_DATASET resumes. Examples:\n"
+        "re-run into the same OUT_DATASET resumes. The exit status is 0 while at most --max-failed of the clips "
+        "failed (each failure a status row: a dataset build of thousands of clips is not stopped by a few) and 1 "
+        "above it. Examples:\n"
         "  mimicbench datagen apparel data/zoo data/zoo_sim\n"
         "  mimicbench datagen apparel data/mine data/mine_sim --apparel-bones '*hair*' '*skirt*' --params phys.json\n\n"
         "--params FILE overrides parameters per apparel kind (skirt, hair, ponytail, cape, coat_tail, default):\n"
         '  {"simulation": {"max_speed": 25}, "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.6}}}\n'
         "fields: link_mass, stiffness, damping, strength, linear_damping, angular_damping, swing_limit, "
-        "twist_limit, radius_scale, friction, collide_body, collide_chains (datagen/apparel/params.py).",
+        "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia (datagen/apparel/params.py).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("in_dataset")
     p.add_argument("out_dataset")
@@ -47,6 +50,9 @@ def register(subparsers) -> None:
                    help="glob patterns on bone names choosing the apparel bones, case-insensitive (e.g. '*hair*' "
                         "'*skirt*'); the apparel vertex mask follows the weights. Default: each character's own "
                         "apparel_bone_mask (the zoo's)")
+    p.add_argument("--max-failed", type=float_in(0.0, 1.0), default=DEFAULT_MAX_FAILED, metavar="SHARE",
+                   help="share of the clips (0 to 1) that may fail with a status row while the stage still exits 0 "
+                        f"(default {DEFAULT_MAX_FAILED:g}; 0: any failed clip makes the exit status 1)")
     p.add_argument("--jobs", type=positive_int, default=1, help="worker processes, >= 1 (default 1)")
     add_engine_arguments(p)
     p.add_argument("--quiet", action="store_true")
@@ -71,4 +77,10 @@ def run(args) -> int:
           f"characters with apparel in {s['seconds']:.1f} s; apparel inside the body {fmt(s['inside_pct_mean'])} % "
           f"(new {fmt(s['new_inside_pct_mean'])} %), secondary motion {fmt(s['secondary_motion_pct_mean'])} % of "
           f"height, max edge stretch {fmt(s['max_edge_stretch'])} -> {args.out_dataset}")
-    return StageSummary(s["simulated"] + s["reused"], s["failed"], s["seconds"], str(args.out_dataset))
+    share = s["failed"] / max(1, s["simulated"] + s["reused"] + s["failed"])
+    if s["failed"]:
+        print(f"{s['failed']} failed clips ({100 * share:.1f} % of the clips, --max-failed "
+              f"{100 * args.max_failed:g} %): see the status rows in {args.out_dataset}/status; their kinematic "
+              f"clips are kept")
+    return StageSummary(s["simulated"] + s["reused"], s["failed"], s["seconds"], str(args.out_dataset),
+                        exit_code=1 if share > args.max_failed else 0)

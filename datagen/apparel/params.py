@@ -34,9 +34,11 @@ class ChainParams:
     angular_damping: Bullet's per-link damping. swing_limit, twist_limit: radians from rest.
     radius_scale: capsule radius as a multiple of the driven vertices' 75th-percentile distance
     from the bone (the capsule gives the link's inertia; it collides only where the link's
-    vertices span no volume, else the link collides as their convex hull). friction: contact
-    friction. collide_body: links collide with the body pieces; collide_chains: links collide
-    with other chains that also ask for it.
+    vertices span no volume, else the link collides as their convex hull). axial_inertia: a
+    link's moment of inertia about its bone as a share of the one across it (at least the
+    capsule's own m r^2 / 2; 0 keeps the capsule's, :func:`datagen.apparel.urdf.capsule_inertia`;
+    skirt strips keep it). friction: contact friction. collide_body: links collide with the body
+    pieces; collide_chains: links collide with other chains that also ask for it.
     """
 
     link_mass: float = 0.05
@@ -51,6 +53,7 @@ class ChainParams:
     friction: float = 0.3
     collide_body: bool = True
     collide_chains: bool = False
+    axial_inertia: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -63,9 +66,11 @@ class SimParams:
     by placement, so a limb walking into a skirt is pushed out only by this: at Bullet's 0.2 a
     thigh sank centimetres into a skirt strip), and ``max_joint_velocity`` (rad/s), Bullet's
     bound on every chain joint's speed (a light strip struck by a thigh whips past the explosion
-    bound without it), and ``constraint_erp``, the share of a joint constraint's error Bullet
-    removes each step (0..1): each chain's anchor follows its moved constraint only through it,
-    and at Bullet's 0.2 an anchor trailed a body bone turning 23.6 rad/s by 0.2 rad."""
+    bound without it; Bullet bounds the anchor's six speeds by it too, so it must stay above the
+    body's fastest turn: at 5 rad/s struck skirt strips peaked 2-4x lower, but the anchors
+    trailed a quarter turn in 0.13 s and the chains barely swung), and ``constraint_erp``, the
+    share of a joint constraint's error Bullet removes each step (0..1): each chain's anchor
+    follows its moved constraint only through it, and at Bullet's 0.2 an anchor trailed a body bone turning 23.6 rad/s by 0.2 rad."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -81,7 +86,7 @@ DEFAULT_KINDS: dict[str, ChainParams] = {
     "hair": ChainParams(link_mass=0.02, stiffness=0.015, damping=0.3, strength=1.2, swing_limit=0.8),
     "ponytail": ChainParams(link_mass=0.03, stiffness=0.015, damping=0.3, strength=1.2, swing_limit=0.8),
     "skirt": ChainParams(link_mass=0.05, stiffness=0.03, damping=0.4, strength=2.0, swing_limit=0.7,
-                         twist_limit=0.1, radius_scale=1.5),
+                         twist_limit=0.1, radius_scale=1.5, axial_inertia=0.0),
     "cape": ChainParams(link_mass=0.08, stiffness=0.02, damping=0.3, strength=1.5, swing_limit=0.9),
     "coat_tail": ChainParams(link_mass=0.06, stiffness=0.025, damping=0.35, strength=1.8, swing_limit=0.8),
 }
@@ -90,7 +95,8 @@ _RANGES = {  # field: (low, high, low_open)
     "link_mass": (0.0, None, True), "stiffness": (0.0, 1.0, False), "damping": (0.0, None, False),
     "strength": (0.0, None, False), "linear_damping": (0.0, 1.0, False), "angular_damping": (0.0, 1.0, False),
     "swing_limit": (0.0, math.pi, True), "twist_limit": (0.0, math.pi, True), "radius_scale": (0.0, None, True),
-    "friction": (0.0, None, False), "gravity": (0.0, None, False), "max_speed": (0.0, None, True),
+    "friction": (0.0, None, False), "axial_inertia": (0.0, 1.0, False), "gravity": (0.0, None, False),
+    "max_speed": (0.0, None, True),
     "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True), "contact_erp": (0.0, 1.0, True),
     "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True),
 }

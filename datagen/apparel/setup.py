@@ -18,12 +18,14 @@ from schemas.character import CharacterRecord
 from schemas.motion import SIM_SUFFIX
 from schemas.motion import MotionRecord
 
-SIM_VERSION = "8"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
+SIM_VERSION = "9"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
 # projected every step, constraint ERP 0.8; 6: springs as implicit torques from numpy instead of
 # Bullet's joint motors; 7: springs solved per tree of links (a merged multibody's chains
 # apart), which rounds differently; 8: the per-step joint arithmetic compiled (joint_kernel),
-# its sums in a fixed order (numpy's einsum summed in SIMD lanes), which rounds differently
+# its sums in a fixed order (numpy's einsum summed in SIMD lanes), which rounds differently;
+# 9: a link's axial inertia as large as its transverse one but for skirt strips (contacts no
+# longer spin thin hair links past the twist limit and into the body, issue 33)
 
 
 @dataclass

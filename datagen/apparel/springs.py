@@ -54,7 +54,7 @@ def chain_mass_matrix(chain: ChainSpec) -> np.ndarray:
     for i, link in enumerate(chain.links):
         axis = np.asarray(link.axis, np.float64) / np.linalg.norm(link.axis)
         centre = heads[i] + 0.5 * link.length * axis
-        transverse, axial = capsule_inertia(link.mass, link.radius, link.length)
+        transverse, axial = capsule_inertia(link.mass, link.radius, link.length, link.axial_share)
         inertia = frames[i] @ np.diag([transverse, transverse, axial]) @ frames[i].T
         jv, jw = np.zeros((3, 3 * n)), np.zeros((3, 3 * n))
         j = i

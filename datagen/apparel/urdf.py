@@ -54,10 +54,22 @@ def _bone_frame(dtype: str, shape: tuple, axis_bytes: bytes) -> Rotation:
     return Rotation.from_rotvec(cross / s * np.arctan2(s, c))
 
 
-def capsule_inertia(mass: float, radius: float, length: float) -> tuple[float, float]:
-    """(transverse, axial) principal moments of a solid cylinder of the capsule's full length."""
+def capsule_inertia(mass: float, radius: float, length: float, axial_share: float = 0.0) -> tuple[float, float]:
+    """(transverse, axial) principal moments (kg m^2) of a link: those of a solid cylinder of the
+    capsule's full length, the axial one raised to ``axial_share`` of the transverse one.
+
+    A thin cylinder's own axial moment m r^2 / 2 is hundreds of times smaller than its transverse
+    one, so a contact on the edge of a hair link's hull spun it about its bone past the twist
+    limit within a step, and putting it back each step pushed it into the body, step after step
+    (simulation version 8: 282-319 m/s^2 on a zoo walk whose body peaks at 24, issue 33). A link
+    stands for a stretch of strand held by its neighbours, which turns about its bone no more
+    easily than across it: hair, capes and the other kinds take ``axial_share`` 1
+    (:class:`datagen.apparel.params.ChainParams` ``axial_inertia``); skirt strips keep the
+    capsule's (at 1 their worst frames sank deeper into the thighs).
+    """
     full = length + 2 * radius
-    return mass * (3 * radius ** 2 + full ** 2) / 12.0, mass * radius ** 2 / 2.0
+    transverse = mass * (3 * radius ** 2 + full ** 2) / 12.0
+    return transverse, max(mass * radius ** 2 / 2.0, axial_share * transverse)
 
 
 def hull_obj(link: LinkSpec) -> str:
@@ -94,7 +106,7 @@ def chain_urdf(chain: ChainSpec, anchor_head: np.ndarray, collision_offsets=None
            f'</inertial></link>']
     frames = [bone_frame(link.axis) for link in chain.links]
     for i, (link, joint, parent) in enumerate(zip(chain.links, chain.joints, chain.link_parents)):
-        it, ia = capsule_inertia(link.mass, link.radius, link.length)
+        it, ia = capsule_inertia(link.mass, link.radius, link.length, link.axial_share)
         centre = _vec([0.0, 0.0, 0.5 * link.length])
         parent_name, parent_head, parent_frame = (("anchor", anchor_head, Rotation.identity()) if parent < 0 else
                                                   (f"l{parent}", chain.links[parent].head, frames[parent]))
