@@ -210,6 +210,33 @@ def correspondences(encoder: nn.Module, g: nn.Module, src: list[CharacterTensors
     return [cache[k] for k in keys]
 
 
+DECODES = ("soft", "hungarian")
+
+
+def decode_correspondence(m: torch.Tensor, decode: str = "soft") -> torch.Tensor:
+    """The M (Ks, Kt) that H's initialisation reads from G's soft correspondence m (Ks, Kt)
+    (config ``transfer.m_decode``).
+
+    ``soft``: m itself. ``hungarian``: the one-to-one decoding of m, a 0/1 matrix with a 1 at
+    each pair of the assignment maximising the summed entries
+    (:func:`mimicbench.hungarian.hungarian_match`; min(Ks, Kt) pairs, so the larger side keeps
+    unmatched bones, whose empty columns the structured initialisation fills from the parent).
+    G's Sinkhorn has no dustbin: every target column of m carries mass, spread over several
+    source bones where G hesitates, and the structured initialisation's carried translations
+    and Eq. 4's average then blur the pose; the one-to-one decoding keeps each bone's single
+    best match (it is ``nearest_joint``'s construction from G's matches). G is frozen when H
+    trains, so the decoding is a constant for H (no gradient flows into m either way).
+    """
+    if decode not in DECODES:
+        raise ValueError(f"transfer.m_decode: expected one of {DECODES}, got {decode!r}")
+    if decode == "soft":
+        return m
+    from mimicbench.hungarian import hungarian_match
+
+    _, onehot = hungarian_match(m.detach().cpu().numpy(), maximize=True)
+    return torch.as_tensor(onehot, dtype=m.dtype, device=m.device)
+
+
 def as_numpy_transforms(q: torch.Tensor, t: torch.Tensor) -> np.ndarray:
     """(K, 7) float32 transforms from torch rotations and positions."""
     return torch.cat([q, t], dim=-1).detach().cpu().numpy().astype(np.float32)
