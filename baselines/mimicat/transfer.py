@@ -191,8 +191,10 @@ def correspondences(encoder: nn.Module, g: nn.Module, src: list[CharacterTensors
     with a flat M averages many source rotations into one and loses the pose. A sharper M from
     the same scores keeps it: on 48 cycles of the training zoo (untrained H, shipped G of the
     previous release) the cycle error was 0.0236 of the source's size at T = 1, 0.0206 at 0.3,
-    0.0203 at 0.1 and 0.0202 at 0.03; a one-to-one Hungarian decoding of M gave 0.0209. M stays
-    doubly stochastic (and soft where G's scores are close), so Eq. 4 still averages.
+    0.0203 at 0.1 and 0.0202 at 0.03; a one-to-one Hungarian decoding of M gave 0.0209 (all with
+    the ``paper`` initialisation). M stays doubly stochastic (and soft where G's scores are
+    close), so Eq. 4 still averages. The structured initialisation reads it one to one instead
+    (:func:`decode_correspondence`, config ``transfer.m_decode``).
     """
     cache = {} if cache is None else cache
     keys = [(s.character_id, t.character_id, float(temperature)) for s, t in zip(src, tgt)]
