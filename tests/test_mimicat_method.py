@@ -88,9 +88,23 @@ def test_initialisation_of_the_shipped_checkpoint_and_of_init_only(requests):
     only = MimicatInitOnly(arap=False)
     only.setup("cpu")
     assert only._modules["transfer"].init == "structured"
+    from baselines.mimicat.transfer import correspondences
+
     for r, got in zip(requests, only.transfer(requests)):
         s, t = CharacterTensors.of_rig(r.source, only.points), CharacterTensors.of_rig(r.target, only.points)
         m = only._correspondences([r], [s], [t])[0]
+        # init_only reads G's M one to one: 0/1, at most one 1 a row and a column, min(Ks, Kt) pairs,
+        # and at least the summed M of the greedy one-to-one matching of the same soft M
+        soft = correspondences(only._modules["shape"], only._modules["corr"], [s], [t], {}, only.m_temperature)[0]
+        mm = m.numpy()
+        assert set(np.unique(mm)) <= {0.0, 1.0}
+        assert mm.sum(axis=0).max() <= 1 and mm.sum(axis=1).max() <= 1 and mm.sum() == min(mm.shape)
+        left, greedy = soft.numpy().copy(), 0.0
+        for _ in range(min(mm.shape)):
+            i, j = np.unravel_index(np.argmax(left), left.shape)
+            greedy += soft.numpy()[i, j]
+            left[i, :], left[:, j] = -np.inf, -np.inf
+        assert float((soft.numpy().astype(np.float64) * mm).sum()) >= greedy - 1e-6
         q, p = source_pose(r)
         qb, tb = structured_pose(torch.as_tensor(q), torch.as_tensor(p), s.keypoints, s.parents, t.keypoints,
                                  t.parents, m, r.target.size / r.source.size)

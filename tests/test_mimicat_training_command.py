@@ -12,7 +12,7 @@ from mimicbench.training.checkpoint import read_header
 README = Path(__file__).resolve().parents[1] / "README.md"
 SHIPPED = ("shape", "prior", "corr", "transfer", "transfer_no_prior")
 LOOP_KEYS = ("lr", "weight_decay", "grad_clip")
-ADDED_LATER = {"corr": {"geometry_weight": 0.0}, "transfer": {"init": "paper"}}
+ADDED_LATER = {"corr": {"geometry_weight": 0.0}, "transfer": {"init": "paper", "m_decode": "soft"}}
 """Settings added to the presets after a checkpoint could have been trained, with the value that
 a header without them means (the code reads them with that default)."""
 

@@ -294,3 +294,47 @@ def test_training_steps_lower_the_prior_term():
         loss.backward()
         opt.step()
     assert float(reg().detach()) < first - 0.1 * abs(first)
+
+
+def test_hungarian_decoding_is_the_best_one_to_one_assignment():
+    """``transfer.m_decode=hungarian``: a 0/1 matrix whose pairs are the one-to-one assignment of
+    largest summed M, found here by trying every injection (both orientations, ties excluded by
+    random M); ``soft`` returns M untouched; an unknown decoding is refused."""
+    import itertools
+
+    from baselines.mimicat.transfer import decode_correspondence
+
+    rng = np.random.default_rng(3)
+    for ks, kt in ((3, 5), (5, 3), (4, 4)):
+        m = torch.as_tensor(rng.random((ks, kt)))
+        got = decode_correspondence(m, "hungarian").numpy()
+        best, best_pairs = -1.0, None
+        if ks <= kt:
+            for cols in itertools.permutations(range(kt), ks):
+                total = sum(float(m[i, c]) for i, c in enumerate(cols))
+                if total > best:
+                    best, best_pairs = total, [(i, c) for i, c in enumerate(cols)]
+        else:
+            for rows in itertools.permutations(range(ks), kt):
+                total = sum(float(m[r, j]) for j, r in enumerate(rows))
+                if total > best:
+                    best, best_pairs = total, [(r, j) for j, r in enumerate(rows)]
+        expected = np.zeros((ks, kt))
+        for i, j in best_pairs:
+            expected[i, j] = 1
+        np.testing.assert_array_equal(got, expected)
+        assert got.dtype == np.float64
+        assert decode_correspondence(m, "soft") is m
+    with pytest.raises(ValueError, match="m_decode"):
+        decode_correspondence(m, "sharp")
+
+
+def test_presets_decode_one_to_one_and_old_configs_stay_soft():
+    """The presets' structured initialisation reads G's M one to one; a config without the key
+    (the checkpoints of methods version 4 and before) keeps the soft M it was trained with."""
+    from baselines.mimicat.config import preset
+    from baselines.mimicat.transfer_training import section
+
+    for name in ("small", "paper"):
+        assert section(preset(name), "transfer")["m_decode"] == "hungarian"
+    assert section({"transfer": {"init": "structured"}}, "transfer")["m_decode"] == "soft"

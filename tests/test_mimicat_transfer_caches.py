@@ -84,3 +84,40 @@ def test_shared_correspondences_match_one_pair_at_a_time(stage_context, monkeypa
     for (s, t, temp), m in merged.items():
         alone = correspondences(ctx.frozen["shape"], ctx.frozen["corr"], [tensors[s]], [tensors[t]], {}, temp)[0]
         np.testing.assert_allclose(m.numpy(), alone.numpy(), atol=1e-4)  # Sinkhorn stops within 1e-5 of its marginals
+
+
+@pytest.mark.parametrize("decode", ["soft", "hungarian"])
+def test_both_legs_read_the_decoded_m(stage_context, decode):
+    """``transfer.m_decode``: H's initialisation in both legs of the cycle reads G's cached soft M
+    as it is (``soft``) or its one-to-one decoding (``hungarian``: 0/1, at most one 1 a row and a
+    column, min(Ks, Kt) of them, summing to no less of the soft M than its greedy one-to-one
+    matching)."""
+    tt, model, config, ctx = stage_context
+    config = {**config, "transfer": {**config["transfer"], "init": "structured", "m_decode": decode}}
+    ctx.config = config
+    tt._CACHE.clear()
+    torch.manual_seed(0)
+    h = model.stage("transfer").build(config, ctx)
+    seen = []
+    original = h.initialise
+    h.initialise = lambda src, q, t, tgt, m: (seen.append((src.character_id, tgt.character_id, m)),
+                                              original(src, q, t, tgt, m))[1]
+    batch = next(iter(model.stage("transfer").batches(config, ctx, np.random.default_rng(3))))
+    tt.transfer_loss(h, batch, ctx)
+    cache = tt._CACHE[("m", str(ctx.dataset), str(ctx.device))]
+    temp = float(config["transfer"]["m_temperature"])
+    assert len(seen) == 2 * len(batch["examples"])  # forward and return legs
+    for s, t, m in seen:
+        soft = cache[(s, t, temp)].numpy()
+        got = m.numpy()
+        if decode == "soft":
+            np.testing.assert_allclose(got, soft, atol=0)
+            continue
+        assert set(np.unique(got)) <= {0.0, 1.0} and got.sum() == min(got.shape)
+        assert got.sum(axis=0).max() <= 1 and got.sum(axis=1).max() <= 1
+        left, greedy = soft.astype(np.float64), 0.0
+        for _ in range(min(got.shape)):
+            i, j = np.unravel_index(np.argmax(left), left.shape)
+            greedy += float(soft[i, j])
+            left[i, :], left[:, j] = -np.inf, -np.inf
+        assert float((soft.astype(np.float64) * got).sum()) >= greedy - 1e-6

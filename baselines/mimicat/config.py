@@ -33,7 +33,11 @@ Sections:
   ``structured`` (root displacement of the source root, carried local bone translations, empty
   columns inheriting the parent's rotation) or ``paper`` (Eq. 3-4 as published; what a config
   without the key, such as the checkpoints of methods version 3, was trained with), see
-  :mod:`baselines.mimicat.initialisation`.
+  :mod:`baselines.mimicat.initialisation`. ``transfer.m_decode`` is how that initialisation
+  reads G's M: ``hungarian`` (the presets: the one-to-one decoding, G's Sinkhorn has no dustbin
+  and its soft M blurs the carried translations and rotations, see
+  :func:`baselines.mimicat.transfer.decode_correspondence`) or ``soft`` (M as it is; what a
+  config without the key, such as the checkpoints of methods version 4, was trained with).
 """
 from __future__ import annotations
 
@@ -53,7 +57,8 @@ SMALL = {
              "geometry_weight": 0.0},
     "transfer": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 4, "epochs": 10,
                  "examples_per_epoch": 128, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.001,
-                 "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured"},
+                 "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured",
+                 "m_decode": "hungarian"},
     "transfer_no_prior": {"epochs": 10},
 }
 
@@ -71,7 +76,8 @@ PAPER = {
              "geometry_weight": 0.0},
     "transfer": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 16, "epochs": 100,
                  "examples_per_epoch": 4096, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.001,
-                 "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured"},
+                 "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured",
+                 "m_decode": "hungarian"},
     "transfer_no_prior": {"epochs": 100},
 }
 

@@ -3,7 +3,8 @@
 The cascade of MimiCAT: the source's pose is read off its posed vertices (weighted Kabsch per
 bone, :func:`baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
 the soft correspondence M (at the Sinkhorn temperature ``transfer.m_temperature`` of the transfer
-checkpoint's config, 1 for checkpoints without it); H the target's transforms from its
+checkpoint's config, 1 for checkpoints without it), read as ``transfer.m_decode`` says (``soft``
+for checkpoints without it, ``hungarian``: one to one); H the target's transforms from its
 initialisation (``transfer.init`` of the transfer checkpoint's config: ``structured`` for runs of
 the current presets, ``paper``, Eq. 3-4 as published, for a config without the key, which is
 what the shipped checkpoint of version 3 was trained with); LBS poses
@@ -20,8 +21,9 @@ Registered names:
 - ``mimicat_naive_avg`` (ablation A1): the same weights with Eq. 4's rotation average replaced
   by the normalised plain weighted sum of quaternions in the initialisation.
 - ``mimicat_no_prior`` (ablation A2): H trained without the prior term L_reg.
-- ``mimicat_init_only``: the shipped G and the structured initialisation, H off (the
-  initialisation is the answer), so that H's own contribution shows on the leaderboard.
+- ``mimicat_init_only``: the shipped G, its M decoded one to one (``hungarian``) and the
+  structured initialisation, H off (the initialisation is the answer), so that H's own
+  contribution shows on the leaderboard.
 """
 from __future__ import annotations
 
@@ -56,13 +58,17 @@ class Mimicat(PoseTransferMethod):
         batch_size: requests run through the networks at once.
     """
 
-    metadata = MethodMetadata(name="mimicat", version="4", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mimicat", version="5", licence="MIT", needs_training=True, citation=CITATION,
                               description="MimiCAT cascade: shape encoder, correspondence transformer G, "
                                           "pose-transfer transformer H, LBS + ARAP (bundled checkpoint)")
     transfer_stage = "transfer"
     average = "eq4"
     init: str | None = None
     """H's initialisation (``structured`` or ``paper``); None: the transfer checkpoint's ``transfer.init``."""
+    m_decode: str | None = None
+    """How H's initialisation reads G's M (``soft`` or ``hungarian``, see
+    :func:`baselines.mimicat.transfer.decode_correspondence`); None: the transfer checkpoint's
+    ``transfer.m_decode`` (``soft`` for a config without the key)."""
     use_h = True
     """False: the initialisation is the answer (H's correction left out)."""
 
@@ -103,6 +109,7 @@ class Mimicat(PoseTransferMethod):
         transfer_config = section(_header_config(checkpoint_path(self.checkpoint, self.transfer_stage)), "transfer")
         self.points = int(transfer_config["points"])
         self.m_temperature = float(transfer_config["m_temperature"])
+        self.decode = self.m_decode or transfer_config["m_decode"]
         self._modules = mods
         if self.arap:
             from baselines.mimicat.arap import ArapRefiner
@@ -153,13 +160,14 @@ class Mimicat(PoseTransferMethod):
         return verts
 
     def _correspondences(self, requests, src, tgt) -> list:
-        """G's soft correspondence M (Ks, Kt) of each request's characters (prepared ``src``, ``tgt``),
-        cached per pair; a diagnostic subclass may supply other matches
-        (benchmarks/mimicat_decomposition.py)."""
-        from baselines.mimicat.transfer import correspondences
+        """G's correspondence M (Ks, Kt) of each request's characters (prepared ``src``, ``tgt``),
+        the soft M cached per pair, decoded as ``self.decode``; a diagnostic subclass may supply
+        other matches (benchmarks/mimicat_decomposition.py)."""
+        from baselines.mimicat.transfer import correspondences, decode_correspondence
 
         m = self._modules
-        return correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)
+        return [decode_correspondence(mm, self.decode)
+                for mm in correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)]
 
 
 def _header_config(path: Path) -> dict:
@@ -169,22 +177,23 @@ def _header_config(path: Path) -> dict:
 
 
 class MimicatNaiveAvg(Mimicat):
-    metadata = MethodMetadata(name="mimicat_naive_avg", version="4", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_naive_avg", version="5", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT ablation A1: plain weighted quaternion sum instead of Eq. 4")
     average = "naive"
 
 
 class MimicatNoPrior(Mimicat):
-    metadata = MethodMetadata(name="mimicat_no_prior", version="4", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_no_prior", version="5", licence="MIT", needs_training=True,
                               citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg")
     transfer_stage = "transfer_no_prior"
 
 
 class MimicatInitOnly(Mimicat):
-    metadata = MethodMetadata(name="mimicat_init_only", version="4", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_init_only", version="5", licence="MIT", needs_training=True,
                               citation=CITATION,
-                              description="MimiCAT without H: G's correspondence and the structured initialisation, "
-                                          "LBS + ARAP")
+                              description="MimiCAT without H: G's correspondence decoded one to one and the "
+                                          "structured initialisation, LBS + ARAP")
     init = "structured"
+    m_decode = "hungarian"
     use_h = False

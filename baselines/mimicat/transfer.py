@@ -191,8 +191,10 @@ def correspondences(encoder: nn.Module, g: nn.Module, src: list[CharacterTensors
     with a flat M averages many source rotations into one and loses the pose. A sharper M from
     the same scores keeps it: on 48 cycles of the training zoo (untrained H, shipped G of the
     previous release) the cycle error was 0.0236 of the source's size at T = 1, 0.0206 at 0.3,
-    0.0203 at 0.1 and 0.0202 at 0.03; a one-to-one Hungarian decoding of M gave 0.0209. M stays
-    doubly stochastic (and soft where G's scores are close), so Eq. 4 still averages.
+    0.0203 at 0.1 and 0.0202 at 0.03; a one-to-one Hungarian decoding of M gave 0.0209 (all with
+    the ``paper`` initialisation). M stays doubly stochastic (and soft where G's scores are
+    close), so Eq. 4 still averages. The structured initialisation reads it one to one instead
+    (:func:`decode_correspondence`, config ``transfer.m_decode``).
     """
     cache = {} if cache is None else cache
     keys = [(s.character_id, t.character_id, float(temperature)) for s, t in zip(src, tgt)]
@@ -208,6 +210,33 @@ def correspondences(encoder: nn.Module, g: nn.Module, src: list[CharacterTensors
         for i, m in zip(todo, ms):
             cache[keys[i]] = m.detach()
     return [cache[k] for k in keys]
+
+
+DECODES = ("soft", "hungarian")
+
+
+def decode_correspondence(m: torch.Tensor, decode: str = "soft") -> torch.Tensor:
+    """The M (Ks, Kt) that H's initialisation reads from G's soft correspondence m (Ks, Kt)
+    (config ``transfer.m_decode``).
+
+    ``soft``: m itself. ``hungarian``: the one-to-one decoding of m, a 0/1 matrix with a 1 at
+    each pair of the assignment maximising the summed entries
+    (:func:`mimicbench.hungarian.hungarian_match`; min(Ks, Kt) pairs, so the larger side keeps
+    unmatched bones, whose empty columns the structured initialisation fills from the parent).
+    G's Sinkhorn has no dustbin: every target column of m carries mass, spread over several
+    source bones where G hesitates, and the structured initialisation's carried translations
+    and Eq. 4's average then blur the pose; the one-to-one decoding keeps each bone's single
+    best match (it is ``nearest_joint``'s construction from G's matches). G is frozen when H
+    trains, so the decoding is a constant for H (no gradient flows into m either way).
+    """
+    if decode not in DECODES:
+        raise ValueError(f"transfer.m_decode: expected one of {DECODES}, got {decode!r}")
+    if decode == "soft":
+        return m
+    from mimicbench.hungarian import hungarian_match
+
+    _, onehot = hungarian_match(m.detach().cpu().numpy(), maximize=True)
+    return torch.as_tensor(onehot, dtype=m.dtype, device=m.device)
 
 
 def as_numpy_transforms(q: torch.Tensor, t: torch.Tensor) -> np.ndarray:

@@ -14,7 +14,9 @@
   start (:func:`shared_correspondences`), and E reads each rest mesh once (the frozen encoder's
   rest tokens are cached per character); only the posed meshes go through E each step.
   Both legs use G's M at the Sinkhorn temperature ``m_temperature`` (see
-  :func:`baselines.mimicat.transfer.correspondences`), as the method does at test time, and H's
+  :func:`baselines.mimicat.transfer.correspondences`) decoded as ``m_decode`` says (``soft``: as
+  it is; ``hungarian``: one-to-one, the presets' default, see
+  :func:`baselines.mimicat.transfer.decode_correspondence`), as the method does at test time, and H's
   initialisation ``init`` (``structured`` in the presets; ``paper``, Eq. 3-4 as published, for a
   config without the key, which is what checkpoints trained before it used).
 - ``transfer_no_prior`` (needs ``shape``, ``corr``): the same without ``L_reg`` (ablation A2):
@@ -31,7 +33,8 @@ import torch
 
 from baselines.mimicat.corr_data import read_pairs
 from baselines.mimicat.correspondence import CorrespondenceTransformer, correspondence_loss
-from baselines.mimicat.transfer import PoseTransferTransformer, correspondences, pose_mesh, transfer_batch
+from baselines.mimicat.transfer import (PoseTransferTransformer, correspondences, decode_correspondence, pose_mesh,
+                                        transfer_batch)
 from baselines.mimicat.transfer_data import (CharacterTensors, correspondence_inputs, read_transfer_pool,
                                              shape_tokens)
 
@@ -39,7 +42,8 @@ CORR_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size":
                  "sinkhorn_iters": 50}
 TRANSFER_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size": 4, "points": 512, "split": "all",
                      "examples_per_epoch": 64, "same_skeleton_share": 0.3, "rec_weight": 1.0,
-                     "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0, "init": "paper"}
+                     "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0, "init": "paper",
+                     "m_decode": "soft"}
 """Values a config without the key means: what the checkpoints trained before the key existed
 used (the presets of :mod:`baselines.mimicat.config` set ``init`` to ``structured``)."""
 
@@ -216,7 +220,8 @@ def cycle_losses(h: PoseTransferTransformer, batch: dict, ctx, reg_weight: float
         posed.append(pose_mesh(tensors[s_id], pose[:, :4], pose[:, 4:]))
     cache = _m_cache(ctx)
     temp = float(c["m_temperature"])
-    m_fwd, m_back = correspondences(encoder, g, src, tgt, cache, temp), correspondences(encoder, g, tgt, src, cache, temp)
+    m_fwd, m_back = ([decode_correspondence(m, c["m_decode"]) for m in correspondences(encoder, g, a, b, cache, temp)]
+                     for a, b in ((src, tgt), (tgt, src)))
     rest = _CACHE.setdefault(("rest tokens", str(ctx.dataset), str(ctx.device), c["points"]), {}) \
         if SHARED_CACHES else None
     forward, _, f_fwd = transfer_batch(encoder, g, h, src, q_s, t_s, posed, tgt, m_fwd, rest)
