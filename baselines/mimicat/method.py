@@ -41,11 +41,9 @@ CITATION = ("Chai et al., MimiCAT: Mimic with Correspondence-Aware Cascade-Trans
 
 def checkpoint_path(folder: Path, stage: str) -> Path:
     """The weights of ``stage`` in a checkpoint folder (bundled or run layout)."""
-    for p in (folder / f"{stage}.safetensors", folder / stage / "model.safetensors"):
-        if p.is_file():
-            return p
-    raise FileNotFoundError(f"{folder}: no weights for stage {stage!r} (expected {stage}.safetensors or "
-                            f"{stage}/model.safetensors; train with `mimicbench train mimicat DATASET --out RUN`)")
+    from mimicbench.training.checkpoint import stage_weights
+
+    return stage_weights(folder, stage, "mimicat")
 
 
 class Mimicat(PoseTransferMethod):

@@ -23,12 +23,10 @@ CITATION = ("Jiashun Wang, Chao Wen, Yanwei Fu, Haitao Lin, Tianyun Zou, Xiangya
 
 
 def checkpoint_path(folder: Path, stage: str) -> Path:
-    """``FOLDER/<stage>.safetensors`` (shipped layout) or ``FOLDER/<stage>/model.safetensors`` (a run)."""
-    for p in (folder / f"{stage}.safetensors", folder / stage / "model.safetensors"):
-        if p.is_file():
-            return p
-    raise FileNotFoundError(f"{folder}: no weights for {stage!r} (expected {stage}.safetensors or "
-                            f"{stage}/model.safetensors; train with `mimicbench train {stage} DATASET --out RUN`)")
+    """The weights of ``stage`` (``npt``, ``cgt``, ``sfpt``) in a checkpoint folder (shipped or run layout)."""
+    from mimicbench.training.checkpoint import stage_weights
+
+    return stage_weights(folder, stage, stage)
 
 
 class Npt(PoseTransferMethod):

@@ -116,6 +116,17 @@ def save_checkpoint(path: str | os.PathLike, state_dict: dict[str, torch.Tensor]
     return path
 
 
+def stage_weights(folder: str | os.PathLike, stage: str, model: str) -> Path:
+    """The weights of ``stage`` in a checkpoint folder: ``FOLDER/<stage>.safetensors`` (the shipped
+    layout) or ``FOLDER/<stage>/model.safetensors`` (a run of ``mimicbench train <model>``)."""
+    folder = Path(folder)
+    for p in (folder / f"{stage}.safetensors", folder / stage / "model.safetensors"):
+        if p.is_file():
+            return p
+    raise FileNotFoundError(f"{folder}: no weights for stage {stage!r} (expected {stage}.safetensors or "
+                            f"{stage}/model.safetensors; train with `mimicbench train {model} DATASET --out RUN`)")
+
+
 def read_header(path: str | os.PathLike) -> dict:
     """The JSON header of a checkpoint written by :func:`save_checkpoint`."""
     from safetensors import safe_open
