@@ -174,14 +174,15 @@ def run_methods(args) -> int:
     from benchmark.registry import METHODS, get_method
     from schemas.errors import UserError
 
-    broken = []
+    broken, rows = [], []
     for name in METHODS.names():
         try:
-            md = get_method(name).metadata
+            rows.append((name, get_method(name).metadata))
         except (UserError, TypeError) as exc:  # LoadError, NameCollision, not a method
             broken.append(str(exc))
-            continue
-        print(f"{name:16s} v{md.version:6s} {md.licence:8s} {md.description}")
+    width = max((len(name) for name, _ in rows), default=0)
+    for name, md in rows:
+        print(f"{name:{width}s}  v{md.version:6s} {md.licence:8s} {md.description}")
     for reason in broken:
         print(f"mimicbench: error: {reason}", file=sys.stderr)
     return 1 if broken else 0
