@@ -1,8 +1,8 @@
 """Speed of the re-implemented published baselines (``npt``, ``cgt``, ``sfpt``): training steps per
 second and inference seconds per case, against the named peer ``nearest_joint``.
 
-Builds (or reuses) a 16-character zoo (seed 0) resampled to 5,000 faces with h2h and cct cases,
-then for each method:
+Builds (or reuses) the data of ``benchmarks/mimicat.py`` (a 16-character zoo, seed 0, resampled to
+5,000 faces, with pairs and h2h and cct cases), then for each method:
 
 - training: steps per second of its stage with the shipped checkpoint's config (``small``), each a
   loss, a backward pass and an AdamW step on one batch (two warm-up steps first);
@@ -16,6 +16,7 @@ the last lines are each method's time per case over the peer's.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 import tempfile
 import time
@@ -29,21 +30,11 @@ import torch
 
 METHODS = ("npt", "cgt", "sfpt")
 
-
-def dataset(work: Path) -> Path:
-    from benchmark.cases import build_cases, write_cases
-    from datagen.resample import resample_dataset
-    from datagen.zoo import build_zoo
-    from schemas.shards import has_table
-
-    zoo, data = work / "zoo", work / "zoo5k"
-    if not (zoo / "manifest.json").exists():
-        build_zoo(zoo, 16, seed=0, clips_per_character=3, progress=False)
-    if not (data / "manifest.json").exists():
-        resample_dataset(zoo, data, faces=5000, backend="fast", progress=False)
-    if not has_table(data, "cases"):
-        write_cases(data, build_cases(data, "all", h2h_pairs=24, h2h_poses=2, cct_pairs=24, cct_poses=1), {})
-    return data
+_spec = importlib.util.spec_from_file_location("mimicat_benchmark", Path(__file__).with_name("mimicat.py"))
+_mimicat_benchmark = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_mimicat_benchmark)
+dataset = _mimicat_benchmark.dataset  # the same zoo, resampled, with pairs and cases, as benchmarks/mimicat.py
+seconds_per_case = _mimicat_benchmark.seconds_per_case
 
 
 def training_steps_per_second(name: str, data: Path, device: torch.device, steps: int) -> float:
@@ -79,13 +70,6 @@ def training_steps_per_second(name: str, data: Path, device: torch.device, steps
     if device.type == "cuda":
         torch.cuda.synchronize()
     return steps / (time.perf_counter() - t0)
-
-
-def seconds_per_case(method, requests) -> float:
-    method.transfer(requests[:2])  # warm-up: weights, per-character caches
-    t0 = time.perf_counter()
-    method.transfer(requests)
-    return (time.perf_counter() - t0) / len(requests)
 
 
 def main() -> None:

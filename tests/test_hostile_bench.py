@@ -201,7 +201,8 @@ def test_a_finished_pipeline_with_bench_and_leaderboard_redoes_nothing(tmp_path,
 # --- disk full and read-only folders: one line naming the file and the real reason -----------------
 
 def _full_disk_writes(monkeypatch):
-    """Make every Parquet and atomic file write go to /dev/full: the kernel's real ENOSPC."""
+    """Make every Parquet and atomic file write go to /dev/full: the kernel's real ENOSPC (Linux, as CI)."""
+    assert Path("/dev/full").exists(), "this test needs Linux's /dev/full (the character device 1,7)"
     import schemas.manifest as manifest_mod
     import tempfile
 
@@ -234,7 +235,6 @@ def _one_line_error(capsys, *needles):
     return first
 
 
-@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs Linux's /dev/full")
 def test_a_full_disk_is_reported_with_its_reason_in_zoo_ingest_bench_and_leaderboard(small_zoo, four_cases,
                                                                                        tmp_path, monkeypatch, capsys):
     from tests.mmd_fixtures import pmx_bytes

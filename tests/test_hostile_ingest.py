@@ -284,15 +284,9 @@ def test_blender_assets_nan_rotation_far_key_and_a_pmx_beside_a_glb(tmp_path):
 
 @pytest.mark.slow
 def test_an_fbx_clip_longer_than_the_bound_is_a_failed_clip_row(assets_dir, tmp_path):
-    import subprocess
-    import sys
+    from tests.fbx_fixtures import export_glb_as_fbx
 
-    fbx = tmp_path / "ManFbx.fbx"
-    script = ("import bpy, sys\nbpy.ops.wm.read_factory_settings(use_empty=True)\n"
-              "bpy.ops.import_scene.gltf(filepath=sys.argv[-2])\n"
-              "bpy.ops.export_scene.fbx(filepath=sys.argv[-1], bake_anim=True, add_leaf_bones=False)\n")
-    subprocess.run([sys.executable, "-c", script, str(assets_dir / "glb" / "CesiumMan.glb"), str(fbx)], check=True,
-                   capture_output=True, timeout=300)
+    fbx = export_glb_as_fbx(assets_dir / "glb" / "CesiumMan.glb", tmp_path / "ManFbx.fbx")
     out = tmp_path / "ds"
     s = ingest_assets([fbx], out, progress=False, max_clip_frames=10)
     rows = read_records(out, "status")

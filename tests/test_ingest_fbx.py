@@ -5,7 +5,6 @@ those times, a stack that moves and scales the rig object reaches the joints, un
 vertices are left out as FORMAT.md says, a clip Blender does not play fails, and the reader
 survives many loads. Fixtures: a multi-clip FBX exported from the shared RobotExpressive.glb and
 a hand-made rig (:mod:`tests.fbx_fixtures`), written once per session."""
-import json
 
 import numpy as np
 import pytest
@@ -15,6 +14,7 @@ from mimicbench.skinning import linear_blend_skinning
 from schemas.shards import read_records
 from tests.fbx_fixtures import RIG_STACKS, RIG_UNWEIGHTED, export_glb_as_fbx, write_rig_fbx
 from tests.fbx_reference import ufbx_vertices
+from tests.test_ingest import load  # (character, motions, child JSON, child arrays) of an ingested asset
 
 pytestmark = pytest.mark.blender
 
@@ -35,15 +35,6 @@ def ingested(fbx_files, tmp_path_factory):
     out = tmp_path_factory.mktemp("fbx-ingest") / "ds"
     summary = ingest_assets(list(fbx_files.values()), out, timeout=600, progress=False)
     return out, summary
-
-
-def load(out, stem):
-    """(character, {clip name: motion}, child result JSON, child arrays) of ``assets/<stem>``."""
-    char = [c for c in read_records(out, "characters") if c.character_id == f"assets/{stem}"][0]
-    motions = {m.name: m for m in read_records(out, "motions") if m.character_id == char.character_id}
-    key = char.meta["ingest"]["cache_key"]
-    meta = json.loads((out / ".ingest" / f"{key}.json").read_text())
-    return char, motions, meta, dict(np.load(out / ".ingest" / f"{key}.npz"))
 
 
 def stored_index(arrays, ref) -> np.ndarray:
