@@ -64,6 +64,27 @@ def test_els_by_hand():
     assert np.isclose(els(pred, rest, edges), 1 - np.mean(np.abs(errs)))
 
 
+def test_els_leaves_out_a_zero_length_reference_edge_and_counts_a_near_zero_one_in_full():
+    """A zero-length edge has no ratio and is left out of the mean (numpy and torch alike); an edge
+    of 1e-9 m is an ordinary edge, so moving one end by 1e-6 m scores it |1e-6 / 1e-9 - 1| = 999
+    (why resample welds such edges away rather than the metric guarding them)."""
+    rest = np.array([[0, 0, 0], [1, 0, 0], [0, 2, 0], [0, 0, 1.0]])
+    edges = unique_edges(FACES)  # (0,1) (0,2) (0,3) (1,2) (1,3)
+    pred = rest.copy()
+    pred[1] += [0.2, 0, 0]
+    errs = [0.2, 0, 0, np.sqrt(5.44) / np.sqrt(5) - 1, np.sqrt(2.44) / np.sqrt(2) - 1]
+    zero_rest, zero_pred = np.vstack([rest, rest[2]]), np.vstack([pred, pred[2] + [0, 0, 0.1]])
+    with_zero = np.vstack([edges, [2, 4]])  # vertex 4 sits on vertex 2 at rest
+    assert np.isclose(els(zero_pred, zero_rest, with_zero), 1 - np.mean(np.abs(errs)))
+    t = lambda a: torch.tensor(a)  # noqa: E731
+    assert np.isclose(float(els_torch(t(zero_pred[None]), t(zero_rest[None]), t(with_zero))[0]),
+                      1 - np.mean(np.abs(errs)))
+    near_rest = np.vstack([rest, rest[2] + [1e-9, 0, 0]])
+    near_pred = np.vstack([pred, pred[2] + [1e-6, 0, 0]])
+    one_ratio = abs(1e-6 / 1e-9 - 1)  # 999, up to the rounding of 2 + 1e-9
+    assert np.isclose(els(near_pred, near_rest, with_zero), 1 - np.mean(np.abs(errs + [one_ratio])), rtol=1e-6)
+
+
 def test_identity_is_perfect():
     rng = np.random.default_rng(0)
     v = rng.normal(size=(50, 3))

@@ -18,6 +18,9 @@ import importlib
 # the stage's face-count limits (checked by the stage, offered by the CLI); here so neither imports the other
 MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
 MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
+# in the stage's fingerprint, so a re-run redoes rows an older resample made; 2: the resampled mesh
+# is welded (datagen.resample.clean.weld_short_edges: no near-zero edges, no zero-area faces)
+RESAMPLE_VERSION = "2"
 
 _LAZY = {
     "resample_character": "datagen.resample.character",

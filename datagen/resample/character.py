@@ -30,13 +30,16 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
 
     Keypoints, bone names, parents, roles and motions are untouched. ``meta["resample"]`` records
     the input and output face counts, subdivision rounds, what cleaning removed, the symmetric
-    Hausdorff distance and the skinning transfer error (both in percent of height).
+    Hausdorff distance and the skinning transfer error (both in percent of height), and, when the
+    resampled mesh had short edges or zero-area faces to weld away, ``weld``: what
+    :func:`datagen.resample.clean.weld_short_edges` removed and the face count decimation aimed at.
 
     Raises:
         datagen.resample.clean.BadMesh: the input mesh cannot be resampled (the reason says why).
     """
     clean = clean_mesh(record.vertices, record.faces, record.weights, record.apparel_vertex_mask)
-    new_v, new_f, refined = resample_to(clean.vertices, clean.faces, faces, backend)
+    welded: dict = {}
+    new_v, new_f, refined = resample_to(clean.vertices, clean.faces, faces, backend, report=welded)
     surface = closest_points(clean.vertices, clean.faces, new_v)
     weights = interpolate_weights(clean.weights, clean.faces, surface)
     apparel = interpolate_mask(clean.apparel, clean.faces, surface)
@@ -50,6 +53,8 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
                                                      record.keypoints, surface, frames, height),
         "frames_measured": int(len(frames)),
     }
+    if welded["welded_vertices"] or welded["zero_area_faces"]:
+        quality["weld"] = welded  # only when the resampled mesh needed it, so clean meshes keep their bytes
     meta = dict(record.meta or {})
     meta["resample"] = quality
     return dataclasses.replace(

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from datagen.resample.character import resample_character
-from datagen.resample import MAX_FACES, MIN_FACES
+from datagen.resample import MAX_FACES, MIN_FACES, RESAMPLE_VERSION
 from mimicbench.engines import Engine, TaskResources
 from datagen.stage_runner import run_stage, summarize_statuses
 from schemas.errors import DatasetError
@@ -269,7 +269,8 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     if not order:
         raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
     inputs = [t for t in ("characters", "motions") if has_table(in_dir, t)]
-    config = stage_config({"stage": "resample", "faces": int(faces), "backend": backend},
+    config = stage_config({"stage": "resample", "version": RESAMPLE_VERSION, "faces": int(faces),
+                           "backend": backend},
                           tables_fingerprint(in_dir, inputs), inputs_from=str(in_dir.resolve()),
                           info={"source": str(in_dir)})
     spill = tempfile.TemporaryDirectory(prefix="mimicbench-resample-frames-")  # the system's temporary folder
