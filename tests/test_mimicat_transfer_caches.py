@@ -86,12 +86,13 @@ def test_shared_correspondences_match_one_pair_at_a_time(stage_context, monkeypa
         np.testing.assert_allclose(m.numpy(), alone.numpy(), atol=1e-4)  # Sinkhorn stops within 1e-5 of its marginals
 
 
-@pytest.mark.parametrize("decode", ["soft", "hungarian"])
+@pytest.mark.parametrize("decode", ["soft", "hungarian", "hungarian_sym"])
 def test_both_legs_read_the_decoded_m(stage_context, decode):
     """``transfer.m_decode``: H's initialisation in both legs of the cycle reads G's cached soft M
     as it is (``soft``) or its one-to-one decoding (``hungarian``: 0/1, at most one 1 a row and a
     column, min(Ks, Kt) of them, summing to no less of the soft M than its greedy one-to-one
-    matching)."""
+    matching; ``hungarian_sym``: the same of M(s, t) + M(t, s)^T, and the return leg's is the
+    forward leg's transpose)."""
     tt, model, config, ctx = stage_context
     config = {**config, "transfer": {**config["transfer"], "init": "structured", "m_decode": decode}}
     ctx.config = config
@@ -107,8 +108,12 @@ def test_both_legs_read_the_decoded_m(stage_context, decode):
     cache = tt._CACHE[("m", str(ctx.dataset), str(ctx.device))]
     temp = float(config["transfer"]["m_temperature"])
     assert len(seen) == 2 * len(batch["examples"])  # forward and return legs
+    decoded = {(s, t): m.numpy() for s, t, m in seen}
     for s, t, m in seen:
         soft = cache[(s, t, temp)].numpy()
+        if decode == "hungarian_sym":  # one assignment of the pair, read both ways
+            soft = soft + cache[(t, s, temp)].numpy().T
+            np.testing.assert_array_equal(decoded[(t, s)].T, decoded[(s, t)])
         got = m.numpy()
         if decode == "soft":
             np.testing.assert_allclose(got, soft, atol=0)

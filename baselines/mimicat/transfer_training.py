@@ -220,8 +220,9 @@ def cycle_losses(h: PoseTransferTransformer, batch: dict, ctx, reg_weight: float
         posed.append(pose_mesh(tensors[s_id], pose[:, :4], pose[:, 4:]))
     cache = _m_cache(ctx)
     temp = float(c["m_temperature"])
-    m_fwd, m_back = ([decode_correspondence(m, c["m_decode"]) for m in correspondences(encoder, g, a, b, cache, temp)]
-                     for a, b in ((src, tgt), (tgt, src)))
+    g_fwd, g_back = (correspondences(encoder, g, a, b, cache, temp) for a, b in ((src, tgt), (tgt, src)))
+    m_fwd = [decode_correspondence(m, c["m_decode"], r) for m, r in zip(g_fwd, g_back)]
+    m_back = [decode_correspondence(m, c["m_decode"], r) for m, r in zip(g_back, g_fwd)]
     rest = _CACHE.setdefault(("rest tokens", str(ctx.dataset), str(ctx.device), c["points"]), {}) \
         if SHARED_CACHES else None
     forward, _, f_fwd = transfer_batch(encoder, g, h, src, q_s, t_s, posed, tgt, m_fwd, rest)
