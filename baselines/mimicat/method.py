@@ -65,7 +65,7 @@ class Mimicat(PoseTransferMethod):
     init: str | None = None
     """H's initialisation (``structured`` or ``paper``); None: the transfer checkpoint's ``transfer.init``."""
     m_decode: str | None = None
-    """How H's initialisation reads G's M (``soft`` or ``hungarian``, see
+    """How H's initialisation reads G's M (``soft``, ``hungarian`` or ``hungarian_sym``, see
     :func:`baselines.mimicat.transfer.decode_correspondence`); None: the transfer checkpoint's
     ``transfer.m_decode`` (``soft`` for a config without the key)."""
     use_h = True

@@ -15,7 +15,8 @@
   rest tokens are cached per character); only the posed meshes go through E each step.
   Both legs use G's M at the Sinkhorn temperature ``m_temperature`` (see
   :func:`baselines.mimicat.transfer.correspondences`) decoded as ``m_decode`` says (``soft``: as
-  it is; ``hungarian``: one-to-one, the presets' default, see
+  it is; ``hungarian``: one-to-one; ``hungarian_sym``: one one-to-one assignment of the pair from
+  G's M of both directions, the presets' default, see
   :func:`baselines.mimicat.transfer.decode_correspondence`), as the method does at test time, and H's
   initialisation ``init`` (``structured`` in the presets; ``paper``, Eq. 3-4 as published, for a
   config without the key, which is what checkpoints trained before it used).
