@@ -22,12 +22,16 @@ Builds (or reuses) a 16-character zoo resampled to 5,000 faces with corresponden
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
+
+if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path.pop(0)  # run as a script, benchmarks/baselines.py would hide the `baselines` package
 
 
 def dataset(work: Path) -> Path:

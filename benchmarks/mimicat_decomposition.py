@@ -29,10 +29,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
 import torch
+
+if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path.pop(0)  # run as a script, benchmarks/baselines.py would hide the `baselines` package
 
 
 def nearest_joint_matches(source, target) -> torch.Tensor:

@@ -70,8 +70,8 @@ def test_checkpoint_option_run_layout_and_errors(tmp_path, requests, monkeypatch
 def test_initialisation_of_the_shipped_checkpoint_and_of_init_only(requests):
     """The shipped transfer checkpoint's config has no ``transfer.init`` (it was trained before
     the key): it means ``paper``, what it was trained with. ``mimicat_init_only`` answers the
-    structured initialisation from G's M, H left out: the same vertices as that initialisation
-    posed by LBS outside the method."""
+    structured initialisation from G's M of both directions decoded as one assignment, H left
+    out: the same vertices as that initialisation posed by LBS outside the method."""
     import torch
 
     from baselines.mimicat.initialisation import structured_pose
@@ -93,9 +93,12 @@ def test_initialisation_of_the_shipped_checkpoint_and_of_init_only(requests):
     for r, got in zip(requests, only.transfer(requests)):
         s, t = CharacterTensors.of_rig(r.source, only.points), CharacterTensors.of_rig(r.target, only.points)
         m = only._correspondences([r], [s], [t])[0]
-        # init_only reads G's M one to one: 0/1, at most one 1 a row and a column, min(Ks, Kt) pairs,
-        # and at least the summed M of the greedy one-to-one matching of the same soft M
-        soft = correspondences(only._modules["shape"], only._modules["corr"], [s], [t], {}, only.m_temperature)[0]
+        # init_only reads G's M of both directions one to one: 0/1, at most one 1 a row and a column,
+        # min(Ks, Kt) pairs, and at least the summed G(s, t) + G(t, s)^T of the greedy one-to-one
+        # matching of that sum
+        soft = sum(x if k == 0 else x.T for k, x in enumerate(
+            correspondences(only._modules["shape"], only._modules["corr"], [a], [b], {}, only.m_temperature)[0]
+            for a, b in ((s, t), (t, s))))
         mm = m.numpy()
         assert set(np.unique(mm)) <= {0.0, 1.0}
         assert mm.sum(axis=0).max() <= 1 and mm.sum(axis=1).max() <= 1 and mm.sum() == min(mm.shape)

@@ -329,12 +329,46 @@ def test_hungarian_decoding_is_the_best_one_to_one_assignment():
         decode_correspondence(m, "sharp")
 
 
+def test_symmetric_decoding_is_one_assignment_both_ways():
+    """``transfer.m_decode=hungarian_sym``: the one-to-one assignment of largest summed
+    ``M(s, t) + M(t, s)^T``, found here by trying every injection, and the reversed pair's decoding
+    is its transpose (so a cycle's return leg sends each matched bone back to where it came from);
+    ``hungarian`` of the two directions apart can disagree on the same matrices. A missing or
+    wrongly shaped reversed M is refused."""
+    import itertools
+
+    from baselines.mimicat.transfer import decode_correspondence
+
+    rng = np.random.default_rng(5)
+    disagreed = 0
+    for ks, kt in ((3, 5), (5, 3), (4, 4)):
+        for _ in range(20):
+            m, r = torch.as_tensor(rng.random((ks, kt))), torch.as_tensor(rng.random((kt, ks)))
+            got = decode_correspondence(m, "hungarian_sym", r).numpy()
+            joint = m.numpy() + r.numpy().T
+            n = min(ks, kt)
+            best = max(sum(joint[i, j] for i, j in (zip(range(ks), p) if ks <= kt else zip(p, range(kt))))
+                       for p in itertools.permutations(range(max(ks, kt)), n))
+            assert got.sum() == n and got.sum(axis=0).max() <= 1 and got.sum(axis=1).max() <= 1
+            assert abs(float((joint * got).sum()) - best) < 1e-9
+            np.testing.assert_array_equal(decode_correspondence(r, "hungarian_sym", m).numpy(), got.T)
+            apart = decode_correspondence(r, "hungarian").numpy().T != decode_correspondence(m, "hungarian").numpy()
+            disagreed += int(apart.any())
+    assert disagreed > 0  # the independent decodings are not each other's transposes
+    m = torch.as_tensor(rng.random((3, 4)))
+    with pytest.raises(ValueError, match="reversed pair"):
+        decode_correspondence(m, "hungarian_sym")
+    with pytest.raises(ValueError, match="reversed pair"):
+        decode_correspondence(m, "hungarian_sym", m)
+
+
 def test_presets_decode_one_to_one_and_old_configs_stay_soft():
-    """The presets' structured initialisation reads G's M one to one; a config without the key
-    (the checkpoints of methods version 4 and before) keeps the soft M it was trained with."""
+    """The presets' structured initialisation reads G's M of both directions as one one-to-one
+    assignment; a config without the key (the checkpoints of methods version 4 and before) keeps
+    the soft M it was trained with."""
     from baselines.mimicat.config import preset
     from baselines.mimicat.transfer_training import section
 
     for name in ("small", "paper"):
-        assert section(preset(name), "transfer")["m_decode"] == "hungarian"
+        assert section(preset(name), "transfer")["m_decode"] == "hungarian_sym"
     assert section({"transfer": {"init": "structured"}}, "transfer")["m_decode"] == "soft"

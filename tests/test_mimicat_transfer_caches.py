@@ -86,12 +86,13 @@ def test_shared_correspondences_match_one_pair_at_a_time(stage_context, monkeypa
         np.testing.assert_allclose(m.numpy(), alone.numpy(), atol=1e-4)  # Sinkhorn stops within 1e-5 of its marginals
 
 
-@pytest.mark.parametrize("decode", ["soft", "hungarian"])
+@pytest.mark.parametrize("decode", ["soft", "hungarian", "hungarian_sym"])
 def test_both_legs_read_the_decoded_m(stage_context, decode):
     """``transfer.m_decode``: H's initialisation in both legs of the cycle reads G's cached soft M
     as it is (``soft``) or its one-to-one decoding (``hungarian``: 0/1, at most one 1 a row and a
     column, min(Ks, Kt) of them, summing to no less of the soft M than its greedy one-to-one
-    matching)."""
+    matching; ``hungarian_sym``: the same of M(s, t) + M(t, s)^T, and the return leg's is the
+    forward leg's transpose)."""
     tt, model, config, ctx = stage_context
     config = {**config, "transfer": {**config["transfer"], "init": "structured", "m_decode": decode}}
     ctx.config = config
@@ -107,8 +108,12 @@ def test_both_legs_read_the_decoded_m(stage_context, decode):
     cache = tt._CACHE[("m", str(ctx.dataset), str(ctx.device))]
     temp = float(config["transfer"]["m_temperature"])
     assert len(seen) == 2 * len(batch["examples"])  # forward and return legs
+    decoded = {(s, t): m.numpy() for s, t, m in seen}
     for s, t, m in seen:
         soft = cache[(s, t, temp)].numpy()
+        if decode == "hungarian_sym":  # one assignment of the pair, read both ways
+            soft = soft + cache[(t, s, temp)].numpy().T
+            np.testing.assert_array_equal(decoded[(t, s)].T, decoded[(s, t)])
         got = m.numpy()
         if decode == "soft":
             np.testing.assert_allclose(got, soft, atol=0)
@@ -121,3 +126,42 @@ def test_both_legs_read_the_decoded_m(stage_context, decode):
             greedy += float(soft[i, j])
             left[i, :], left[:, j] = -np.inf, -np.inf
         assert float((soft.astype(np.float64) * got).sum()) >= greedy - 1e-6
+
+
+def test_symmetric_decoding_brings_every_matched_chain_back(stage_context):
+    """With ``hungarian_sym`` the cycle through the structured initialisation (H off) returns
+    every source bone whose bone and ancestors all go to a target bone and come back to
+    themselves with its own rotation and position: the construction undoes itself where the two
+    legs agree on the matches (checked by a loop over the bones, on the stage's own draws), and
+    every bone matched going out comes back to itself."""
+    from baselines.mimicat.transfer import correspondences, decode_correspondence
+
+    tt, model, config, ctx = stage_context
+    config = {**config, "transfer": {**config["transfer"], "init": "structured", "m_decode": "hungarian_sym"}}
+    c = tt.section(config, "transfer")
+    records, motions, tensors = tt._characters(ctx.dataset, ctx.device, c["points"], c["split"])
+    torch.manual_seed(0)
+    h = model.stage("transfer").build(config, ctx)
+    checked = 0
+    for s_id, clip, frame, t_id in tt.transfer_examples(records, motions, 6, 0.0, np.random.default_rng(1)):
+        s, t = tensors[s_id], tensors[t_id]
+        pose = torch.as_tensor(motions[s_id][clip][frame])
+        g_st, g_ts = (correspondences(ctx.frozen["shape"], ctx.frozen["corr"], [a], [b], {}, c["m_temperature"])[0]
+                      for a, b in ((s, t), (t, s)))
+        m_fwd, m_back = decode_correspondence(g_st, "hungarian_sym", g_ts), decode_correspondence(g_ts, "hungarian_sym", g_st)
+        with torch.no_grad():
+            q1, t1 = h.initialise(s, pose[:, :4], pose[:, 4:], t, m_fwd)[:2]
+            q2, t2 = h.initialise(t, q1, t1, s, m_back)[:2]
+        fwd, back = m_fwd.numpy(), m_back.numpy()
+        home = [bool(fwd[i].sum() > 0 and back[int(fwd[i].argmax()), i] == 1) for i in range(len(s.parents))]
+        assert all(home[i] for i in range(len(home)) if fwd[i].sum() > 0)  # no bone comes back to another
+        for i in range(len(s.parents)):
+            a, chain = i, True
+            while a >= 0:
+                chain, a = chain and home[a], s.parents[a]
+            if not chain:
+                continue
+            checked += 1
+            assert abs(abs(float(q2[i] @ pose[i, :4])) - 1) < 1e-5, (s_id, t_id, i)
+            assert float((t2[i] - pose[i, 4:]).norm()) < 1e-4 * s.size, (s_id, t_id, i)
+    assert checked >= 10

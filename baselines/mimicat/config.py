@@ -34,8 +34,10 @@ Sections:
   columns inheriting the parent's rotation) or ``paper`` (Eq. 3-4 as published; what a config
   without the key, such as the checkpoints of methods version 3, was trained with), see
   :mod:`baselines.mimicat.initialisation`. ``transfer.m_decode`` is how that initialisation
-  reads G's M: ``hungarian`` (the presets: the one-to-one decoding, G's Sinkhorn has no dustbin
-  and its soft M blurs the carried translations and rotations, see
+  reads G's M: ``hungarian_sym`` (the presets: one one-to-one decoding of the pair from G's M of
+  both directions, so that a cycle's return leg undoes the forward leg's matches),
+  ``hungarian`` (the one-to-one decoding of G(s, t) alone; the presets of methods version 5;
+  G's Sinkhorn has no dustbin and its soft M blurs the carried translations and rotations, see
   :func:`baselines.mimicat.transfer.decode_correspondence`) or ``soft`` (M as it is; what a
   config without the key, such as the checkpoints of methods version 4, was trained with).
 """
@@ -58,7 +60,7 @@ SMALL = {
     "transfer": {"width": 64, "heads": 4, "layers": 2, "mlp": 128, "batch_size": 4, "epochs": 10,
                  "examples_per_epoch": 128, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.001,
                  "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured",
-                 "m_decode": "hungarian"},
+                 "m_decode": "hungarian_sym"},
     "transfer_no_prior": {"epochs": 10},
 }
 
@@ -77,7 +79,7 @@ PAPER = {
     "transfer": {"width": 256, "heads": 8, "layers": 6, "mlp": 2048, "batch_size": 16, "epochs": 100,
                  "examples_per_epoch": 4096, "same_skeleton_share": 0.3, "rec_weight": 1.0, "reg_weight": 0.001,
                  "feat_weight": 0.1, "m_temperature": 0.1, "init": "structured",
-                 "m_decode": "hungarian"},
+                 "m_decode": "hungarian_sym"},
     "transfer_no_prior": {"epochs": 100},
 }
 

@@ -4,7 +4,8 @@ The cascade of MimiCAT: the source's pose is read off its posed vertices (weight
 bone, :func:`baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
 the soft correspondence M (at the Sinkhorn temperature ``transfer.m_temperature`` of the transfer
 checkpoint's config, 1 for checkpoints without it), read as ``transfer.m_decode`` says (``soft``
-for checkpoints without it, ``hungarian``: one to one); H the target's transforms from its
+for checkpoints without it, ``hungarian``: one to one, ``hungarian_sym``: one to one from G's M
+of both directions, one assignment of the pair); H the target's transforms from its
 initialisation (``transfer.init`` of the transfer checkpoint's config: ``structured`` for runs of
 the current presets, ``paper``, Eq. 3-4 as published, for a config without the key, which is
 what the shipped checkpoint of version 3 was trained with); LBS poses
@@ -21,8 +22,8 @@ Registered names:
 - ``mimicat_naive_avg`` (ablation A1): the same weights with Eq. 4's rotation average replaced
   by the normalised plain weighted sum of quaternions in the initialisation.
 - ``mimicat_no_prior`` (ablation A2): H trained without the prior term L_reg.
-- ``mimicat_init_only``: the shipped G, its M decoded one to one (``hungarian``) and the
-  structured initialisation, H off (the initialisation is the answer), so that H's own
+- ``mimicat_init_only``: the shipped G, its M of both directions decoded as one one-to-one
+  assignment of the pair (``hungarian_sym``) and the structured initialisation, H off (the initialisation is the answer), so that H's own
   contribution shows on the leaderboard.
 """
 from __future__ import annotations
@@ -56,7 +57,7 @@ class Mimicat(PoseTransferMethod):
         batch_size: requests run through the networks at once.
     """
 
-    metadata = MethodMetadata(name="mimicat", version="5", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mimicat", version="6", licence="MIT", needs_training=True, citation=CITATION,
                               description="MimiCAT cascade: shape encoder, correspondence transformer G, "
                                           "pose-transfer transformer H, LBS + ARAP (bundled checkpoint)")
     transfer_stage = "transfer"
@@ -64,7 +65,7 @@ class Mimicat(PoseTransferMethod):
     init: str | None = None
     """H's initialisation (``structured`` or ``paper``); None: the transfer checkpoint's ``transfer.init``."""
     m_decode: str | None = None
-    """How H's initialisation reads G's M (``soft`` or ``hungarian``, see
+    """How H's initialisation reads G's M (``soft``, ``hungarian`` or ``hungarian_sym``, see
     :func:`baselines.mimicat.transfer.decode_correspondence`); None: the transfer checkpoint's
     ``transfer.m_decode`` (``soft`` for a config without the key)."""
     use_h = True
@@ -161,11 +162,13 @@ class Mimicat(PoseTransferMethod):
         """G's correspondence M (Ks, Kt) of each request's characters (prepared ``src``, ``tgt``),
         the soft M cached per pair, decoded as ``self.decode``; a diagnostic subclass may supply
         other matches (benchmarks/mimicat_decomposition.py)."""
-        from baselines.mimicat.transfer import correspondences, decode_correspondence
+        from baselines.mimicat.transfer import NEEDS_REVERSE, correspondences, decode_correspondence
 
         m = self._modules
-        return [decode_correspondence(mm, self.decode)
-                for mm in correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)]
+        forward = correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)
+        reverse = (correspondences(m["shape"], m["corr"], tgt, src, self._m_cache, self.m_temperature)
+                   if self.decode in NEEDS_REVERSE else [None] * len(forward))
+        return [decode_correspondence(mm, self.decode, r) for mm, r in zip(forward, reverse)]
 
 
 def _header_config(path: Path) -> dict:
@@ -175,23 +178,23 @@ def _header_config(path: Path) -> dict:
 
 
 class MimicatNaiveAvg(Mimicat):
-    metadata = MethodMetadata(name="mimicat_naive_avg", version="5", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_naive_avg", version="6", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT ablation A1: plain weighted quaternion sum instead of Eq. 4")
     average = "naive"
 
 
 class MimicatNoPrior(Mimicat):
-    metadata = MethodMetadata(name="mimicat_no_prior", version="5", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_no_prior", version="6", licence="MIT", needs_training=True,
                               citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg")
     transfer_stage = "transfer_no_prior"
 
 
 class MimicatInitOnly(Mimicat):
-    metadata = MethodMetadata(name="mimicat_init_only", version="5", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_init_only", version="6", licence="MIT", needs_training=True,
                               citation=CITATION,
-                              description="MimiCAT without H: G's correspondence decoded one to one and the "
-                                          "structured initialisation, LBS + ARAP")
+                              description="MimiCAT without H: G's correspondences of both directions decoded as "
+                                          "one one-to-one assignment and the structured initialisation, LBS + ARAP")
     init = "structured"
-    m_decode = "hungarian"
+    m_decode = "hungarian_sym"
     use_h = False

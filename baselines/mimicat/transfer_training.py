@@ -15,7 +15,8 @@
   rest tokens are cached per character); only the posed meshes go through E each step.
   Both legs use G's M at the Sinkhorn temperature ``m_temperature`` (see
   :func:`baselines.mimicat.transfer.correspondences`) decoded as ``m_decode`` says (``soft``: as
-  it is; ``hungarian``: one-to-one, the presets' default, see
+  it is; ``hungarian``: one-to-one; ``hungarian_sym``: one one-to-one assignment of the pair from
+  G's M of both directions, the presets' default, see
   :func:`baselines.mimicat.transfer.decode_correspondence`), as the method does at test time, and H's
   initialisation ``init`` (``structured`` in the presets; ``paper``, Eq. 3-4 as published, for a
   config without the key, which is what checkpoints trained before it used).
@@ -220,8 +221,9 @@ def cycle_losses(h: PoseTransferTransformer, batch: dict, ctx, reg_weight: float
         posed.append(pose_mesh(tensors[s_id], pose[:, :4], pose[:, 4:]))
     cache = _m_cache(ctx)
     temp = float(c["m_temperature"])
-    m_fwd, m_back = ([decode_correspondence(m, c["m_decode"]) for m in correspondences(encoder, g, a, b, cache, temp)]
-                     for a, b in ((src, tgt), (tgt, src)))
+    g_fwd, g_back = (correspondences(encoder, g, a, b, cache, temp) for a, b in ((src, tgt), (tgt, src)))
+    m_fwd = [decode_correspondence(m, c["m_decode"], r) for m, r in zip(g_fwd, g_back)]
+    m_back = [decode_correspondence(m, c["m_decode"], r) for m, r in zip(g_back, g_fwd)]
     rest = _CACHE.setdefault(("rest tokens", str(ctx.dataset), str(ctx.device), c["points"]), {}) \
         if SHARED_CACHES else None
     forward, _, f_fwd = transfer_batch(encoder, g, h, src, q_s, t_s, posed, tgt, m_fwd, rest)
