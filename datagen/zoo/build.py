@@ -75,8 +75,12 @@ def build_skeleton(spec: CharacterSpec) -> tuple[Skeleton, dict]:
 
 
 def build_character(spec: CharacterSpec, split: str, clips_per_character: int = 3,
-                    num_frames: int = NUM_FRAMES) -> BuiltCharacter:
-    """Build the character ``spec`` with ``clips_per_character`` clips of ``num_frames`` frames at 30 fps."""
+                    num_frames: int = NUM_FRAMES, clip_set: str = "default") -> BuiltCharacter:
+    """Build the character ``spec`` with ``clips_per_character`` clips of ``num_frames`` frames at 30 fps.
+
+    ``clip_set`` chooses the clips (:data:`datagen.zoo.clips.CLIP_SETS`; ``dynamic`` gives humanoids
+    spins, stops, jumps and turns first).
+    """
     skel, params = build_skeleton(spec)
     verts, faces, owner = build_mesh(skel, TARGET_FACES)
     from datagen.zoo.skin_weights import skin_weights
@@ -98,7 +102,7 @@ def build_character(spec: CharacterSpec, split: str, clips_per_character: int = 
         bone_roles=list(skel.roles), skeleton_id=H2H_SKELETON_ID if spec.family else skeleton_hash(names, skel.parents),
         height=float(np.ptp(verts32[:, 1])), meta=meta)
     motions = []
-    for j, name in enumerate(clip_list(spec.category, skel, clips_per_character)):
+    for j, name in enumerate(clip_list(spec.category, skel, clips_per_character, clip_set)):
         rng = np.random.default_rng(list(spec.entropy) + [1000 + j])
         rotvec, root = generator(spec.category, name)(skel, rng, num_frames)
         transforms = clip_transforms(skel, rotvec, root)
@@ -109,9 +113,9 @@ def build_character(spec: CharacterSpec, split: str, clips_per_character: int = 
     return BuiltCharacter(record, motions, skel)
 
 
-def clip_list(category: str, skel: Skeleton, count: int) -> list[str]:
-    """``count`` clip names: the kind's own clips first, then more random-pose clips."""
-    names = clip_names(category, skel)[:count]
+def clip_list(category: str, skel: Skeleton, count: int, clip_set: str = "default") -> list[str]:
+    """``count`` clip names: the kind's own clips (of ``clip_set``) first, then more random-pose clips."""
+    names = clip_names(category, skel, clip_set)[:count]
     i = 2
     while len(names) < count:
         names.append(f"random_poses_{i}")

@@ -11,7 +11,7 @@ import re
 
 import numpy as np
 
-from datagen.zoo.motions import FPS, random_poses
+from datagen.zoo.motions import FPS, RAMP_FRAMES, random_poses
 from datagen.zoo.skeleton import Skeleton
 
 X, Y, Z = np.eye(3)
@@ -252,8 +252,20 @@ def random_clip(skel: Skeleton, rng, num_frames: int):
     return random_poses(skel, rng, num_frames), np.zeros((num_frames, 3))
 
 
-def clip_names(category: str, skel: Skeleton) -> list[str]:
-    """The clip generators suited to a character, in order of preference."""
+CLIP_SETS = ("default", "dynamic")
+DYNAMIC_CLIPS = ["spin", "stop", "jump", "turn"]
+
+
+def clip_names(category: str, skel: Skeleton, clip_set: str = "default") -> list[str]:
+    """The clip generators suited to a character, in order of preference.
+
+    ``clip_set="dynamic"`` puts the motions where apparel lags and swings (:data:`DYNAMIC_CLIPS`)
+    first for humanoids and apparel characters; other kinds keep their default clips.
+    """
+    if clip_set not in CLIP_SETS:
+        raise ValueError(f"clip_set: expected one of {list(CLIP_SETS)}, got {clip_set!r}")
+    if clip_set == "dynamic" and category in ("humanoid", "apparel"):
+        return DYNAMIC_CLIPS + ["walk", "idle", "random_poses", "run"]
     if category in ("humanoid", "apparel"):
         return ["walk", "idle", "random_poses", "run"]
     if category == "quadruped":
@@ -277,5 +289,167 @@ def generator(category: str, name: str):
         "walk": humanoid_walk if human else (bird_walk if category == "bird" else legged_walk),
         "run": humanoid_run, "idle": humanoid_idle if human else animal_idle, "trot": trot,
         "flap": flap, "swim": swim, "slither": slither,
+        "spin": humanoid_spin, "stop": humanoid_stop, "jump": humanoid_jump, "turn": humanoid_turn,
     }
     return table[name]
+
+
+# --- the "dynamic" clip set: motions where apparel lags and swings (opt-in, datagen.zoo.build.CLIP_SETS) ---
+
+GRAVITY = 9.8  # m/s^2, the apparel stage's default gravity, so a jump's flight is the simulation's free fall
+SPIN_ANGLE = 2 * np.pi  # a spin turns the root by one full turn (sign drawn per clip)
+TURN_ANGLE = np.pi / 2  # a turn walks a quarter circle (sign drawn per clip)
+JUMP_HEIGHT = 0.1  # a jump's rise of the root in flight, share of the skeleton's height
+CROUCH_DEPTH = 0.06  # how far the hips sink before take-off and after landing, share of the height
+STOP_FRAMES = 3  # a stop goes from walking speed to standing still in this many frames
+
+
+def _start() -> float:
+    """Seconds at which a dynamic motion starts: after the blend-in ramp, so its angles and offsets are exact."""
+    return RAMP_FRAMES / FPS
+
+
+def _smooth(x: np.ndarray) -> np.ndarray:
+    """Smootherstep of ``x`` clipped to [0, 1] (zero speed and acceleration at both ends)."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (x * (6 * x - 15) + 10)
+
+
+def _root(skel: Skeleton) -> int:
+    return int(np.flatnonzero(skel.parents < 0)[0])
+
+
+def _yaw_walk(skel: Skeleton, rv, yaw: np.ndarray, speed: np.ndarray, bob: np.ndarray) -> np.ndarray:
+    """Turn the root by ``yaw`` (F,) radians about Y and walk it along its heading at ``speed`` (F,) m/s.
+
+    The position integrates the heading (sin yaw, 0, cos yaw) frame by frame (explicit Euler at
+    ``1 / FPS``), so a zero speed leaves the root exactly where it is. Returns the root offset (F, 3).
+    """
+    rv[:, _root(skel)] += Y * yaw[:, None]
+    step = speed / FPS
+    heading = np.stack([np.sin(yaw), 0 * yaw, np.cos(yaw)], 1)
+    pos = np.concatenate([np.zeros((1, 3)), np.cumsum(heading[:-1] * step[:-1, None], axis=0)])
+    pos[:, 1] = bob
+    return pos
+
+
+def humanoid_spin(skel: Skeleton, rng, num_frames: int):
+    """A spin on the spot: the root turns by ``SPIN_ANGLE`` (either way) about Y, arms out, then stops.
+
+    The turn runs from the end of the blend-in ramp to 80% of the clip with a smootherstep (peak
+    speed 1.875x the mean), then holds; apparel flies out and swings on after the stop.
+    """
+    t = _t(num_frames)
+    sign = 1.0 if rng.uniform() < 0.5 else -1.0
+    t0, t1 = _start(), max(_start() + 2 / FPS, 0.8 * num_frames / FPS)
+    rv = np.zeros((num_frames, skel.num_joints, 3))
+    _arms_down(skel, rv, 0.5)
+    _apparel_sway(skel, rv, t, 0.8, 0.05)
+    yaw = sign * SPIN_ANGLE * _smooth((t - t0) / (t1 - t0))
+    root = _yaw_walk(skel, rv, yaw, 0 * t, 0 * t)
+    return rv, root
+
+
+def humanoid_turn(skel: Skeleton, rng, num_frames: int):
+    """A walk that turns by ``TURN_ANGLE`` (either way): the heading follows the root's yaw.
+
+    The yaw rises with a smootherstep from the end of the ramp to 80% of the clip; the limbs walk
+    as :func:`humanoid_walk` at speed 1.2 throughout.
+    """
+    t = _t(num_frames)
+    H = _height(skel)
+    rv, _ = humanoid_walk(skel, rng, num_frames, speed=1.2)
+    sign = 1.0 if rng.uniform() < 0.5 else -1.0
+    t0, t1 = _start(), max(_start() + 2 / FPS, 0.8 * num_frames / FPS)
+    yaw = sign * TURN_ANGLE * _smooth((t - t0) / (t1 - t0))
+    speed = np.full(num_frames, 0.55 * H * 1.2)
+    return rv, _yaw_walk(skel, rv, yaw, speed, 0 * t)
+
+
+def humanoid_stop(skel: Skeleton, rng, num_frames: int):
+    """A brisk walk (speed 1.4) that stops dead: speed and limb motion fall to zero in ``STOP_FRAMES`` frames.
+
+    The stop begins at frame ``max(RAMP_FRAMES + 1, round(0.55 F))``; from frame ``stop + STOP_FRAMES``
+    on the character stands in its rest pose and its root does not move, while apparel swings on.
+    """
+    rv, _ = humanoid_walk(skel, rng, num_frames, speed=1.4)
+    H = _height(skel)
+    stop = stop_frame(num_frames)
+    i = np.arange(num_frames)
+    gate = 1.0 - np.clip((i - stop) / STOP_FRAMES, 0.0, 1.0)
+    rv *= gate[:, None, None]
+    speed = 0.55 * H * 1.4 * gate
+    return rv, _yaw_walk(skel, rv, 0 * speed, speed, 0 * speed)
+
+
+def stop_frame(num_frames: int) -> int:
+    """The frame at which :func:`humanoid_stop` begins to stop."""
+    return max(RAMP_FRAMES + 1, int(round(0.55 * num_frames)))
+
+
+def jump_timing(height: float) -> dict[str, float]:
+    """Phase times (s) of :func:`humanoid_jump` for a skeleton ``height`` (m) tall.
+
+    Keys: ``crouch`` (start of the crouch), ``push`` (start of the push-off), ``takeoff``, ``land``,
+    ``absorbed`` (lowest after landing), ``up`` (standing again); ``v0`` (take-off speed, m/s),
+    ``rise`` (m, the root's height above rest at the top) and ``depth`` (m, the crouch).
+    Flight is free fall at ``GRAVITY``: it lasts ``2 v0 / g`` with ``v0 = sqrt(2 g rise)``. The push-off
+    and the landing are uniform accelerations over the crouch depth (each lasts ``2 depth / v0``).
+    """
+    rise, depth = JUMP_HEIGHT * height, CROUCH_DEPTH * height
+    v0 = float(np.sqrt(2 * GRAVITY * rise))
+    crouch = _start()
+    push = crouch + 0.3
+    takeoff = push + 2 * depth / v0
+    land = takeoff + 2 * v0 / GRAVITY
+    absorbed = land + 2 * depth / v0
+    return {"crouch": crouch, "push": push, "takeoff": takeoff, "land": land, "absorbed": absorbed,
+            "up": absorbed + 0.3, "v0": v0, "rise": rise, "depth": depth}
+
+
+def _jump_height(t: np.ndarray, j: dict[str, float]) -> np.ndarray:
+    """Root height above rest (F,) m over a jump (negative while crouched)."""
+    d, v0 = j["depth"], j["v0"]
+    acc = v0 * v0 / (2 * d)
+    y = np.zeros_like(t)
+    s = (t >= j["crouch"]) & (t < j["push"])
+    y[s] = -d * _smooth((t[s] - j["crouch"]) / (j["push"] - j["crouch"]))
+    s = (t >= j["push"]) & (t < j["takeoff"])
+    y[s] = -d + 0.5 * acc * (t[s] - j["push"]) ** 2
+    s = (t >= j["takeoff"]) & (t < j["land"])
+    tau = t[s] - j["takeoff"]
+    y[s] = v0 * tau - 0.5 * GRAVITY * tau ** 2
+    s = (t >= j["land"]) & (t < j["absorbed"])
+    tau = t[s] - j["land"]
+    y[s] = -v0 * tau + 0.5 * acc * tau ** 2
+    s = t >= j["absorbed"]
+    y[s] = -d * (1 - _smooth((t[s] - j["absorbed"]) / (j["up"] - j["absorbed"])))
+    return y
+
+
+def humanoid_jump(skel: Skeleton, rng, num_frames: int):
+    """A jump on the spot: crouch, push off, free flight at ``GRAVITY``, land into a crouch, stand up.
+
+    Phases are :func:`jump_timing`'s (absolute seconds: a clip shorter than about 1.5 s ends mid-jump).
+    While crouched, each thigh pitches forward by ``a`` and its shin back by ``2a`` (the foot by ``a``),
+    with ``cos a = 1 - depth / leg``, so a straight vertical leg keeps its foot where it stood; in
+    flight the legs are straight and the arms swing up (0.8 rad at the top) and down again.
+    """
+    t = _t(num_frames)
+    H = _height(skel)
+    j = jump_timing(H)
+    y = _jump_height(t, j)
+    rv = np.zeros((num_frames, skel.num_joints, 3))
+    _arms_down(skel, rv, 1.0)
+    sink = np.maximum(0.0, -y)
+    lift = np.sin(np.pi * np.clip((t - j["push"]) / (j["absorbed"] - j["push"]), 0.0, 1.0))  # arms up in flight
+    for side, s in (("left", 1.0), ("right", -1.0)):
+        thigh, shin, foot = (skel.index(f"{side}/{p}") for p in ("thigh", "shin", "foot"))
+        leg = float(np.linalg.norm(skel.heads[foot] - skel.heads[thigh]))
+        a = np.arccos(np.clip(1 - sink / leg, -1.0, 1.0))
+        rv[:, thigh] += X * (-a)[:, None]
+        rv[:, shin] += X * (2 * a)[:, None]
+        rv[:, foot] += X * (-a)[:, None]
+        rv[:, skel.index(f"{side}/upper_arm")] += s * Z * (0.8 * lift)[:, None]
+    _apparel_sway(skel, rv, t, 0.8, 0.04)
+    return rv, np.stack([0 * t, y, 0 * t], 1)

@@ -10,6 +10,7 @@ from mimicbench.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonn
 MAX_CHARACTERS = 100_000
 MAX_CLIPS = 100
 MAX_FRAMES = 10_000  # as datagen.zoo.motions.MAX_FRAMES (kept here so --help stays fast)
+CLIP_SETS = ("default", "dynamic")  # as datagen.zoo.clips.CLIP_SETS
 
 DESCRIPTION = """\
 Generate procedural rigged, skinned and animated characters of every kind (humanoid, quadruped,
@@ -21,6 +22,7 @@ The output is deterministic for a seed: the same command gives byte-identical sh
 example:
   mimicbench zoo --out data/zoo --characters 40 --seed 0
   mimicbench zoo --out data/fish --characters 5 --categories fish,reptile --export obj,bvh
+  mimicbench zoo --out data/app --characters 100 --categories apparel --clip-set dynamic --clips-per-character 4
   mimicbench validate data/zoo
   mimicbench zoo --out data/pokeanimdb --characters 975 --motions 28809 --frames-per-clip 155 --jobs 2
       (PokeAnimDB's Table 1 shape: 975 characters, 28,809 clips, 4.47M frames, 11-241 joints)
@@ -44,6 +46,9 @@ def register(subparsers) -> None:
                         "one a character)")
     p.add_argument("--frames-per-clip", type=int_in(9, MAX_FRAMES), default=45,
                    help=f"frames of every clip at 30 fps, 9 to {MAX_FRAMES:,} (default 45)")
+    p.add_argument("--clip-set", choices=CLIP_SETS, default="default",
+                   help="which clips: default, or dynamic (humanoids and apparel characters spin, stop, jump and turn "
+                        "first, the motions where apparel lags and swings; other kinds keep their clips)")
     p.add_argument("--jobs", type=job_count, default=1, help=f"worker processes, 1 to {MAX_JOBS} (default 1)")
     add_engine_arguments(p)
     p.add_argument("--export", type=comma_choices(("obj", "bvh", "pmx")), default=(),
@@ -63,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
     cats = [c.strip() for arg in args.categories for c in arg.split(",") if c.strip()] if args.categories else None
     s = build_zoo(args.out, args.characters, seed=args.seed, categories=cats,
                   clips_per_character=args.clips_per_character, export=tuple(args.export), progress=not args.quiet,
-                  motions=args.motions, frames_per_clip=args.frames_per_clip, engine=engine_from_args(args))
+                  motions=args.motions, frames_per_clip=args.frames_per_clip, engine=engine_from_args(args),
+                  clip_set=args.clip_set)
     for f in s["failures"]:
         print(f"  FAILED {f}")
     if not args.no_contact_sheet:

@@ -10,6 +10,7 @@ import numpy as np
 from mimicbench.engines import Engine
 from datagen.stage_runner import run_stage
 from datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
+from datagen.zoo.clips import CLIP_SETS
 from datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries
 from datagen.zoo.export_bvh import write_bvh
 from datagen.zoo.export_obj import write_obj
@@ -74,7 +75,7 @@ def clips_per_character_for(specs: list, clips_per_character: int, motions: int 
 def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str] | None = None,
               clips_per_character: int = 3, export: tuple[str, ...] = (), progress: bool = True,
               motions: int | None = None, frames_per_clip: int = NUM_FRAMES, engine: Engine | None = None,
-              jobs: int = 1) -> dict:
+              jobs: int = 1, clip_set: str = "default") -> dict:
     """Generate a procedural zoo into ``out_dir``.
 
     Writes ``characters/`` and ``motions/`` shards (one set per split; an empty split gets an
@@ -97,6 +98,9 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
             each; PokeAnimDB's 28,809 over 975 characters is 29 or 30 each).
         frames_per_clip: frames of every clip at 30 fps (PokeAnimDB's 4.47M frames over 28,809
             clips is about 155).
+        clip_set: which clips (``datagen.zoo.clips.CLIP_SETS``): ``default``, or ``dynamic`` (humanoids
+            and apparel characters spin, stop, jump and turn first: motions where apparel lags and
+            swings). Recorded in the config only when not ``default``, so default zoos keep their bytes.
 
     Returns:
         A summary dict: ``characters``, ``motions``, ``frames``, ``failed``, ``by_category``,
@@ -116,6 +120,8 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
                          f"got {frames_per_clip!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
+    if clip_set not in CLIP_SETS:
+        raise ValueError(f"clip_set: expected one of {list(CLIP_SETS)}, got {clip_set!r}")
     out = Path(out_dir)
     specs = plan_zoo(num_characters, seed, categories)
     if not specs:
@@ -129,9 +135,12 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
               "h2h_skeleton_id": H2H_SKELETON_ID, "split_rule": SPLIT_RULE}
     if motions is not None:
         params["motions"] = int(motions)
+    if clip_set != "default":
+        params["clip_set"] = clip_set
     config = stage_config(params, inputs={})
     items = [(spec, splits[spec.character_id], count) for spec, count in zip(specs, clip_counts)]
-    work = partial(_build_one, out=out, export=export, frames_per_clip=int(frames_per_clip))
+    work = partial(_build_one, out=out, export=export, frames_per_clip=int(frames_per_clip),
+                   clip_set=clip_set)
     streams = {(table, split): ShardStream(out, table, split, rows, config)
                for table, rows in (("characters", 1000), ("motions", 500)) for split in SPLITS}
     characters, clips = [], []  # small summaries for the card, not the arrays
@@ -185,10 +194,10 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     }
 
 
-def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int):
+def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int, clip_set: str = "default"):
     """Build one planned character (and its export files); return (record, motions)."""
     spec, split, clips = item
-    built = build_character(spec, split, clips, frames_per_clip)
+    built = build_character(spec, split, clips, frames_per_clip, clip_set)
     if export:
         export_character(out, built, export)
     return built.record, built.motions
