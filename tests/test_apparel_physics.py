@@ -337,7 +337,7 @@ def test_springs_of_merged_chains_match_one_dense_solve(max_torque, lengths):
     # tau = -M (M + dt D)^-1 (K q + D w), K = s diag(M) / dt^2, D = K dt + v diag(M) / dt, and
     # where |tau| passes the bound, K and D of that axis scaled by bound / |tau| and solved again
     from datagen.apparel.springs import Springs
-    from datagen.apparel.world import merged_by_anchor
+    from datagen.apparel.chain_spec import merged_by_anchor
 
     dt = 1 / 240
     merged = merged_by_anchor([_hanging_chain("a", 0.2, lengths[0], max_torque),
