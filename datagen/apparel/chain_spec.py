@@ -11,8 +11,7 @@ simulation) and its axis; the simulation's link frames have Z along the axis (se
 """
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -114,7 +113,7 @@ def merged_by_anchor(chains: list[ChainSpec]) -> list[ChainSpec]:
             continue
         first = out[at[key]]
         n = len(first.links)
-        out[at[key]] = dataclasses.replace(
+        out[at[key]] = replace(
             first, name=f"{first.name}+{chain.name}", links=first.links + chain.links,
             joints=first.joints + chain.joints,
             link_parents=first.link_parents + tuple(p + n if p >= 0 else -1 for p in chain.link_parents))

@@ -177,8 +177,7 @@ class FileWorld:
         """Nothing to ready: the joints' motors were set when the world was built."""
 
     def follow(self, poses: np.ndarray, per_frame: int):
-        """Place the static bodies at each of ``poses`` (S, K, 7) and step; yield the frame index
-        after every ``per_frame`` steps."""
+        """Place the static bodies at each of ``poses`` (S, K, 7) and step; yield every ``per_frame`` steps."""
         for s, pose in enumerate(poses):
             self.set_body_pose(pose)
             self.step()
@@ -186,8 +185,7 @@ class FileWorld:
                 yield (s + 1) // per_frame - 1
 
     def read(self) -> tuple[tuple[np.ndarray, np.ndarray], float]:
-        """Centres (B, 3) and rotations (B, 4) (w, x, y, z) of the simulated bodies in chain order,
-        and the fastest link speed (m/s)."""
+        """Simulated bodies' centres (B, 3), rotations (B, 4) (w, x, y, z), chain order; fastest speed (m/s)."""
         positions, rotations, speed = self.body_poses()
         return (np.array(list(positions.values())).reshape(-1, 3),
                 np.array(list(rotations.values())).reshape(-1, 4)), speed

@@ -37,8 +37,7 @@ class PhysicsWorld(Protocol):
         """Ready the first step from the present state."""
 
     def follow(self, poses: np.ndarray, per_frame: int) -> Iterator[int]:
-        """Step once after placing the body at each of ``poses`` (S, K, 7); yield after every
-        ``per_frame`` steps (a frame)."""
+        """Place the body at each of ``poses`` (S, K, 7) and step; yield the frame every ``per_frame`` steps."""
 
     def read(self) -> tuple[tuple[np.ndarray, ...], float]:
         """The simulated parts' state now (arrays, checked for NaN) and the fastest link's speed (m/s)."""
@@ -52,8 +51,7 @@ def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, re
 
     Args:
         world: a new or reset world of the clip's character (at rest).
-        transforms: (F, K, 7) kinematic clip.
-        substeps: physics steps per clip frame (>= 1).
+        transforms: (F, K, 7) kinematic clip. substeps: physics steps per clip frame (>= 1).
         relax: relaxation frames before frame 0 (simulated, dropped).
 
     Returns:
@@ -69,8 +67,7 @@ def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, re
     if not len(lead):
         world.place_at(clip[0])
     world.start()
-    driven = world.driven_bones  # only bones the world reads
-    states = []
+    states, driven = [], world.driven_bones  # only bones the world reads
     for first in range(0, len(poses), CHUNK_FRAMES):
         chunk = poses[first:first + CHUNK_FRAMES, driven]
         steps = np.zeros((len(chunk) * substeps, len(world.keypoints), 7))

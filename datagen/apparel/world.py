@@ -1,32 +1,21 @@
-"""The pybullet world of one character: kinematic body pieces and dynamic apparel chains.
+"""The pybullet world of one character: body pieces that follow the clip and dynamic apparel chains.
 
-Each body piece is a mass-0 convex hull placed at its bone's pose every substep. Each chain is a
-multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass and
-is carried by a fixed constraint that is moved every substep (``changeConstraint`` with the new
-pivot and orientation): teleporting the base instead would move the whole chain rigidly and it
-would never swing. Springs toward the rest pose give the stiffness: torques computed for every
-joint at once (:mod:`datagen.apparel.springs`; the per-step arithmetic is compiled,
-:mod:`datagen.apparel.joint_kernel`) and applied in one call per chain (Bullet's spherical
-joint motors cost half of every step); after every step each joint past
-its swing cone or twist limit is put back onto it and stopped there
-(:meth:`ApparelWorld._after_step`). Chains that hang from the same body bone share one
-multibody (:func:`~datagen.apparel.chain_spec.merged_by_anchor`), and a world is reused across a character's clips
-(:meth:`ApparelWorld.reset`).
-
-Each link collides as the convex hull of its bone's vertices (:mod:`datagen.apparel.chains`).
-Contacts remove half of a penetration each step (``contact_erp``; Bullet's default is 0.2), the
-anchors' constraints 0.8 of their error (``constraint_erp``), and chain joints are bounded in
-speed (``max_joint_velocity``), see
+Each body piece is a mass-0 convex hull placed at its bone's pose every substep or, with
+``piece_mass`` > 0 (:class:`~datagen.apparel.params.SimParams`), a body of that mass carried
+there by a fixed constraint, so that Bullet's contacts see a limb's speed. Each chain
+is a multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass
+and is carried the same way (``changeConstraint``; a teleported base would move the whole chain
+rigidly, and it would never swing). Springs toward rest: torques for every joint at once
+(:mod:`datagen.apparel.springs`, compiled in :mod:`datagen.apparel.joint_kernel`), one call per
+chain; after every step each joint past its swing cone or twist limit is put back onto it and
+stopped there (:meth:`ApparelWorld._after_step`). Chains on one body bone share one multibody
+(:func:`~datagen.apparel.chain_spec.merged_by_anchor`); a world is reused across a character's
+clips (:meth:`ApparelWorld.reset`). Each link collides as the convex hull of its bone's vertices
+(:mod:`datagen.apparel.chains`); contact and constraint ERP and the joint speed bound are in
 :class:`~datagen.apparel.params.SimParams`.
 
-Collision: chain links meet the body pieces and, where both chains ask for it, other chains
-(group and mask bits of :class:`~datagen.apparel.chain_spec.ChainSpec`); a pair that already
-overlap that is the attachment (a chain's root link in the body, any link in its anchor bone's
-piece: hair roots in the scalp, a skirt's top in the hips) is excluded, as an MMD model's
-collision masks would; see :meth:`ApparelWorld._exclude_rest_overlaps`. A root link that
-overlaps another piece at rest (a skirt's top in a thigh) first loses the hull points inside it
-(:meth:`ApparelWorld._root_hulls_clearing_body`) or, where that does not clear it, is moved just
-clear of it (:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair collides.
+Collision: chain links meet the body pieces and, where both ask for it, other chains; see
+:meth:`ApparelWorld._exclude_rest_overlaps` and :meth:`ApparelWorld._root_hulls_clearing_body`.
 """
 from __future__ import annotations
 
@@ -50,6 +39,7 @@ from mimicbench.quaternion import quat_apply, quat_conjugate, quat_multiply
 BODY_GROUP, BODY_MASK = 0b01, 0b10
 REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
 CLEARING_MARGINS = (0.0, 0.005, 0.01, 0.02)  # metres: hull points this far outside the body are kept
+PIECE_ACCEL = 2000.0  # m/s^2: a piece's constraint's force limit per kilogram
 MAX_IDLE_CLIENTS = 1  # pybullet clients a process keeps for its next worlds
 _IDLE_CLIENTS: list[int] = []  # DIRECT clients of closed worlds, emptied by the next world (resetSimulation)
 
@@ -109,13 +99,21 @@ class ApparelWorld:
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(sim.solver_iterations),
                                      contactERP=float(sim.contact_erp), erp=float(sim.constraint_erp),
                                      deterministicOverlappingPairs=1, physicsClientId=cid)
-        self.piece_ids = []
+        self.piece_ids, self._piece_constraints = [], []
         for piece in pieces:
             shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=piece.points.tolist(), physicsClientId=cid)
-            body = pb.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape,
-                                      basePosition=self.keypoints[piece.bone].tolist(), physicsClientId=cid)
+            head = self.keypoints[piece.bone].tolist()
+            body = pb.createMultiBody(baseMass=float(sim.piece_mass), baseCollisionShapeIndex=shape, basePosition=head,
+                                      physicsClientId=cid)
             pb.setCollisionFilterGroupMask(body, -1, BODY_GROUP, BODY_MASK, physicsClientId=cid)
             self.piece_ids.append(body)
+            if sim.piece_mass > 0:
+                pb.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0,
+                                  activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
+                held = pb.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0], head,
+                                           physicsClientId=cid)
+                pb.changeConstraint(held, maxForce=sim.piece_mass * PIECE_ACCEL, physicsClientId=cid)
+                self._piece_constraints.append(held)
         self.chains: list[ChainBody] = []
         with tempfile.TemporaryDirectory(prefix="mimicbench-apparel-") as tmp:
             for i, chain in enumerate(merged_by_anchor(chains)):
@@ -307,7 +305,7 @@ class ApparelWorld:
         ``per_frame`` steps (a clip frame's substeps; :class:`~datagen.apparel.simulate.PhysicsWorld`).
 
         The pieces' placements and the anchors' pivots and orientations of all S poses are computed
-        at once, before the first step; a piece is re-placed and an anchor constraint changed only
+        at once, before the first step; a piece's or an anchor's constraint is changed only
         when its bone moved since the last placement. Only the bones in :attr:`driven_bones` are
         read from ``poses``.
         """
@@ -325,7 +323,7 @@ class ApparelWorld:
         self._placed_pieces, self._placed_anchors = piece[-1], anchor[-1]
         piece_at, piece_turn = piece[..., :3].tolist(), piece[..., 3:].tolist()  # per step and piece
         anchor_at, anchor_turn = anchor[..., :3].tolist(), anchor[..., 3:].tolist()  # per step and anchor
-        pieces_moved = [[] for _ in range(len(poses))]  # per step: the pieces to re-place
+        pieces_moved = [[] for _ in range(len(poses))]  # per step: the pieces to move
         for s, i in zip(*(a.tolist() for a in np.nonzero(piece_moved))):
             pieces_moved[s].append(i)
         anchors_moved = [[] for _ in range(len(poses))]
@@ -333,9 +331,14 @@ class ApparelWorld:
             anchors_moved[s].append(i)
         reset, change, stepper = pb.resetBasePositionAndOrientation, pb.changeConstraint, pb.stepSimulation
         after, piece_ids, constraints = self._after_step, self.piece_ids, self._anchor_constraints
+        held = self._piece_constraints
         for s in range(len(poses)):  # pybullet's client id passed by position where it can be (quicker)
             for i in pieces_moved[s]:
-                reset(piece_ids[i], piece_at[s][i], piece_turn[s][i], cid)
+                if held:
+                    change(held[i], jointChildPivot=piece_at[s][i], jointChildFrameOrientation=piece_turn[s][i],
+                           physicsClientId=cid)
+                else:
+                    reset(piece_ids[i], piece_at[s][i], piece_turn[s][i], cid)
             for i in anchors_moved[s]:
                 change(constraints[i], jointChildPivot=anchor_at[s][i], jointChildFrameOrientation=anchor_turn[s][i],
                        physicsClientId=cid)
@@ -458,8 +461,11 @@ class ApparelWorld:
                                        physicsClientId=cid)
 
     def place_at(self, pose: np.ndarray) -> None:
-        """Teleport every chain rigidly with its anchor bone (used once, before the first step)."""
+        """Teleport the chains and the pieces on constraints rigidly with their bones, before the first step."""
         pb, cid = self.pb, self.client
+        for piece, body in zip(self.pieces, self.piece_ids) if self._piece_constraints else ():
+            pb.resetBasePositionAndOrientation(body, pose[piece.bone, 4:].tolist(), xyzw(pose[piece.bone, :4]),
+                                               physicsClientId=cid)
         for c in self.chains:
             if c.spec.anchor_bone < 0:
                 continue
@@ -475,8 +481,7 @@ class ApparelWorld:
     max_speed = property(lambda self: self.sim.max_speed)  # m/s: a faster link is an explosion
 
     def read(self) -> tuple[tuple[np.ndarray, np.ndarray], float]:
-        """Links' world orientations (L, 4) (w, x, y, z) and heads (L, 3) metres, and the fastest
-        link speed (m/s), where L counts the links of every chain in chain order."""
+        """Links' world orientations (L, 4) (w, x, y, z), heads (L, 3) m (chain order); fastest speed (m/s)."""
         get, cid = self.pb.getLinkStates, self.client
         states = []
         for body, links in self._link_lists:
@@ -489,9 +494,8 @@ class ApparelWorld:
         return (both[:, [3, 0, 1, 2]], both[:, 4:7]), float(np.sqrt(np.einsum("ij,ij->i", velocity, velocity).max()))
 
     def clip_out(self, transforms: np.ndarray, states: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-        """(F, K, 7) float32: ``transforms`` with each link's bone set from :meth:`read`'s ``states``
-        (one a frame): its rest-relative rotation (the link frame's world orientation times the
-        inverse of its rest orientation, Z along the bone) and its head."""
+        """(F, K, 7) float32: ``transforms`` with each link's bone from :meth:`read`'s ``states`` (one a frame):
+        its rest-relative rotation (world orientation times the inverse rest one, Z along the bone) and head."""
         out = np.array(transforms, np.float32, copy=True)
         bones = np.array([b for c in self.chains for b in c.spec.bones], int)
         if len(bones):
