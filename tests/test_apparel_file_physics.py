@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.apparel.file_physics import FileWorld, collision_filter, plan_scene
+from datagen.apparel.file_physics import FileWorld
+from datagen.apparel.file_plan import collision_filter, plan_scene
 from mimicbench.kinematics import rest_transforms
 from schemas.joint import JointRecord
 from schemas.rigid_body import RigidBodyRecord
@@ -241,3 +242,24 @@ def test_a_loop_joint_ties_a_free_bob_to_a_held_one(free_axes, held):
         assert positions[2][1] == pytest.approx(PIVOT[1], abs=0.03)
     else:
         assert positions[2][1] < PIVOT[1] - 0.4
+
+
+def test_the_file_world_runs_through_the_one_clip_loop():
+    # the pendulum released from horizontal, as a 30 fps clip of 20 frames: the static bone keeps
+    # the clip's rows, the bob's bone head stays ARM from the pivot and swings down; a speed bound below
+    # the bob's speed (it reaches about sqrt(2 g ARM) = 3.1 m/s at the bottom) is an explosion
+    from datagen.apparel.simulate import SimulationExploded, simulate_clip
+
+    bodies, joints = _pendulum(_joint(0, 1, *FREE))
+    keypoints = np.array([PIVOT, PIVOT + [ARM, 0, 0]])
+    clip = np.repeat(rest_transforms(keypoints)[None], 20, axis=0).astype(np.float32)
+    with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08, apparel=np.array([False, True]),
+                   max_speed=25.0) as world:
+        out = simulate_clip(world, clip, 8, 0)
+    np.testing.assert_array_equal(out[:, 0], clip[:, 0])
+    arm = np.linalg.norm(out[:, 1, 4:] - PIVOT, axis=1)
+    np.testing.assert_allclose(arm, ARM, atol=2e-3)
+    assert out[0, 1, 5] > PIVOT[1] - 0.1 and out[:, 1, 5].min() < PIVOT[1] - 0.45  # swung through the bottom
+    with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08, max_speed=1.0) as world:
+        with pytest.raises(SimulationExploded, match=r"a link reached .* m/s at frame \d+ \(bound 1 m/s\)"):
+            simulate_clip(world, clip, 8, 0)

@@ -337,7 +337,7 @@ def test_springs_of_merged_chains_match_one_dense_solve(max_torque, lengths):
     # tau = -M (M + dt D)^-1 (K q + D w), K = s diag(M) / dt^2, D = K dt + v diag(M) / dt, and
     # where |tau| passes the bound, K and D of that axis scaled by bound / |tau| and solved again
     from datagen.apparel.springs import Springs
-    from datagen.apparel.world import merged_by_anchor
+    from datagen.apparel.chain_spec import merged_by_anchor
 
     dt = 1 / 240
     merged = merged_by_anchor([_hanging_chain("a", 0.2, lengths[0], max_torque),
@@ -506,3 +506,26 @@ def test_quality_accelerations_peak_and_99th_percentile_by_hand(frames):
     # float32 vertices near 1 m: rounding noise of about 1e-4 m/s^2 at 30 fps
     assert q["p99_accel"] == pytest.approx(d * fps ** 2 if frames == 20 else 0.0, rel=1e-4, abs=1e-3)
     assert q["max_accel_kinematic"] < 1e-3 and q["p99_accel_kinematic"] < 1e-3
+
+
+@pytest.mark.parametrize("piece_mass", [0.0, 100.0])
+def test_body_pieces_with_mass_are_carried_at_the_limbs_speed(piece_mass):
+    # the torso slides along +X at 0.5 m/s (a clip of 240 Hz steps): a mass-0 piece is placed at
+    # each step's pose and has no speed; a piece with mass is carried there by its constraint and
+    # moves at the torso's speed, a few millimetres behind its pose at most
+    from mimicbench.kinematics import rest_transforms
+
+    rec = make_character()
+    params = params_from_json({"simulation": {"piece_mass": piece_mass}})
+    physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+    steps = np.repeat(rest_transforms(rec.keypoints)[None].astype(np.float64), 120, axis=0)
+    steps[..., 4] += 0.5 * np.arange(1, 121)[:, None] / 240
+    with ApparelWorld(rec.keypoints, physics.pieces, physics.chains, params.simulation, 1 / 240) as world:
+        world.start()
+        for _ in world.follow(steps, 120):
+            pass
+        body = world.piece_ids[0]
+        where = np.array(world.pb.getBasePositionAndOrientation(body, physicsClientId=world.client)[0])
+        speed = np.array(world.pb.getBaseVelocity(body, physicsClientId=world.client)[0])
+    np.testing.assert_allclose(where, steps[-1, 0, 4:], atol=5e-3)
+    np.testing.assert_allclose(speed, [0.5 if piece_mass else 0.0, 0.0, 0.0], atol=0.02)

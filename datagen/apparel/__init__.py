@@ -5,8 +5,7 @@ apparel bones, a simulated clip ``<clip>@sim`` whose apparel bones come from the
 whose body bones are untouched, so linear blend skinning of the stored transforms gives the
 simulated mesh. Modules, one concept each:
 
-- ``chain_spec``: the physics description of a character (links, joints, collision groups);
-  built from zoo defaults here, from PMX rigid bodies and joints later.
+- ``chain_spec``: the physics description of a character (links, joints, collision groups).
 - ``params``: per-kind parameters with defaults and the JSON override file.
 - ``selection``: apparel bones from ``--apparel-bones`` globs; the vertex mask from the weights.
 - ``body_shapes``: kinematic convex collision pieces per body bone, from the vertices it owns.
@@ -16,7 +15,8 @@ simulated mesh. Modules, one concept each:
 - ``world``: the pybullet world of one character (body pieces, chains, springs, limits, moved anchors).
 - ``world_cache``: one world per character, reset between its clips.
 - ``relax``: the blend-in frames from rest into the clip's first pose.
-- ``simulate``: one clip through the world, frame by frame, with the explosion check.
+- ``simulate``: the world protocol and the one clip loop of every world, with the explosion check.
+- ``file_plan``, ``file_physics``: an MMD file's own rigid bodies and joints (the plan; its world).
 - ``quality``: per-clip quality (penetration, stretch, jitter, secondary motion).
 - ``stage`` and ``command``: the dataset stage with status rows and resume, and its CLI.
 - ``joint_kernel``: the per-step joint arithmetic (rotation vectors, limit screen, spring torques), compiled.

@@ -11,9 +11,11 @@ simulation) and its axis; the simulation's link frames have Z along the axis (se
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+MAX_MERGED_LINKS = 24  # links of chains joined into one multibody (see merged_by_anchor)
 
 
 @dataclass(frozen=True)
@@ -85,3 +87,34 @@ class ChainSpec:
     def bones(self) -> list[int]:
         """The bone index of each link, in link order."""
         return [link.bone for link in self.links]
+
+
+def merged_by_anchor(chains: list[ChainSpec]) -> list[ChainSpec]:
+    """``chains`` with those that hang from the same body bone, share collision bits and do not
+    collide with one another joined into one chain (one multibody on one anchor, its links in
+    the given order), at the place of the first of them.
+
+    Each multibody costs a few pybullet calls every step (its anchor's constraint, a read of its
+    joints, its spring torques), so a skirt of eight strips on the hips is one multibody, not
+    eight. Links of one multibody never collide, so chains that collide with one another (their
+    mask holds their own group) stay apart, as do chains hung from the world. A joined chain
+    has at most :data:`MAX_MERGED_LINKS` links (pybullet returns no joint state past about the
+    31st spherical joint of a multibody).
+    """
+    out: list[ChainSpec] = []
+    at: dict[tuple, int] = {}
+    for chain in chains:
+        key = (chain.anchor_bone, chain.collision_group, chain.collision_mask)
+        if (chain.anchor_bone < 0 or chain.collision_mask & chain.collision_group or key not in at
+                or len(out[at[key]].links) + len(chain.links) > MAX_MERGED_LINKS):
+            if chain.anchor_bone >= 0 and not chain.collision_mask & chain.collision_group:
+                at[key] = len(out)
+            out.append(chain)
+            continue
+        first = out[at[key]]
+        n = len(first.links)
+        out[at[key]] = replace(
+            first, name=f"{first.name}+{chain.name}", links=first.links + chain.links,
+            joints=first.joints + chain.joints,
+            link_parents=first.link_parents + tuple(p + n if p >= 0 else -1 for p in chain.link_parents))
+    return out

@@ -3,7 +3,7 @@
 The override file (``--params FILE``) holds any subset of::
 
     {"simulation": {"gravity": 9.8, "max_speed": 25.0, "solver_iterations": 30, "anchor_force": 2000.0,
-                    "contact_erp": 0.5, "max_joint_velocity": 30.0, "constraint_erp": 0.8},
+                    "contact_erp": 0.5, "max_joint_velocity": 30.0, "constraint_erp": 0.8, "piece_mass": 0.0},
      "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.8}, "default": {"link_mass": 0.1}}}
 
 A kind is the apparel kind of a chain (``skirt``, ``hair``, ``cape``, ``coat_tail``,
@@ -70,7 +70,9 @@ class SimParams:
     body's fastest turn: at 5 rad/s struck skirt strips peaked 2-4x lower, but the anchors
     trailed a quarter turn in 0.13 s and the chains barely swung), and ``constraint_erp``, the
     share of a joint constraint's error Bullet removes each step (0..1): each chain's anchor
-    follows its moved constraint only through it, and at Bullet's 0.2 an anchor trailed a body bone turning 23.6 rad/s by 0.2 rad."""
+    follows its moved constraint only through it, and at Bullet's 0.2 an anchor trailed a body bone turning 23.6 rad/s by 0.2 rad.
+    ``piece_mass`` (kg): 0 places the body pieces at their bones' poses; above 0 they are bodies of that
+    mass carried there by constraints, so contacts see a limb's speed (slower; see the README)."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -79,6 +81,7 @@ class SimParams:
     contact_erp: float = 0.5
     max_joint_velocity: float = 30.0
     constraint_erp: float = 0.8
+    piece_mass: float = 0.0
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -96,7 +99,7 @@ _RANGES = {  # field: (low, high, low_open)
     "strength": (0.0, None, False), "linear_damping": (0.0, 1.0, False), "angular_damping": (0.0, 1.0, False),
     "swing_limit": (0.0, math.pi, True), "twist_limit": (0.0, math.pi, True), "radius_scale": (0.0, None, True),
     "friction": (0.0, None, False), "axial_inertia": (0.0, 1.0, False), "gravity": (0.0, None, False),
-    "max_speed": (0.0, None, True),
+    "max_speed": (0.0, None, True), "piece_mass": (0.0, None, False),
     "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True), "contact_erp": (0.0, 1.0, True),
     "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True),
 }

@@ -15,8 +15,7 @@ from datagen.apparel.selection import dominant_bone
 from datagen.apparel.simulate import simulate_clip
 from datagen.apparel.world import ApparelWorld
 from schemas.character import CharacterRecord
-from schemas.motion import SIM_SUFFIX
-from schemas.motion import MotionRecord
+from schemas.motion import SIM_SUFFIX, MotionRecord
 
 SIM_VERSION = "9"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
@@ -76,13 +75,20 @@ def simulate_motion(record: CharacterRecord, physics: CharacterPhysics, motion: 
             simulated = simulate_clip(world, motion.transforms, steps, relax)
     else:
         simulated = simulate_clip(world, motion.transforms, steps, relax)
+    return simulated_record(record, physics, motion, simulated, f"apparel:pybullet@{SIM_VERSION}", {
+        "substeps": steps, "relax_frames": int(relax), "links": sum(len(c.links) for c in physics.chains),
+        "chains": len(physics.chains)})
+
+
+def simulated_record(record: CharacterRecord, physics: CharacterPhysics, motion: MotionRecord, simulated: np.ndarray,
+                     source: str, counts: dict) -> tuple[MotionRecord, dict]:
+    """``simulated`` (F, K, 7), the clip of ``motion`` from the physics ``source``, as the motion
+    ``<clip>@sim`` and its quality (:func:`~datagen.apparel.quality.clip_quality`, then ``counts``)."""
     height = float(record.height or np.ptp(np.asarray(record.vertices)[:, 1]))
     quality = clip_quality(record.vertices, record.faces, record.keypoints, record.weights, physics.apparel_vertices,
                            physics.pieces, simulated, motion.transforms, motion.fps, height)
-    quality.update({"substeps": steps, "relax_frames": int(relax), "links": sum(len(c.links) for c in physics.chains),
-                    "chains": len(physics.chains)})
+    quality.update(counts)
     sim = MotionRecord(motion_id=motion.motion_id + SIM_SUFFIX, character_id=motion.character_id,
                        name=motion.name + SIM_SUFFIX, split=motion.split, fps=motion.fps, num_frames=motion.num_frames,
-                       num_joints=motion.num_joints, transforms=simulated,
-                       source=f"apparel:pybullet@{SIM_VERSION} from {motion.motion_id}")
+                       num_joints=motion.num_joints, transforms=simulated, source=f"{source} from {motion.motion_id}")
     return sim, quality

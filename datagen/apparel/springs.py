@@ -78,7 +78,7 @@ def solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def chain_components(chain: ChainSpec) -> list[np.ndarray]:
     """Each tree of ``chain``'s links (a root with every link below it) as its link indices in order.
 
-    A multibody of merged chains (:func:`datagen.apparel.world.merged_by_anchor`) holds several
+    A multibody of merged chains (:func:`datagen.apparel.chain_spec.merged_by_anchor`) holds several
     trees on one anchor; with the anchor fixed they do not move one another, so the mass matrix
     is block-diagonal by tree and each tree's springs are solved on their own.
     """

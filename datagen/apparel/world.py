@@ -1,32 +1,21 @@
-"""The pybullet world of one character: kinematic body pieces and dynamic apparel chains.
+"""The pybullet world of one character: body pieces that follow the clip and dynamic apparel chains.
 
-Each body piece is a mass-0 convex hull placed at its bone's pose every substep. Each chain is a
-multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass and
-is carried by a fixed constraint that is moved every substep (``changeConstraint`` with the new
-pivot and orientation): teleporting the base instead would move the whole chain rigidly and it
-would never swing. Springs toward the rest pose give the stiffness: torques computed for every
-joint at once (:mod:`datagen.apparel.springs`; the per-step arithmetic is compiled,
-:mod:`datagen.apparel.joint_kernel`) and applied in one call per chain (Bullet's spherical
-joint motors cost half of every step); after every step each joint past
-its swing cone or twist limit is put back onto it and stopped there
-(:meth:`ApparelWorld._after_step`). Chains that hang from the same body bone share one
-multibody (:func:`merged_by_anchor`), and a world is reused across a character's clips
-(:meth:`ApparelWorld.reset`).
-
-Each link collides as the convex hull of its bone's vertices (:mod:`datagen.apparel.chains`).
-Contacts remove half of a penetration each step (``contact_erp``; Bullet's default is 0.2), the
-anchors' constraints 0.8 of their error (``constraint_erp``), and chain joints are bounded in
-speed (``max_joint_velocity``), see
+Each body piece is a mass-0 convex hull placed at its bone's pose every substep or, with
+``piece_mass`` > 0 (:class:`~datagen.apparel.params.SimParams`), a body of that mass carried
+there by a fixed constraint, so that Bullet's contacts see a limb's speed. Each chain
+is a multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass
+and is carried the same way (``changeConstraint``; a teleported base would move the whole chain
+rigidly, and it would never swing). Springs toward rest: torques for every joint at once
+(:mod:`datagen.apparel.springs`, compiled in :mod:`datagen.apparel.joint_kernel`), one call per
+chain; after every step each joint past its swing cone or twist limit is put back onto it and
+stopped there (:meth:`ApparelWorld._after_step`). Chains on one body bone share one multibody
+(:func:`~datagen.apparel.chain_spec.merged_by_anchor`); a world is reused across a character's
+clips (:meth:`ApparelWorld.reset`). Each link collides as the convex hull of its bone's vertices
+(:mod:`datagen.apparel.chains`); contact and constraint ERP and the joint speed bound are in
 :class:`~datagen.apparel.params.SimParams`.
 
-Collision: chain links meet the body pieces and, where both chains ask for it, other chains
-(group and mask bits of :class:`~datagen.apparel.chain_spec.ChainSpec`); a pair that already
-overlap that is the attachment (a chain's root link in the body, any link in its anchor bone's
-piece: hair roots in the scalp, a skirt's top in the hips) is excluded, as an MMD model's
-collision masks would; see :meth:`ApparelWorld._exclude_rest_overlaps`. A root link that
-overlaps another piece at rest (a skirt's top in a thigh) first loses the hull points inside it
-(:meth:`ApparelWorld._root_hulls_clearing_body`) or, where that does not clear it, is moved just
-clear of it (:meth:`ApparelWorld._root_offsets_clearing_body`), so that pair collides.
+Collision: chain links meet the body pieces and, where both ask for it, other chains; see
+:meth:`ApparelWorld._exclude_rest_overlaps` and :meth:`ApparelWorld._root_hulls_clearing_body`.
 """
 from __future__ import annotations
 
@@ -40,7 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from datagen.apparel.body_shapes import BodyPiece, hull_points
-from datagen.apparel.chain_spec import ChainSpec
+from datagen.apparel.chain_spec import ChainSpec, merged_by_anchor
 from datagen.apparel.joint_kernel import joint_torques
 from datagen.apparel.params import SimParams
 from datagen.apparel.springs import Springs
@@ -49,8 +38,8 @@ from mimicbench.quaternion import quat_apply, quat_conjugate, quat_multiply
 
 BODY_GROUP, BODY_MASK = 0b01, 0b10
 REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
-MAX_MERGED_LINKS = 24  # links of chains joined into one multibody (see merged_by_anchor)
 CLEARING_MARGINS = (0.0, 0.005, 0.01, 0.02)  # metres: hull points this far outside the body are kept
+PIECE_ACCEL = 2000.0  # m/s^2: a piece's constraint's force limit per kilogram
 MAX_IDLE_CLIENTS = 1  # pybullet clients a process keeps for its next worlds
 _IDLE_CLIENTS: list[int] = []  # DIRECT clients of closed worlds, emptied by the next world (resetSimulation)
 
@@ -75,37 +64,6 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + 2.0 * (w * uv + _cross(u, uv))
 
 
-def merged_by_anchor(chains: list[ChainSpec]) -> list[ChainSpec]:
-    """``chains`` with those that hang from the same body bone, share collision bits and do not
-    collide with one another joined into one chain (one multibody on one anchor, its links in
-    the given order), at the place of the first of them.
-
-    Each multibody costs a few pybullet calls every step (its anchor's constraint, a read of its
-    joints, its spring torques), so a skirt of eight strips on the hips is one multibody, not
-    eight. Links of one multibody never collide, so chains that collide with one another (their
-    mask holds their own group) stay apart, as do chains hung from the world. A joined chain
-    has at most :data:`MAX_MERGED_LINKS` links (pybullet returns no joint state past about the
-    31st spherical joint of a multibody).
-    """
-    out: list[ChainSpec] = []
-    at: dict[tuple, int] = {}
-    for chain in chains:
-        key = (chain.anchor_bone, chain.collision_group, chain.collision_mask)
-        if (chain.anchor_bone < 0 or chain.collision_mask & chain.collision_group or key not in at
-                or len(out[at[key]].links) + len(chain.links) > MAX_MERGED_LINKS):
-            if chain.anchor_bone >= 0 and not chain.collision_mask & chain.collision_group:
-                at[key] = len(out)
-            out.append(chain)
-            continue
-        first = out[at[key]]
-        n = len(first.links)
-        out[at[key]] = dataclasses.replace(
-            first, name=f"{first.name}+{chain.name}", links=first.links + chain.links,
-            joints=first.joints + chain.joints,
-            link_parents=first.link_parents + tuple(p + n if p >= 0 else -1 for p in chain.link_parents))
-    return out
-
-
 @dataclass
 class ChainBody:
     """A loaded chain: its spec, multibody id, anchor constraint id, and the anchor's rest offset."""
@@ -117,12 +75,12 @@ class ChainBody:
 
 
 class ApparelWorld:
-    """One DIRECT pybullet client holding a character's body pieces and chains.
+    """One DIRECT pybullet client holding a character's body pieces and chains, a
+    :class:`~datagen.apparel.simulate.PhysicsWorld`.
 
     Args:
-        keypoints: (K, 3) rest joint heads, metres.
-        pieces: body pieces. chains: apparel chains. sim: scene settings.
-        dt: physics step, seconds.
+        keypoints: (K, 3) rest joint heads, metres. pieces: body pieces. chains: apparel chains.
+        sim: scene settings. dt: physics step, seconds.
     Use as a context manager (the client is handed back on exit, :meth:`close`).
     """
 
@@ -141,13 +99,21 @@ class ApparelWorld:
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(sim.solver_iterations),
                                      contactERP=float(sim.contact_erp), erp=float(sim.constraint_erp),
                                      deterministicOverlappingPairs=1, physicsClientId=cid)
-        self.piece_ids = []
+        self.piece_ids, self._piece_constraints = [], []
         for piece in pieces:
             shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=piece.points.tolist(), physicsClientId=cid)
-            body = pb.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape,
-                                      basePosition=self.keypoints[piece.bone].tolist(), physicsClientId=cid)
+            head = self.keypoints[piece.bone].tolist()
+            body = pb.createMultiBody(baseMass=float(sim.piece_mass), baseCollisionShapeIndex=shape, basePosition=head,
+                                      physicsClientId=cid)
             pb.setCollisionFilterGroupMask(body, -1, BODY_GROUP, BODY_MASK, physicsClientId=cid)
             self.piece_ids.append(body)
+            if sim.piece_mass > 0:
+                pb.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0,
+                                  activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
+                held = pb.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0], head,
+                                           physicsClientId=cid)
+                pb.changeConstraint(held, maxForce=sim.piece_mass * PIECE_ACCEL, physicsClientId=cid)
+                self._piece_constraints.append(held)
         self.chains: list[ChainBody] = []
         with tempfile.TemporaryDirectory(prefix="mimicbench-apparel-") as tmp:
             for i, chain in enumerate(merged_by_anchor(chains)):
@@ -334,25 +300,12 @@ class ApparelWorld:
         for body_a, link_a, body_b, link_b in sorted(pairs):
             pb.setCollisionFilterPair(body_a, body_b, link_a, link_b, 0, physicsClientId=cid)
 
-    def set_body_pose(self, pose: np.ndarray) -> None:
-        """Place body pieces and chain anchors at ``pose`` (K, 7) (q_w, q_x, q_y, q_z, t), no step."""
-        self.drive(np.asarray(pose, np.float64)[None], step=False)
-
-    def drive(self, poses: np.ndarray, step: bool = True) -> None:
-        """Follow body poses ``poses`` (S, K, 7), one physics step after each (the substeps of a frame).
-
-        ``step=False`` places without stepping (S = 1). See :meth:`follow`.
-        """
-        for _ in self.follow(poses, len(poses), step):
-            pass
-
-    def follow(self, poses: np.ndarray, per_frame: int, step: bool = True):
-        """Follow body poses ``poses`` (S, K, 7), one physics step after each; a generator that
-        yields after every ``per_frame`` steps (a clip frame's substeps), so the caller reads the
-        apparel there.
+    def follow(self, poses: np.ndarray, per_frame: int):
+        """Follow body poses ``poses`` (S, K, 7), one physics step after each, yielding after every
+        ``per_frame`` steps (a clip frame's substeps; :class:`~datagen.apparel.simulate.PhysicsWorld`).
 
         The pieces' placements and the anchors' pivots and orientations of all S poses are computed
-        at once, before the first step; a piece is re-placed and an anchor constraint changed only
+        at once, before the first step; a piece's or an anchor's constraint is changed only
         when its bone moved since the last placement. Only the bones in :attr:`driven_bones` are
         read from ``poses``.
         """
@@ -370,7 +323,7 @@ class ApparelWorld:
         self._placed_pieces, self._placed_anchors = piece[-1], anchor[-1]
         piece_at, piece_turn = piece[..., :3].tolist(), piece[..., 3:].tolist()  # per step and piece
         anchor_at, anchor_turn = anchor[..., :3].tolist(), anchor[..., 3:].tolist()  # per step and anchor
-        pieces_moved = [[] for _ in range(len(poses))]  # per step: the pieces to re-place
+        pieces_moved = [[] for _ in range(len(poses))]  # per step: the pieces to move
         for s, i in zip(*(a.tolist() for a in np.nonzero(piece_moved))):
             pieces_moved[s].append(i)
         anchors_moved = [[] for _ in range(len(poses))]
@@ -378,15 +331,19 @@ class ApparelWorld:
             anchors_moved[s].append(i)
         reset, change, stepper = pb.resetBasePositionAndOrientation, pb.changeConstraint, pb.stepSimulation
         after, piece_ids, constraints = self._after_step, self.piece_ids, self._anchor_constraints
+        held = self._piece_constraints
         for s in range(len(poses)):  # pybullet's client id passed by position where it can be (quicker)
             for i in pieces_moved[s]:
-                reset(piece_ids[i], piece_at[s][i], piece_turn[s][i], cid)
+                if held:
+                    change(held[i], jointChildPivot=piece_at[s][i], jointChildFrameOrientation=piece_turn[s][i],
+                           physicsClientId=cid)
+                else:
+                    reset(piece_ids[i], piece_at[s][i], piece_turn[s][i], cid)
             for i in anchors_moved[s]:
                 change(constraints[i], jointChildPivot=anchor_at[s][i], jointChildFrameOrientation=anchor_turn[s][i],
                        physicsClientId=cid)
-            if step:
-                stepper(cid)
-                after()
+            stepper(cid)
+            after()
             if (s + 1) % per_frame == 0:
                 yield (s + 1) // per_frame - 1
 
@@ -503,9 +460,12 @@ class ApparelWorld:
             pb.resetJointStateMultiDof(body, joint, targetValue=target, targetVelocity=velocity[j].tolist(),
                                        physicsClientId=cid)
 
-    def place_chains_at(self, pose: np.ndarray) -> None:
-        """Teleport every chain rigidly with its anchor bone (used once, before the first step)."""
+    def place_at(self, pose: np.ndarray) -> None:
+        """Teleport the chains and the pieces on constraints rigidly with their bones, before the first step."""
         pb, cid = self.pb, self.client
+        for piece, body in zip(self.pieces, self.piece_ids) if self._piece_constraints else ():
+            pb.resetBasePositionAndOrientation(body, pose[piece.bone, 4:].tolist(), xyzw(pose[piece.bone, :4]),
+                                               physicsClientId=cid)
         for c in self.chains:
             if c.spec.anchor_bone < 0:
                 continue
@@ -518,34 +478,30 @@ class ApparelWorld:
         self.pb.stepSimulation(physicsClientId=self.client)
         self._pending = None
 
-    def read_links(self) -> tuple[np.ndarray, np.ndarray, float]:
-        """Bones' rest-relative rotations and heads, and the fastest link speed.
+    max_speed = property(lambda self: self.sim.max_speed)  # m/s: a faster link is an explosion
 
-        Returns (L, 4) (w, x, y, z), (L, 3) metres, and m/s, where L counts the links of every
-        chain in chain order: a link frame's world orientation times the inverse of its rest
-        orientation (Z along the bone), and the frame's origin (the bone head).
-        """
-        world, positions, speed = self.link_states()
-        return self.rest_relative(world), positions, speed
-
-    def link_states(self) -> tuple[np.ndarray, np.ndarray, float]:
-        """Links' world orientations (L, 4) (w, x, y, z), heads (L, 3) metres, and the fastest
-        link speed (m/s), L as in :meth:`read_links`."""
+    def read(self) -> tuple[tuple[np.ndarray, np.ndarray], float]:
+        """Links' world orientations (L, 4) (w, x, y, z), heads (L, 3) m (chain order); fastest speed (m/s)."""
         get, cid = self.pb.getLinkStates, self.client
         states = []
         for body, links in self._link_lists:
             states += get(body, links, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=cid)
         if not states:
-            return np.zeros((0, 4)), np.zeros((0, 3)), 0.0
+            return (np.zeros((0, 4)), np.zeros((0, 3))), 0.0
         both = np.fromiter(itertools.chain.from_iterable(s[5] + s[4] + s[6] for s in states), np.float64,
                            10 * len(states)).reshape(-1, 10)  # (L, 10) x, y, z, w, head, velocity
         velocity = both[:, 7:]
-        return both[:, [3, 0, 1, 2]], both[:, 4:7], float(np.sqrt(np.einsum("ij,ij->i", velocity, velocity).max()))
+        return (both[:, [3, 0, 1, 2]], both[:, 4:7]), float(np.sqrt(np.einsum("ij,ij->i", velocity, velocity).max()))
 
-    def rest_relative(self, world: np.ndarray) -> np.ndarray:
-        """Bones' rest-relative rotations (..., L, 4) of links' world orientations ``world`` (..., L, 4)
-        (w, x, y, z), as :meth:`read_links` gives them (for many frames at once)."""
-        return quat_multiply(world, self._rest_frames_inv)
+    def clip_out(self, transforms: np.ndarray, states: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+        """(F, K, 7) float32: ``transforms`` with each link's bone from :meth:`read`'s ``states`` (one a frame):
+        its rest-relative rotation (world orientation times the inverse rest one, Z along the bone) and head."""
+        out = np.array(transforms, np.float32, copy=True)
+        bones = np.array([b for c in self.chains for b in c.spec.bones], int)
+        if len(bones):
+            out[:, bones, :4] = quat_multiply(np.stack([s[0] for s in states]), self._rest_frames_inv)
+            out[:, bones, 4:] = np.stack([s[1] for s in states])
+        return out
 
     def close(self) -> None:
         """Hand the client back: kept for the next world of this process (:data:`_IDLE_CLIENTS`, up
