@@ -91,6 +91,41 @@ def test_steps_are_skipped_until_their_inputs_or_options_change(tmp_path, capsys
     assert out["zoo"] == "done" and out["resample"] == "skipped"  # the same zoo again: same bytes, same input
 
 
+def test_a_finished_step_runs_again_when_its_code_version_changes(tmp_path, capsys, monkeypatch):
+    """A new resample version (a toolkit upgrade) makes the pipeline run resample again, not skip it
+    on the old output; the zoo, whose code did not change, stays skipped."""
+    import datagen.resample
+
+    work = tmp_path / "work"
+    toml = write_pipeline(tmp_path)
+    assert main(["pipeline", str(toml), "--workdir", str(work), "--quiet"]) == 0
+    capsys.readouterr()
+    monkeypatch.setattr(datagen.resample, "RESAMPLE_VERSION", datagen.resample.RESAMPLE_VERSION + "-next")
+    assert main(["pipeline", str(toml), "--workdir", str(work), "--quiet"]) == 0
+    out = summary_statuses(capsys.readouterr().out)
+    assert out["zoo"] == "skipped" and out["resample"] == "done"
+    monkeypatch.undo()
+    assert main(["pipeline", str(toml), "--workdir", str(work), "--quiet", "--dry-run"]) == 0
+    zoo, resample, _ = capsys.readouterr().out.splitlines()
+    assert zoo.startswith("skip  mimicbench zoo") and resample.startswith("run   mimicbench datagen resample")
+
+
+def test_a_bench_steps_fingerprint_holds_its_methods_versions(tmp_path, monkeypatch):
+    from dataclasses import replace
+
+    from baselines.identity import Identity
+    from mimicbench.pipeline.spec import Step
+    from mimicbench.pipeline.state import code_versions
+
+    step = Step("bench", "bench", {"dataset": "d", "methods": "identity,no_such_method", "out": "r"})
+    versions = code_versions(step)
+    assert versions["method:identity"] == Identity.metadata.version
+    assert versions["method:no_such_method"] == "unknown"
+    assert versions["toolkit"]
+    monkeypatch.setattr(Identity, "metadata", replace(Identity.metadata, version="next"))
+    assert code_versions(step)["method:identity"] == "next"
+
+
 def test_a_killed_pipeline_resumes_without_redoing_finished_steps(tmp_path, capsys):
     work = tmp_path / "work"
     toml = write_pipeline(tmp_path)

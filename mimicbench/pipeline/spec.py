@@ -50,6 +50,8 @@ class StepKind:
         writes: ``(key, tables)``: the step writes these tables of that folder (None: the folder).
         engine: the command takes ``--engine``/``--ray-address`` (and ``--jobs`` where listed).
         jobs: the command takes ``--jobs``.
+        versions: ``"module:NAME"`` version constants of the code that makes the step's output; a
+            finished step runs again when one of them (or the toolkit's version) changed.
     """
 
     command: tuple[str, ...]
@@ -59,19 +61,22 @@ class StepKind:
     writes: tuple[tuple[str, tuple[str, ...] | None], ...] = ()
     engine: bool = False
     jobs: bool = False
+    versions: tuple[str, ...] = ()
 
 
 STEP_KINDS = {
-    "zoo": StepKind(("zoo",), folders=("out",), writes=(("out", ("characters", "motions")),), engine=True, jobs=True),
+    "zoo": StepKind(("zoo",), folders=("out",), writes=(("out", ("characters", "motions")),), engine=True, jobs=True,
+                   versions=("datagen.zoo.build:ZOO_VERSION",)),
     "ingest": StepKind(("datagen", "ingest"), positional=("paths",), folders=("out", "paths"),
                        reads=(("paths", None),), writes=(("out", ("characters", "motions")),),
                        engine=True, jobs=True),
     "resample": StepKind(("datagen", "resample"), positional=("in", "out"), folders=("in", "out"),
                          reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
-                         engine=True, jobs=True),
+                         engine=True, jobs=True, versions=("datagen.resample:RESAMPLE_VERSION",)),
     "apparel": StepKind(("datagen", "apparel"), positional=("in", "out"), folders=("in", "out"),
                         reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
-                        engine=True, jobs=True),
+                        engine=True, jobs=True, versions=("datagen.apparel.setup:SIM_VERSION",
+                                                            "datagen.apparel.file_physics:FILE_PHYSICS_VERSION")),
     "correspond": StepKind(("datagen", "correspond"), positional=("dataset",), folders=("dataset",),
                            reads=(("dataset", ("characters",)),), writes=(("dataset", ("pairs",)),), engine=True,
                            jobs=True),

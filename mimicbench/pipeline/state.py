@@ -1,15 +1,19 @@
 """What a pipeline has done: per step a fingerprint of what it read and a digest of what it wrote.
 
-A step is skipped when its fingerprint (the step's options without engine settings, and the
-fingerprints of the tables it reads) equals the one recorded when it last finished, and what it
+A step is skipped when its fingerprint (the step's options without engine settings, the
+fingerprints of the tables it reads, and the versions of the code that makes its output: the
+toolkit's, the stage's own version constants, a bench step's method versions) equals the one recorded when it last finished, and what it
 wrote is still as it left it (so a deleted or rebuilt output is made again). The record lives in
 ``WORKDIR/.pipeline/<name>.json`` and is written atomically after each finished step, so a
 pipeline killed at any point resumes with the next unfinished step.
 """
 from __future__ import annotations
 
+import importlib
 import json
 from pathlib import Path
+
+import mimicbench
 
 from mimicbench.pipeline.spec import ENGINE_KEYS, Pipeline, Step
 from schemas.fingerprint import digest_of
@@ -36,10 +40,32 @@ def _digests(step: Step, pipeline: Pipeline, which) -> dict:
     return {f"{key}:{p}": folder_digest(p, tables) for key, tables in which for p in step.folder(key, pipeline.workdir)}
 
 
+def code_versions(step: Step) -> dict:
+    """``{"toolkit": ..., "module:NAME": value, "method:NAME": version}``: the toolkit's version, the
+    step kind's version constants, and for a bench step each named method's ``metadata.version``
+    (an unknown method is left to the command, which names it)."""
+    versions = {"toolkit": mimicbench.__version__}
+    for ref in step.spec.versions:
+        module, name = ref.split(":")
+        versions[ref] = str(getattr(importlib.import_module(module), name))
+    if step.kind == "bench":
+        from benchmark.registry import METHODS, NameCollision, UnknownName
+
+        names = step.options.get("methods") or []
+        for name in names.split(",") if isinstance(names, str) else names:
+            try:
+                versions[f"method:{name}"] = str(METHODS.get(name).metadata.version)
+            except (UnknownName, NameCollision, AttributeError, ImportError):
+                versions[f"method:{name}"] = "unknown"
+    return versions
+
+
 def step_fingerprint(step: Step, pipeline: Pipeline) -> str:
-    """Digest of the step's kind and options (engine settings left out) and of what it reads now."""
+    """Digest of the step's kind and options (engine settings left out), of the versions of its code
+    (:func:`code_versions`) and of what it reads now."""
     options = {k: v for k, v in step.options.items() if k not in ENGINE_KEYS}
-    return digest_of({"kind": step.kind, "options": options, "reads": _digests(step, pipeline, step.spec.reads)})
+    return digest_of({"kind": step.kind, "options": options, "code": code_versions(step),
+                      "reads": _digests(step, pipeline, step.spec.reads)})
 
 
 def outputs_digest(step: Step, pipeline: Pipeline) -> str:
