@@ -20,18 +20,17 @@ from datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch,
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
 from datagen.correspond.structure import skeleton_features
-from datagen.stage_runner import run_stage
+from datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
 from mimicbench.engines import Engine, TaskResources
 from schemas.errors import DatasetError
-from schemas.fingerprint import stage_config, tables_fingerprint
 from schemas.manifest import atomic_write_bytes
 from schemas.pair import PairRecord
-from schemas.shard_stream import ShardStream
-from schemas.shards import read_records, remove_split, splits_of, write_records
+from schemas.shards import read_records, remove_split, splits_of
+from schemas.tables import rows_per_shard
 
 ACROSS = "across"  # the pair split of pairs between characters of different splits
 BATCH = 2048  # pairs a block (one task): Sinkhorn runs them CHUNK at a time in one padded batch
-ROWS_PER_SHARD = 5000  # pairs a shard: memory holds one shard's matrices while writing
+ROWS_PER_SHARD = rows_per_shard("pairs", "correspond")  # memory holds one shard's matrices while writing
 TASK_RESOURCES = TaskResources(num_cpus=1, memory=1 << 30)
 
 
@@ -101,6 +100,25 @@ def _match_block(ids: list[tuple[str, str]], method, emb: dict, feats: dict) -> 
                        [feats[a] for a, _ in ids] if feats else None, [feats[b] for _, b in ids] if feats else None)
 
 
+@dataclass(frozen=True)
+class CorrespondParams:
+    """encoder: its name; temperature: Sinkhorn's T; seed, pairs, all_pairs, intra_fraction,
+    unordered, across_splits: the pair sampling (:mod:`.sampling`); method: the matcher's params."""
+
+    encoder: str
+    temperature: float
+    seed: int
+    pairs: int | None
+    all_pairs: bool
+    intra_fraction: float
+    method: dict
+    unordered: bool = omitted_unless_set(False)
+    across_splits: bool = omitted_unless_set(False)
+
+
+STAGE = Stage("correspond", CorrespondParams, inputs=("characters",), item=_match_block, outputs=("pairs", "status"))
+
+
 def pair_blocks(chosen: list[tuple], rows_per_shard: int = ROWS_PER_SHARD,
                 batch: int = BATCH) -> tuple[list[list[int]], set[int]]:
     """Blocks of indices into ``chosen`` (ordered pairs of records), one task each, and the
@@ -166,12 +184,10 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     feats = skeleton_feature_table(records) if m.uses_structure else {}
     params = json.loads(m.params_json())
     written, matched, statuses = {}, [], []
-    config = stage_config({"stage": "correspond", "encoder": enc.name, "temperature": m.temperature, "seed": seed,
-                           "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION, "method": params,
-                           **({"unordered": True} if unordered else {}),
-                           **({"across_splits": True} if across_splits else {})},
-                          tables_fingerprint(dataset_dir, ["characters"]))
-    fn = partial(_match_block, method=m, emb=emb, feats=feats)
+    stage_run = StageRun(STAGE, CorrespondParams(enc.name, m.temperature, seed, pairs, all_pairs, INTRA_FRACTION, params,
+                                           bool(unordered), bool(across_splits)),
+                         dataset_dir, dataset_dir, refuse_foreign=False)  # adds pairs to its input
+    fn = partial(STAGE.item, method=m, emb=emb, feats=feats)
     groups = [(split, sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed, unordered))
               for split in splits_of(dataset_dir, "characters")]
     if across_splits:
@@ -181,7 +197,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         remove_split(dataset_dir, "pairs", ACROSS)
     for split, chosen in groups:
         blocks, ends = pair_blocks(chosen, ROWS_PER_SHARD, block)
-        stream = ShardStream(dataset_dir, "pairs", split, ROWS_PER_SHARD, config)
+        stream = stage_run.stream("pairs", split)
         run: dict[int, PairRecord] = {}
 
         def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=stream, run=run) -> None:
@@ -210,7 +226,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         statuses += [dataclasses.replace(st, stage="correspond", seconds=0.0) for st in block_statuses
                      if st.status != "ok"]
     if statuses:  # blocks whose task failed for good (e.g. its worker died on every retry)
-        write_records(dataset_dir, "status", statuses, split="correspond")
+        stage_run.write_status(statuses, config=None)  # the status table's config stays its maker's
     else:
         remove_split(dataset_dir, "status", "correspond")
     report = role_agreement_report(by_id, matched, params)
