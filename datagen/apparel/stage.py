@@ -4,9 +4,7 @@ For every character with apparel bones and every kinematic clip, a simulated cli
 (motion ID ``<motion_id>@sim``) is written beside the kinematic one; the per-clip quality goes in
 the character's ``meta['apparel']['clips'][<clip>]``. A clip whose simulation explodes gets a
 ``failed`` status row (split ``apparel``) and keeps only its kinematic clip. Work is written after
-every batch of clips (atomic shards), and a re-run into the same OUT resumes: simulated clips are
-reused when the input tables' fingerprints and the parameters are unchanged, and recomputed
-otherwise. While it runs the manifest says ``"complete": false``. Output bytes depend only on the
+every batch of clips; resume: FORMAT.md, "Stages and resume". Output bytes depend only on the
 input and the parameters (status seconds are 0). Correspondences (``pairs``) are not carried
 over: run ``datagen correspond`` on OUT.
 """
@@ -63,7 +61,8 @@ class ApparelStageParams:
 
 
 STAGE = Stage("apparel", ApparelStageParams, inputs=("characters", "motions", *FILE_PHYSICS_TABLES),
-              item=_simulate_one, outputs=("characters", "motions", "status", *FILE_PHYSICS_TABLES), made_by="motions")
+              item=_simulate_one, outputs=("characters", "motions", "status", *FILE_PHYSICS_TABLES), made_by="motions",
+              title="the apparel stage")
 
 
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""The correspond stage: ``pairs/`` shards for a dataset, and one pair on the fly.
+"""The correspond stage: ``pairs/`` shards for a dataset (one pair on the fly: :mod:`.pair`).
 
 The method is chosen by name (:mod:`.methods`): ``structure`` (default) or ``text`` (the paper's).
 """
@@ -13,13 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
 from datagen.correspond.canonical import canonicalize_names
 from datagen.correspond.encoders import get_encoder
 from datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch, skeleton_feature_table
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
-from datagen.correspond.structure import skeleton_features
 from datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
 from mimicbench.engines import Engine, TaskResources
 from schemas.errors import DatasetError
@@ -40,58 +38,6 @@ def embed_skeletons(records, encoder) -> dict[str, np.ndarray]:
     unique = sorted({t for names in canon.values() for t in names})
     table = dict(zip(unique, encoder.embed(unique))) if unique else {}
     return {cid: np.stack([table[t] for t in names]) for cid, names in canon.items() if names}
-
-
-def _embed_cached(enc, texts: list[str]) -> dict[str, np.ndarray]:
-    """Embeddings of ``texts`` by ``enc``, remembering every text the encoder has seen."""
-    cache = _EMBEDDING_CACHE.setdefault(enc.name, {})
-    missing = sorted(set(texts) - cache.keys())
-    if missing:
-        cache.update(zip(missing, enc.embed(missing)))
-    return cache
-
-
-_EMBEDDING_CACHE: dict[str, dict[str, np.ndarray]] = {}
-
-
-def correspondence_for_names(names_a, names_b, encoder: str = "minilm", temperature: float = DEFAULT_TEMPERATURE,
-                             clip_model: str = "ViT-B-32", clip_pretrained: str | None = None):
-    """One pair on the fly from two bone-name lists, by the text-only method (names are all it has).
-
-    Returns S_cos (K1, K2) float32, Hungarian pairs (min(K1, K2), 2) int32 and M_sink (K1, K2)
-    float32, as stored in ``pairs/`` by ``--method text``. The encoder and each canonical name's
-    embedding are cached, so repeated calls cost only the matrices. With the skeletons at hand,
-    :func:`correspondence_for_skeletons` gives the structure-aware default.
-    """
-    enc = get_encoder(encoder, clip_model, clip_pretrained)
-    ca, cb = canonicalize_names(list(names_a)), canonicalize_names(list(names_b))
-    if not ca or not cb:
-        raise ValueError(f"names_a, names_b: expected non-empty name lists, got {len(ca)} and {len(cb)} names")
-    table = _embed_cached(enc, ca + cb)
-    return correspondence_batch([np.stack([table[t] for t in ca])], [np.stack([table[t] for t in cb])], temperature)[0]
-
-
-def correspondence_for_skeletons(names_a, parents_a, keypoints_a, names_b, parents_b, keypoints_b,
-                                 method: str = DEFAULT_METHOD, encoder: str = "minilm",
-                                 temperature: float | None = None, no_match: float | None = None,
-                                 clip_model: str = "ViT-B-32", clip_pretrained: str | None = None):
-    """One pair on the fly from two skeletons: names (K,), parents (K,) and rest keypoints (K, 3).
-
-    Returns S_cos (K1, K2), Hungarian pairs (P, 2) int32 and M_sink (K1, K2) as ``pairs/`` stores
-    them for ``method`` (``structure`` by default, or ``text``).
-    """
-    m = get_matcher(method, temperature, no_match)
-    enc = get_encoder(encoder, clip_model, clip_pretrained)
-    ca, cb = canonicalize_names(list(names_a)), canonicalize_names(list(names_b))
-    if not ca or not cb:
-        raise ValueError(f"names_a, names_b: expected non-empty name lists, got {len(ca)} and {len(cb)} names")
-    table = _embed_cached(enc, ca + cb)
-    ea, eb = [np.stack([table[t] for t in ca])], [np.stack([table[t] for t in cb])]
-    if not m.uses_structure:
-        return match_batch(m, ea, eb)[0]
-    fa = skeleton_features(ca, parents_a, keypoints_a).matrix()
-    fb = skeleton_features(cb, parents_b, keypoints_b).matrix()
-    return match_batch(m, ea, eb, [fa], [fb])[0]
 
 
 def _match_block(ids: list[tuple[str, str]], method, emb: dict, feats: dict) -> list[tuple]:
@@ -197,31 +143,27 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         remove_split(dataset_dir, "pairs", ACROSS)
     for split, chosen in groups:
         blocks, ends = pair_blocks(chosen, ROWS_PER_SHARD, block)
-        stream = stage_run.stream("pairs", split)
         run: dict[int, PairRecord] = {}
+        with stage_run.streams([("pairs", split)]) as streams:
 
-        def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=stream, run=run) -> None:
-            for i, (s, h, sink) in zip(blocks[k], mats if ok else ()):  # a failed block's pairs are left out
-                a, b = chosen[i]
-                run[i] = PairRecord(f"{a.character_id}->{b.character_id}", a.character_id, b.character_id, split,
-                                    a.num_joints, b.num_joints, s, h, sink, enc.name, float(m.temperature),
-                                    a.category, b.category, m.name, params)
-            if k in ends:
-                rows = [run.pop(i) for i in sorted(run)]
-                stream.add(rows)
-                matched.extend(_Matched(p.source_id, p.target_id, p.hungarian) for p in rows)
-                written[split] = written.get(split, 0) + len(rows)
+            def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=streams["pairs", split],
+                        run=run) -> None:
+                for i, (s, h, sink) in zip(blocks[k], mats if ok else ()):  # a failed block's pairs are left out
+                    a, b = chosen[i]
+                    run[i] = PairRecord(f"{a.character_id}->{b.character_id}", a.character_id, b.character_id, split,
+                                        a.num_joints, b.num_joints, s, h, sink, enc.name, float(m.temperature),
+                                        a.category, b.category, m.name, params)
+                if k in ends:
+                    rows = [run.pop(i) for i in sorted(run)]
+                    stream.add(rows)
+                    matched.extend(_Matched(p.source_id, p.target_id, p.hungarian) for p in rows)
+                    written[split] = written.get(split, 0) + len(rows)
 
-        items = [[(chosen[i][0].character_id, chosen[i][1].character_id) for i in blk] for blk in blocks]
-        try:
+            items = [[(chosen[i][0].character_id, chosen[i][1].character_id) for i in blk] for blk in blocks]
             _, block_statuses = run_stage(items, fn, f"correspond/{split}", progress=progress, on_done=on_done,
                                           name_of=lambda ids: f"{split} block {ids[0][0]}->{ids[0][1]} "
                                                               f"(+{len(ids) - 1} pairs)",
                                           engine=engine, ordered=True, keep_results=False, resources=TASK_RESOURCES)
-        except BaseException:
-            stream.abort()
-            raise
-        stream.close()
         written.setdefault(split, 0)
         statuses += [dataclasses.replace(st, stage="correspond", seconds=0.0) for st in block_statuses
                      if st.status != "ok"]

@@ -1,11 +1,5 @@
-"""The resample stage over a dataset: ``mimicbench datagen resample IN OUT``.
-
-Work is written as it completes: every ``flush_every`` finished characters (or ``flush_seconds``)
-go into ``characters`` shards of a part split (``part_00000``, ``part_00001``...) while the
-manifest says ``"complete": false``. At the end the parts become the final per-split shards, the
-motions and pairs are copied, and the manifest is marked complete. A killed run keeps its parts;
-a re-run reuses them, and the rows of a finished run, only when the fingerprints of the input
-tables and of the parameters (faces, backend) match; otherwise it redoes every character.
+"""The resample stage over a dataset: ``mimicbench datagen resample IN OUT`` (resume: FORMAT.md,
+"Stages and resume"; finished characters go to part splits ``part_00000``... as they come).
 
 Memory stays bounded however many characters there are: input characters are read a row group
 (8 characters) at a time and resampled ``BATCH`` at a time, the frames each is measured on are
@@ -179,8 +173,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
 
     Characters that fail get a status row (split ``resample``) with the reason and are left out;
     skeleton-only characters (no mesh) are copied as they are. The motions table (and pairs, if
-    any) are copied unchanged (verified against the input's manifest). A re-run resumes: rows
-    made from the same input tables with the same faces and backend are kept, others redone.
+    any) are copied unchanged (verified against the input's manifest).
 
     Args:
         flush_every, flush_seconds: write finished characters after this many, or this long.
@@ -193,9 +186,8 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
 
     Raises:
         ValueError: a bad argument.
-        DatasetError: ``in_dir`` is not a dataset or has no characters; ``out_dir`` holds a
-            dataset not made by resample; every character failed (``out_dir`` is then left as it
-            was).
+        DatasetError: ``in_dir`` is not a dataset or has no characters; ``out_dir`` holds another
+            stage's dataset; every character failed (``out_dir`` is then left as it was).
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
@@ -275,16 +267,11 @@ def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine,
     flush()
     meshed = [cid for cid, _, has_mesh in order if has_mesh]
     if meshed and not any(cid in where for cid in meshed):
-        existed = run.before is not None
-        run.abandon()
-        reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
-        raise DatasetError(f"resample: every character failed ({reasons}{'; ...' if len(statuses) > 3 else ''}); "
-                           f"{out_dir} left as it was" + ("" if existed else " (nothing written)"))
+        raise run.abandon(statuses, "character")
 
     reader, quality, count = _RowReader(out_dir), [], 0
     splits = splits_of(in_dir, "characters")
-    streams = {split: run.stream("characters", split, config=None) for split in splits}
-    try:
+    with run.streams([("characters", split) for split in splits], config=None) as streams:
         for cid, split, has_mesh in order:
             if not has_mesh:
                 row = meshless[cid]
@@ -292,16 +279,10 @@ def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine,
                 row = reader.get(cid, where[cid])
             else:
                 continue  # failed: its status row says why
-            streams[split].add([row])
+            streams["characters", split].add([row])
             count += 1
             if (row.meta or {}).get("resample"):
                 quality.append((row.meta["resample"]["hausdorff_pct"], row.meta["resample"]["transfer_error_pct"]))
-    except BaseException:
-        for stream in streams.values():
-            stream.abort()
-        raise
-    for stream in streams.values():
-        stream.close()
     wanted = set(splits)
     for split in splits_of(out_dir, "characters", allow_incomplete=True):
         if split not in wanted:  # parts, and splits of an earlier run the input no longer has

@@ -68,17 +68,15 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     Writes ``characters/`` and ``motions/`` shards (one set per split; an empty split gets an
     empty shard so a rebuild replaces older data), a ``status`` table (split ``zoo``, one row a
     character; seconds are left 0 so the data is byte-identical for a seed), ``manifest.json``
-    with the build config and its fingerprint, ``CARD.md``, and with ``export`` the .obj/.bvh files.
-    While writing, the manifest says ``"complete": false``.
+    with the build config and its fingerprint, ``CARD.md``, and with ``export`` the .obj/.bvh files
+    (marks, refusal of another stage's dataset: FORMAT.md, "Stages and resume").
 
     Characters are built by ``engine`` (default: the local engine with ``jobs`` processes; the
     bytes do not depend on it) and streamed into the shards in plan order as they finish, so
     memory holds a few hundred clips, never the whole motions table (a PokeAnimDB-size zoo has
     4.5 million frames).
 
-    A zoo in which every character failed writes nothing: an existing dataset in ``out_dir`` is
-    left untouched and :class:`DatasetError` says why. A folder holding a dataset that the zoo did
-    not make (ingested assets, a resampled copy) is refused rather than overwritten.
+    A zoo in which every character failed writes nothing (:class:`DatasetError` says why).
 
     Args:
         motions: total clips, spread evenly over the characters (instead of ``clips_per_character``
@@ -118,36 +116,27 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     config = run.config
     items = [(spec, splits[spec.character_id], count) for spec, count in zip(specs, clip_counts)]
     work = partial(STAGE.item, out=out, export=export, frames_per_clip=int(frames_per_clip))
-    streams = {(table, split): run.stream(table, split) for table in ("characters", "motions") for split in SPLITS}
     characters, clips = [], []  # small summaries for the card, not the arrays
+    with run.streams([(table, split) for table in ("characters", "motions") for split in SPLITS]) as streams:
 
-    def on_done(i: int, ok: bool, result) -> None:
-        if not ok:
-            return
-        record, motions_of = result
-        streams["characters", record.split].add([record])
-        streams["motions", record.split].add(motions_of)
-        characters.append(character_summary(record))
-        clips.extend((m.character_id, int(m.num_frames)) for m in motions_of)
+        def on_done(i: int, ok: bool, result) -> None:
+            if not ok:
+                return
+            record, motions_of = result
+            streams["characters", record.split].add([record])
+            streams["motions", record.split].add(motions_of)
+            characters.append(character_summary(record))
+            clips.extend((m.character_id, int(m.num_frames)) for m in motions_of)
 
-    try:
         _, statuses = run_stage(items, work, "zoo", name_of=lambda it: it[0].character_id, jobs=jobs,
                                 progress=progress, on_done=on_done, engine=engine, ordered=True, keep_results=False)
-    except BaseException:
-        for stream in streams.values():
-            stream.abort()
-        raise
-    if not characters:
-        for stream in streams.values():
-            stream.abort()
-        reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
-        raise DatasetError(f"zoo: every one of the {len(specs)} characters failed ({reasons}"
-                           f"{'; ...' if len(statuses) > 3 else ''}); nothing written, {out} left as it was")
-    for s in statuses:
-        s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
-    run.begin()
-    for stream in streams.values():
-        stream.close()
+        if not characters:
+            reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
+            raise DatasetError(f"zoo: every one of the {len(specs)} characters failed ({reasons}"
+                               f"{'; ...' if len(statuses) > 3 else ''}); nothing written, {out} left as it was")
+        for s in statuses:
+            s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
+        run.begin()  # the streams are named and listed when the block ends
     run.write_status(statuses)
     run.finish()
     split_counts = {s: sum(1 for c in characters if c["split"] == s) for s in SPLITS}
@@ -196,4 +185,4 @@ class ZooParams:
 
 
 STAGE = Stage("zoo", ZooParams, inputs=(), item=_build_one, outputs=("characters", "motions", "status"),
-              out_name="--out folder", generator="mimicbench.zoo")
+              out_name="--out folder", generator="mimicbench.zoo", title="the zoo")
