@@ -24,13 +24,13 @@ from typing import Any, Callable, Iterable, Sequence
 from tqdm.auto import tqdm
 
 from mimicbench.engines import Engine, LocalEngine, Outcome, TaskResources
-from schemas.errors import DatasetError
+from schemas.errors import DatasetError, UserError
 from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
 from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_complete,
                               mark_incomplete, save_manifest)
 from schemas.shard_stream import ShardStream
-from schemas.shards import _unlink_stale, has_table, write_records
+from schemas.shards import _unlink_stale, has_table, read_records, write_records
 from schemas.status import StatusRecord
 from schemas.tables import rows_per_shard
 from schemas.validate import validate_dataset
@@ -112,9 +112,9 @@ def not_a_param(default=None, **kw):
 @dataclass(frozen=True)
 class Stage:
     """What a datagen stage declares: ``params`` (a dataclass type), the ``inputs`` tables read from
-    IN (those IN lacks are left out), the per-item function ``item``, the ``outputs`` tables,
-    ``copies`` (tables copied untouched from IN) and ``made_by`` (the output table whose config
-    names the stage that made OUT)."""
+    IN (those IN lacks are left out), the per-item function ``item``, the ``outputs`` tables, the
+    tables it ``copies`` untouched from IN (:func:`copy_table`) and the table whose config names
+    the stage that made OUT (``made_by``)."""
 
     name: str
     params: type
@@ -130,23 +130,24 @@ class Stage:
 
 class StageRun:
     """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` for a
-    stage that adds tables to its input) into ``out_dir``; refuses at once (nothing changed) an
-    ``out_dir`` holding a dataset that another stage made."""
+    stage that adds tables to its input, with ``refuse_foreign=False``) into ``out_dir``; refuses at
+    once (nothing changed) folders inside one another and an ``out_dir`` holding another stage's dataset."""
 
     def __init__(self, stage: Stage, params, out_dir, in_dir=None, info: dict | None = None,
                  refuse_foreign: bool = True):
-        if not isinstance(params, stage.params):
-            raise TypeError(f"{stage.name}: params: expected {stage.params.__name__}, got {type(params).__name__}")
-        self.stage, self.params, self.out_dir, self.before = stage, params, Path(out_dir), None
+        self.stage, self.params, self.out_dir, self.before, self.begun = stage, params, Path(out_dir), None, False
         self.in_dir = None if in_dir is None else Path(in_dir)
+        a, b = (self.in_dir or self.out_dir).resolve(), self.out_dir.resolve()
+        if refuse_foreign and self.in_dir is not None and (a.is_relative_to(b) or b.is_relative_to(a)):
+            raise UserError(f"{stage.name}: {stage.out_name} {out_dir} and the input {in_dir} must be separate "
+                            f"folders, neither inside the other")
         inputs = [t for t in stage.inputs if self.in_dir is not None and has_table(self.in_dir, t)]
-        same = self.in_dir is None or self.in_dir.resolve() == self.out_dir.resolve()
         values = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
                   if getattr(params, f.name) != f.metadata.get("omit", ()) and f.metadata.get("param", True)}
         self.config = stage_config({"stage": stage.name, **{k: v.to_json() if hasattr(v, "to_json") else v
                                                             for k, v in values.items()}},
                                    tables_fingerprint(self.in_dir, inputs) if inputs else {},
-                                   "." if same else str(self.in_dir.resolve()), info)
+                                   "." if a == b else str(a), info)
         if refuse_foreign:
             self.refuse_foreign()
 
@@ -178,18 +179,25 @@ class StageRun:
             else manifest["configs"].get(self.stage.made_by)
         return old, fingerprint_mismatch(old, self.config)
 
+    def earlier_rows(self, table: str, split: str | None = None, drop=()) -> list:
+        """The rows earlier runs put in OUT's ``table`` (one split or all), less those of ``drop``'s character IDs."""
+        if self.manifest() is None or not has_table(self.out_dir, table, split, allow_incomplete=True):
+            return []
+        return [r for r in read_records(self.out_dir, table, split, allow_incomplete=True)
+                if getattr(r, "character_id", None) not in drop]
+
     def begin(self) -> None:
         """Mark OUT incomplete (``pending``: this stage and its config) until :meth:`finish`."""
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.before = self.manifest()
+        self.before, self.begun = self.manifest(), True
         mark_incomplete(self.out_dir, self.stage.name, self.config)
 
     def abandon(self, statuses: list[StatusRecord], what: str) -> DatasetError:
-        """Undo :meth:`begin` (the old manifest, or no folder) after a run in which every item
-        failed; return the error to raise, naming the first reasons."""
-        if self.before is not None:
+        """Undo :meth:`begin` if it ran (the old manifest, or no folder) after a run in which every
+        item failed; return the error to raise, naming the first reasons."""
+        if self.begun and self.before is not None:
             save_manifest(self.out_dir, self.before)
-        else:
+        elif self.begun:
             (self.out_dir / MANIFEST).unlink(missing_ok=True)
             for folder in [self.out_dir / t for t in self.stage.outputs] + [self.out_dir]:
                 if folder.is_dir() and not any(folder.iterdir()):
@@ -199,15 +207,14 @@ class StageRun:
                             + ("" if self.before is not None else " (nothing written)"))
 
     def write(self, table: str, records, split: str, config: dict | None | str = "run") -> list[dict]:
-        """Write one split of ``table``; return its entries. ``config`` is stored for the table:
-        ``"run"`` the run's, None leaves the manifest's (part shards get theirs in :meth:`finish`)."""
+        """Write one split of ``table``, return its entries; ``config`` for the table: ``"run"`` the
+        run's, None leaves the manifest's (part shards' table gets it in :meth:`finish`)."""
         return write_records(self.out_dir, table, list(records), split, rows_per_shard(table, self.stage.name),
                              config=self.config if config == "run" else config)
 
     @contextmanager
     def streams(self, keys: Iterable[tuple[str, str]], config: dict | None | str = "run"):
-        """``{(table, split): ShardStream}`` (``config`` as in :meth:`write`), all closed when the
-        block ends, all aborted when it raises."""
+        """``{(table, split): ShardStream}`` (``config`` as in :meth:`write`): closed at the end, aborted on an error."""
         streams = {(t, s): ShardStream(self.out_dir, t, s, rows_per_shard(t, self.stage.name),
                                        self.config if config == "run" else config) for t, s in keys}
         try:
@@ -222,11 +229,6 @@ class StageRun:
     def write_status(self, rows: list[StatusRecord], config: dict | None | str = "run") -> None:
         """The stage's status rows: split ``stage.name`` of the ``status`` table."""
         self.write("status", rows, self.stage.name, config)
-
-    def copy_untouched(self) -> None:
-        """Copy the ``copies`` tables from IN (:func:`copy_table`)."""
-        for table in self.stage.copies:
-            copy_table(self.in_dir, self.out_dir, table)
 
     def finish(self, configs: Iterable[str] = ()) -> None:
         """Give the ``configs`` tables the run's config, mark OUT complete, validate it."""

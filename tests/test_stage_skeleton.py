@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from datagen.stage_runner import Stage, StageRun, copy_table, omitted_unless_set
-from schemas.errors import DatasetError
+from schemas.errors import DatasetError, UserError
 from schemas.manifest import MANIFEST
 from schemas.shards import read_records, write_records
 from schemas.status import StatusRecord
@@ -82,8 +82,14 @@ def test_config_is_the_params_and_input_fingerprints_as_the_format_says(tmp_path
     assert fp["inputs"] == {"status": hashlib.sha256(table.encode()).hexdigest()}
     assert fp["inputs_from"] == str(src.resolve())
     assert StageRun(TOY, ToyParams(extra="y"), tmp_path / "out", src).config["extra"] == "y"
-    with pytest.raises(TypeError, match="ToyParams"):
-        StageRun(TOY, {"size": 3}, tmp_path / "out", src)
+
+
+def test_folders_inside_one_another_are_refused(tmp_path):
+    src = _input(tmp_path)
+    for out in (src, src / "inner", tmp_path):
+        with pytest.raises(UserError, match="must be separate folders"):
+            StageRun(TOY, ToyParams(), out, src)
+    assert StageRun(TOY, ToyParams(), src, src, refuse_foreign=False).config["fingerprint"]["inputs_from"] == "."
 
 
 def test_a_dataset_made_by_another_stage_is_refused_and_left_as_it_was(tmp_path):

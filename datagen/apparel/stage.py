@@ -49,9 +49,7 @@ def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
 
 @dataclass(frozen=True)
 class ApparelStageParams:
-    """version: :data:`SIM_VERSION`; physics_fps: physics steps per second; relax_frames: frames
-    simulated and dropped before each clip; params: chain and scene parameters; apparel_bones:
-    glob patterns choosing the apparel bones (None: each character's own mask)."""
+    """The simulation version and the arguments of :func:`simulate_dataset`."""
 
     version: int
     physics_fps: float
@@ -97,10 +95,9 @@ def _previous_work(run: StageRun, progress: bool) -> tuple[dict, dict]:
         if why != NO_ROWS and progress:
             print(f"apparel: {run.out_dir} holds a run that does not match ({why}); simulating every clip again")
         return {}, {}
-    out_dir = run.out_dir
-    sims = {m.motion_id: m for m in read_records(out_dir, "motions", allow_incomplete=True) if is_simulated(m)}
+    sims = {m.motion_id: m for m in read_records(run.out_dir, "motions", allow_incomplete=True) if is_simulated(m)}
     quality = {}
-    for r in read_records(out_dir, "characters", allow_incomplete=True):
+    for r in read_records(run.out_dir, "characters", allow_incomplete=True):
         for clip, q in ((r.meta or {}).get(STAGE.name, {}).get("clips") or {}).items():
             quality[f"{r.character_id}/{clip}{SIM_SUFFIX}"] = q
     return {k: v for k, v in sims.items() if k in quality}, quality
@@ -126,12 +123,8 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
-    if in_dir.resolve() == out_dir.resolve():
-        raise UserError("apparel: IN_DATASET and OUT_DATASET must differ")
     if not has_table(in_dir, "characters") or not has_table(in_dir, "motions"):
         raise UserError(f"{in_dir}: expected a dataset with characters and motions tables (manifest.json)")
-    if out_dir.resolve().is_relative_to(in_dir.resolve()) or in_dir.resolve().is_relative_to(out_dir.resolve()):
-        raise UserError(f"apparel: OUT_DATASET {out_dir} and IN_DATASET {in_dir} must not contain one another")
     params = params or ApparelParams()
     run = StageRun(STAGE, ApparelStageParams(SIM_VERSION, float(physics_fps), int(relax), params,
                                              list(apparel_bones) if apparel_bones else None),
@@ -173,7 +166,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         for split in splits_of(in_dir, table):
             run.write(table, read_records(in_dir, table, split), split)
     run.finish()
-    qs = [q for q in quality.values()]
+    qs = list(quality.values())
 
     def mean(key):
         return float(np.mean([q[key] for q in qs])) if qs else None
@@ -192,7 +185,6 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
 
 def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, patterns) -> None:
     """Write characters (masks, meta), motions (kinematic, then each one's simulated clip), status."""
-    in_dir = run.in_dir
     chars = []
     for r in records:
         bones, vertices = masks[r.character_id]
@@ -204,9 +196,9 @@ def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, pa
         if len(r.faces):
             r = dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices)
         chars.append(dataclasses.replace(r, meta=meta))
-    for split in splits_of(in_dir, "characters"):
+    for split in splits_of(run.in_dir, "characters"):
         run.write("characters", [c for c in chars if c.split == split], split)
-    for split in splits_of(in_dir, "motions"):
+    for split in splits_of(run.in_dir, "motions"):
         rows = []
         for m in kinematic:
             if m.split == split:

@@ -48,8 +48,7 @@ def _match_block(ids: list[tuple[str, str]], method, emb: dict, feats: dict) -> 
 
 @dataclass(frozen=True)
 class CorrespondParams:
-    """encoder: its name; temperature: Sinkhorn's T; seed, pairs, all_pairs, intra_fraction,
-    unordered, across_splits: the pair sampling (:mod:`.sampling`); method: the matcher's params."""
+    """The arguments of :func:`correspond_dataset` (``method``: the matcher's params; sampling: :mod:`.sampling`)."""
 
     encoder: str
     temperature: float
@@ -101,11 +100,9 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         method: ``structure`` (default: text and skeleton, no-match threshold) or ``text`` (the
             paper's S_cos, Hungarian, Sinkhorn); see :mod:`datagen.correspond.methods`.
         no_match: the structure method's no-match threshold (default 0.45).
-        temperature: Sinkhorn temperature T on the scores (default 0.1: a score gap of
-            0.1 between two candidate names weighs e times more, so M_sink spreads over names
-            that are nearly as similar, such as neighbouring chain segments, while the one-to-one
-            answer is stored separately as M_hung. On 300 zoo pairs Sinkhorn needed a median of 21
-            sweeps and at most 261; at 0.05 a few pairs needed thousands).
+        temperature: Sinkhorn temperature T on the scores (default 0.1: a score gap of 0.1 between
+            two candidate names weighs e times more, so M_sink spreads over names nearly as similar,
+            such as neighbouring chain segments; the one-to-one answer is M_hung).
         seed: pair sampling seed.
         across_splits: also the pairs between characters of different splits (as cct cases
             built with ``--all-pairs`` use them), sampled like a split's (``pairs``, ``all_pairs``,
@@ -144,6 +141,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     for split, chosen in groups:
         blocks, ends = pair_blocks(chosen, ROWS_PER_SHARD, block)
         run: dict[int, PairRecord] = {}
+        written[split] = 0
         with stage_run.streams([("pairs", split)]) as streams:
 
             def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=streams["pairs", split],
@@ -157,14 +155,13 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
                     rows = [run.pop(i) for i in sorted(run)]
                     stream.add(rows)
                     matched.extend(_Matched(p.source_id, p.target_id, p.hungarian) for p in rows)
-                    written[split] = written.get(split, 0) + len(rows)
+                    written[split] += len(rows)
 
             items = [[(chosen[i][0].character_id, chosen[i][1].character_id) for i in blk] for blk in blocks]
             _, block_statuses = run_stage(items, fn, f"correspond/{split}", progress=progress, on_done=on_done,
                                           name_of=lambda ids: f"{split} block {ids[0][0]}->{ids[0][1]} "
                                                               f"(+{len(ids) - 1} pairs)",
                                           engine=engine, ordered=True, keep_results=False, resources=TASK_RESOURCES)
-        written.setdefault(split, 0)
         statuses += [dataclasses.replace(st, stage="correspond", seconds=0.0) for st in block_statuses
                      if st.status != "ok"]
     if statuses:  # blocks whose task failed for good (e.g. its worker died on every retry)

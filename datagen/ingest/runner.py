@@ -44,7 +44,6 @@ from schemas.character import CATEGORIES, CharacterRecord
 from schemas.finite import nonfinite_arrays
 from schemas.manifest import MANIFEST
 from schemas.motion import MotionRecord
-from schemas.shards import has_table, read_records
 from schemas.status import StatusRecord
 from schemas.weights import SparseWeights
 
@@ -230,13 +229,6 @@ def _scaled_lengths(arrays: dict, unit: float) -> dict:
     return out
 
 
-def _existing(out_dir: Path, table: str) -> list:
-    """Rows an earlier run put in ``table`` (none when the folder is not a dataset yet)."""
-    if not (out_dir / MANIFEST).is_file() or not has_table(out_dir, table, allow_incomplete=True):
-        return []
-    return read_records(out_dir, table, allow_incomplete=True)
-
-
 def check_output_folder(out_dir: Path) -> None:
     """Refuse an output folder that holds files but no ``manifest.json``: its shards would be
     left unlisted and a fresh manifest would claim the dataset holds only this run's rows.
@@ -336,7 +328,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     run = StageRun(STAGE, opts, out_dir, info={"cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"})
     cache = out_dir / CACHE
     cache.mkdir(parents=True, exist_ok=True)
-    old_chars, old_motions, old_status = (_existing(out_dir, t) for t in ("characters", "motions", "status"))
+    old_chars, old_motions, old_status = (run.earlier_rows(t) for t in ("characters", "motions", "status"))
     taken = {c.character_id: c.source for c in old_chars}
     assets, empty_folders = expand_asset_paths(paths, skip=out_dir)
     from datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)

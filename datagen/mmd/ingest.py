@@ -140,16 +140,12 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
 def _write_physics(run, out: MMDIngest) -> None:
     """Write this run's rigid bodies and joints, keeping the rows of characters that earlier runs
     ingested into the same dataset (ingest merges characters across runs)."""
-    from schemas.manifest import MANIFEST
-    from schemas.shards import has_table, read_records, splits_of
+    from schemas.shards import splits_of
 
-    split, out_dir = {c.character_id: c.split for c in out.characters}, run.out_dir
+    split = {c.character_id: c.split for c in out.characters}
     for table, rows in (("rigid_bodies", out.rigid_bodies), ("joints", out.joints)):
-        by_split: dict[str, list] = {}
-        if (out_dir / MANIFEST).exists() and has_table(out_dir, table, allow_incomplete=True):
-            for sp in splits_of(out_dir, table, allow_incomplete=True):
-                by_split[sp] = [r for r in read_records(out_dir, table, sp, allow_incomplete=True)
-                                if r.character_id not in split]
+        earlier = splits_of(run.out_dir, table, allow_incomplete=True) if run.manifest() is not None else []
+        by_split = {sp: run.earlier_rows(table, sp, drop=split) for sp in earlier}
         for r in rows:
             by_split.setdefault(split[r.character_id], []).append(r)
         for sp in sorted(set(by_split) | set(split.values())):

@@ -10,6 +10,7 @@ time. What grows with the count is only a list of character IDs.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import pickle
 import tempfile
 import time
@@ -22,7 +23,7 @@ import numpy as np
 from datagen.resample.character import resample_character
 from datagen.resample import MAX_FACES, MIN_FACES
 from mimicbench.engines import Engine, TaskResources
-from datagen.stage_runner import Stage, StageRun, run_stage, summarize_statuses
+from datagen.stage_runner import Stage, StageRun, copy_table, run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch
 from schemas.manifest import load_manifest_for_write
@@ -54,45 +55,34 @@ STAGE = Stage("resample", ResampleParams, inputs=("characters", "motions"), item
               outputs=("characters", "status"), copies=("motions", "pairs"))
 
 
-def _check_arguments(in_dir: Path, out_dir: Path, faces: int, backend: str, jobs: int, flush_every: int) -> None:
+def _check_arguments(faces: int, backend: str, jobs: int, flush_every: int) -> None:
     if isinstance(faces, bool) or not isinstance(faces, (int, np.integer)) or not MIN_FACES <= faces <= MAX_FACES:
         raise ValueError(f"faces: expected an integer from {MIN_FACES} to {MAX_FACES}, got {faces!r}")
     if backend not in BACKENDS:
         raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
     if jobs < 1 or flush_every < 1:
         raise ValueError(f"jobs, flush_every: expected >= 1, got {jobs}, {flush_every}")
-    if in_dir.resolve() == out_dir.resolve():
-        raise ValueError("resample: IN_DATASET and OUT_DATASET must differ")
 
 
 def _reusable_rows(run: StageRun) -> tuple[dict, list[str]]:
     """Where the rows of OUT made with the same fingerprints as ``run.config`` are
     (``{character_id: (manifest entry, row group)}``), and notes on the rows that cannot be reused
     and why. Drops part shards of an interrupted run with other fingerprints."""
-    out_dir, manifest = run.out_dir, run.manifest()
-    if manifest is None:
-        return {}, []
+    manifest, done, notes = run.manifest() or {"tables": {}}, {}, []
     shards = manifest["tables"].get("characters", {}).get("shards", [])
-    part_splits = sorted({s["split"] for s in shards if s["split"].startswith(PART)})
-    final_splits = sorted({s["split"] for s in shards if not s["split"].startswith(PART)})
-    done: dict = {}
-    notes = []
-    why = run.previous(pending=False)[1] if final_splits else None
-    if final_splits and why is None:
-        for split in final_splits:
-            done.update(_rows_or_note(out_dir, split, notes))
-    elif final_splits:
-        notes.append(f"{out_dir} holds a run that does not match ({why}): every character is redone (the old "
-                     f"rows are replaced once this run has produced some)")
-    why_parts = fingerprint_mismatch((manifest.get("pending") or {}).get("config"), run.config) \
-        if part_splits else None
-    for split in part_splits:
-        if why_parts is None:
-            done.update(_rows_or_note(out_dir, split, notes))
-        else:
-            remove_split(out_dir, "characters", split)
-    if part_splits and why_parts is not None:
-        notes.append(f"dropped the parts of an interrupted run that does not match ({why_parts})")
+    for parts in (False, True):  # a finished run's splits (its config), then an interrupted run's (pending)
+        splits = sorted({s["split"] for s in shards if s["split"].startswith(PART) == parts})
+        why = None if not splits else run.previous(pending=False)[1] if not parts else \
+            fingerprint_mismatch((manifest.get("pending") or {}).get("config"), run.config)
+        for split in splits:
+            if why is None:
+                done.update(_rows_or_note(run.out_dir, split, notes))
+            elif parts:
+                remove_split(run.out_dir, "characters", split)
+        if why is not None:
+            notes.append(f"dropped the parts of an interrupted run that does not match ({why})" if parts else
+                         f"{run.out_dir} holds a run that does not match ({why}): every character is redone (the "
+                         f"old rows are replaced once this run has produced some)")
     return done, notes
 
 
@@ -113,22 +103,20 @@ def _rows_or_note(out_dir: Path, split: str, notes: list[str]) -> dict:
         return {}
 
 
-class _RowReader:
-    """Records of ``out_dir``'s characters by (manifest entry, row group), the last few groups kept."""
+def _row_reader(out_dir: Path, keep: int = 4):
+    """``read(cid, (manifest entry, row group))``: that record of OUT's characters (the last ``keep``
+    row groups read are kept)."""
+    entries: dict[str, dict] = {}
 
-    def __init__(self, out_dir: Path, keep: int = 4):
-        self.out_dir, self.keep = out_dir, keep
-        self.groups: dict = {}
+    @functools.lru_cache(maxsize=keep)
+    def group(path: str, g: int) -> dict:
+        return {r.character_id: r for r in read_row_group(checked_parquet_file(out_dir, entries[path], "characters"),
+                                                          g, "characters")}
 
-    def get(self, cid: str, where: tuple) -> object:
-        entry, group = where
-        key = (entry["path"], group)
-        if key not in self.groups:
-            if len(self.groups) >= self.keep:
-                self.groups.pop(next(iter(self.groups)))
-            pf = checked_parquet_file(self.out_dir, entry, "characters")
-            self.groups[key] = {r.character_id: r for r in read_row_group(pf, group, "characters")}
-        return self.groups[key][cid]
+    def read(cid: str, where: tuple):
+        entries[where[0]["path"]] = where[0]
+        return group(where[0]["path"], where[1])[cid]
+    return read
 
 
 class _FrameSpill:
@@ -191,7 +179,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
-    _check_arguments(in_dir, out_dir, faces, backend, jobs, flush_every)
+    _check_arguments(faces, backend, jobs, flush_every)
     order, meshless = [], {}  # (character ID, split) in input order; skeleton-only records (copied as they are)
     for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
         for r in group:
@@ -269,14 +257,14 @@ def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine,
     if meshed and not any(cid in where for cid in meshed):
         raise run.abandon(statuses, "character")
 
-    reader, quality, count = _RowReader(out_dir), [], 0
+    read, quality, count = _row_reader(out_dir), [], 0
     splits = splits_of(in_dir, "characters")
     with run.streams([("characters", split) for split in splits], config=None) as streams:
         for cid, split, has_mesh in order:
             if not has_mesh:
                 row = meshless[cid]
             elif cid in where:
-                row = reader.get(cid, where[cid])
+                row = read(cid, where[cid])
             else:
                 continue  # failed: its status row says why
             streams["characters", split].add([row])
@@ -289,7 +277,8 @@ def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine,
             remove_split(out_dir, "characters", split)
     skipped = [StatusRecord(cid, "resample", "skipped", "already resampled", 0.0) for cid in done]
     run.write_status(statuses + skipped)
-    run.copy_untouched()
+    for table in STAGE.copies:
+        copy_table(in_dir, out_dir, table)
     run.finish(configs=["characters"])
     q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
     summary = {

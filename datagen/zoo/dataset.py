@@ -17,7 +17,6 @@ from datagen.zoo.export_obj import write_obj
 from datagen.zoo.motions import FPS, MAX_FRAMES, NUM_FRAMES, RAMP_FRAMES
 from datagen.zoo.plan import assign_splits, plan_zoo
 from datagen.zoo.templates.humanoid import H2H_SKELETON_ID
-from schemas.errors import DatasetError
 from schemas.manifest import atomic_write_bytes
 from schemas.shards import SPLITS
 
@@ -108,12 +107,10 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         raise ValueError(f"num_characters: expected >= 1, got {num_characters}")
     clip_counts = clips_per_character_for(specs, clips_per_character, motions)
     splits = assign_splits(specs)
-    params = ZooParams(seed=int(seed), num_characters=int(num_characters),
-                       categories=list(categories) if categories else None,
-                       clips_per_character=int(clips_per_character), frames_per_clip=int(frames_per_clip),
-                       motions=None if motions is None else int(motions))
-    run = StageRun(STAGE, params, out)
-    config = run.config
+    run = StageRun(STAGE, ZooParams(seed=int(seed), num_characters=int(num_characters),
+                                    categories=list(categories) if categories else None,
+                                    clips_per_character=int(clips_per_character), frames_per_clip=int(frames_per_clip),
+                                    motions=None if motions is None else int(motions)), out)
     items = [(spec, splits[spec.character_id], count) for spec, count in zip(specs, clip_counts)]
     work = partial(STAGE.item, out=out, export=export, frames_per_clip=int(frames_per_clip))
     characters, clips = [], []  # small summaries for the card, not the arrays
@@ -131,9 +128,7 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         _, statuses = run_stage(items, work, "zoo", name_of=lambda it: it[0].character_id, jobs=jobs,
                                 progress=progress, on_done=on_done, engine=engine, ordered=True, keep_results=False)
         if not characters:
-            reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
-            raise DatasetError(f"zoo: every one of the {len(specs)} characters failed ({reasons}"
-                               f"{'; ...' if len(statuses) > 3 else ''}); nothing written, {out} left as it was")
+            raise run.abandon(statuses, f"one of the {len(specs)} characters")  # begin() has not run: nothing written
         for s in statuses:
             s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
         run.begin()  # the streams are named and listed when the block ends
@@ -142,7 +137,7 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     split_counts = {s: sum(1 for c in characters if c["split"] == s) for s in SPLITS}
     family = sum(1 for c in characters if c["skeleton_id"] == H2H_SKELETON_ID)
     stats = zoo_stats_from_summaries(characters, clips)
-    atomic_write_bytes(out / "CARD.md", render_card(stats, config, split_counts, family).encode())
+    atomic_write_bytes(out / "CARD.md", render_card(stats, run.config, split_counts, family).encode())
     failed = [s for s in statuses if s.status != "ok"]
     joints = np.array([c["joints"] for c in characters])
     faces = np.array([c["faces"] for c in characters])
@@ -169,7 +164,7 @@ def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int):
 
 @dataclass(frozen=True)
 class ZooParams:
-    """What a zoo is built from (see :func:`build_zoo`), in the order its config lists them."""
+    """What a zoo is built from (:func:`build_zoo`), in the order of its config."""
 
     generator: str = "mimicbench.zoo"
     zoo_version: int = ZOO_VERSION
