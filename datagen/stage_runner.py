@@ -1,53 +1,56 @@
-"""Run a per-item stage function over many items, turning failures into status records.
+"""The stage skeleton of every datagen stage (:class:`Stage`, :class:`StageRun`), and :func:`run_stage`.
 
-A stage is a plain function ``item -> result``. :func:`run_stage` calls it for every item through
-an engine (:mod:`mimicbench.engines`: this process, a process pool with ``jobs > 1``, or Ray tasks
-on a local instance or a cluster), shows a progress bar, and returns the
-results of the items that succeeded together with one :class:`~schemas.status.StatusRecord` per
-item. An exception in one item fails that item only; the reason names the exception.
-``on_done`` sees each result as soon as it is ready (in completion order), so a stage can write
-finished work incrementally instead of holding everything until the end.
+A stage declares its params dataclass, inputs, per-item function and outputs (:class:`Stage`); a
+:class:`StageRun` owns the rest: config and fingerprint, refusal of a dataset another stage made,
+the config earlier rows were made under, incomplete/complete marks, rows per shard, status rows,
+untouched tables copied from the input, validation. The resume rule: ``schemas/FORMAT.md``
+("Stages and resume"). :func:`run_stage` calls the per-item function for every item through an
+engine (:mod:`mimicbench.engines`) with a progress bar; an exception fails that item only (its
+status row names it), and ``on_done`` sees each result when it is ready, so finished work can be
+written as it comes.
 """
 from __future__ import annotations
 
+import dataclasses
+import json
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from tqdm.auto import tqdm
 
 from mimicbench.engines import Engine, LocalEngine, Outcome, TaskResources
+from schemas.errors import DatasetError, UserError
+from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
+from schemas.integrity import entry_path, verify_shard
+from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_complete,
+                              mark_incomplete, save_manifest)
+from schemas.shard_stream import ShardStream
+from schemas.shards import _unlink_stale, has_table, read_records, write_records
 from schemas.status import StatusRecord
+from schemas.tables import rows_per_shard
+from schemas.validate import validate_dataset
 
 
-def run_stage(
-    items: Sequence[Any],
-    fn: Callable[[Any], Any],
-    stage: str,
-    name_of: Callable[[Any], str] = str,
-    jobs: int = 1,
-    progress: bool = True,
-    on_done: Callable[[int, bool, Any], None] | None = None,
-    engine: Engine | None = None,
-    chunk: int = 1,
-    resources: TaskResources = TaskResources(),
-    ordered: bool = False,
-    keep_results: bool = True,
-) -> tuple[list[Any], list[StatusRecord]]:
-    """Apply ``fn`` to each item; return (results in item order, status records).
+def run_stage(items: Sequence[Any], fn: Callable[[Any], Any], stage: str, name_of: Callable[[Any], str] = str,
+              jobs: int = 1, progress: bool = True, on_done: Callable[[int, bool, Any], None] | None = None,
+              engine: Engine | None = None, chunk: int = 1, resources: TaskResources = TaskResources(),
+              ordered: bool = False, keep_results: bool = True) -> tuple[list[Any], list[StatusRecord]]:
+    """Apply ``fn`` (picklable for a process pool or Ray) to each item; return (results in item
+    order, one status record per item: ``stage``, the asset ``name_of(item)``).
 
     Args:
-        items: the inputs.
-        fn: the per-item stage function (must be picklable for a process pool or Ray).
-        stage: stage name written in the status records.
-        name_of: the asset name of an item, for the status records.
         jobs: worker processes of the local engine when ``engine`` is None; 1 runs in this process.
-        progress: show a progress bar.
         on_done: called in this process as ``on_done(index, ok, result)`` when an item finishes
-            (``result`` None for a failed item); in completion order, or in item order with ``ordered``.
+            (``result`` None for a failed item); in completion order, or in item order with ``ordered``
+            (a finished item waits for those before it, so a stage writing as it goes writes the
+            same bytes on every engine).
         engine: where the work runs (:mod:`mimicbench.engines`); default ``LocalEngine(jobs)``.
-        chunk: items per task (per-task overhead is paid once a chunk).
-        resources: what each task asks the engine for (CPUs, memory).
-        ordered: call ``on_done`` in item order (a finished item waits for those before it), so a
-            stage that writes as it goes writes the same bytes on every engine.
+        chunk: items per task. resources: what each task asks the engine for (CPUs, memory).
         keep_results: False returns no results (``on_done`` has seen them): memory stays bounded.
     """
     if jobs < 1:
@@ -91,3 +94,188 @@ def summarize_statuses(statuses: Iterable[StatusRecord]) -> str:
     lines = [f"  FAILED {s.asset} [{s.stage}]: {s.reason}" for s in failed]
     lines.append(f"{len(statuses) - len(failed)} ok, {len(failed)} failed")
     return "\n".join(lines)
+
+
+NO_ROWS = "OUT holds no earlier rows"  # StageRun.previous's reason when there is nothing to reuse
+
+
+def omitted_unless_set(default=None):
+    """A params field left out of the config while it holds ``default`` (old configs keep their fingerprint)."""
+    return dataclasses.field(default=default, metadata={"omit": default})
+
+
+def not_a_param(default=None, **kw):
+    """An options field that does not change the output (processes, exports): not in the config."""
+    return dataclasses.field(default=default, **kw, metadata={"param": False})
+
+
+@dataclass(frozen=True)
+class Stage:
+    """What a datagen stage declares: ``params`` (a dataclass type), the ``inputs`` tables read from
+    IN (those IN lacks are left out), the per-item function ``item``, the ``outputs`` tables, the
+    tables it ``copies`` untouched from IN (:func:`copy_table`) and the table whose config names
+    the stage that made OUT (``made_by``)."""
+
+    name: str
+    params: type
+    inputs: tuple[str, ...]
+    item: Callable
+    outputs: tuple[str, ...]
+    copies: tuple[str, ...] = ()
+    made_by: str = "characters"
+    out_name: str = "OUT_DATASET"  # how the CLI names the output folder, for messages
+    generator: str | None = None  # the config's ``generator`` of datasets made before configs named their stage
+    title: str = ""  # how messages name the stage ("the zoo"; default its name)
+
+
+class StageRun:
+    """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` for a
+    stage that adds tables to its input, with ``refuse_foreign=False``) into ``out_dir``; refuses at
+    once (nothing changed) folders inside one another and an ``out_dir`` holding another stage's dataset."""
+
+    def __init__(self, stage: Stage, params, out_dir, in_dir=None, info: dict | None = None,
+                 refuse_foreign: bool = True):
+        self.stage, self.params, self.out_dir, self.before, self.begun = stage, params, Path(out_dir), None, False
+        self.in_dir = None if in_dir is None else Path(in_dir)
+        a, b = (self.in_dir or self.out_dir).resolve(), self.out_dir.resolve()
+        if refuse_foreign and self.in_dir is not None and (a.is_relative_to(b) or b.is_relative_to(a)):
+            raise UserError(f"{stage.name}: {stage.out_name} {out_dir} and the input {in_dir} must be separate "
+                            f"folders, neither inside the other")
+        inputs = [t for t in stage.inputs if self.in_dir is not None and has_table(self.in_dir, t)]
+        values = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
+                  if getattr(params, f.name) != f.metadata.get("omit", ()) and f.metadata.get("param", True)}
+        self.config = stage_config({"stage": stage.name, **{k: v.to_json() if hasattr(v, "to_json") else v
+                                                            for k, v in values.items()}},
+                                   tables_fingerprint(self.in_dir, inputs) if inputs else {},
+                                   "." if a == b else str(a), info)
+        if refuse_foreign:
+            self.refuse_foreign()
+
+    def manifest(self) -> dict | None:
+        """OUT's manifest, or None when OUT holds no dataset yet."""
+        return load_manifest_for_write(self.out_dir) if (self.out_dir / MANIFEST).exists() else None
+
+    def refuse_foreign(self) -> None:
+        """DatasetError when OUT holds tables whose ``made_by`` config names another stage (and no
+        run of this stage is pending there)."""
+        manifest = self.manifest()
+        if manifest is None or not manifest["tables"]:
+            return
+        made = manifest["configs"].get(self.stage.made_by) or {}
+        if self.stage.name not in (made.get("stage"), (manifest.get("pending") or {}).get("stage")) \
+                and (self.stage.generator is None or made.get("generator") != self.stage.generator):
+            by = made.get("stage") or made.get("generator") or "another stage"
+            raise DatasetError(f"{self.out_dir}: holds a dataset made by {by}, not by {self.stage.title or self.stage.name}"
+                               f"; choose an empty or new {self.stage.out_name} (nothing was changed)")
+
+    def previous(self, pending: bool = True) -> tuple[dict | None, str | None]:
+        """(the config OUT's rows were made under, why they cannot be reused: None when they can):
+        that of an unfinished run of this stage when ``pending``, else of OUT's ``made_by`` table."""
+        manifest = self.manifest()
+        if manifest is None or not manifest["tables"].get(self.stage.made_by):
+            return None, NO_ROWS
+        run = manifest.get("pending") or {}
+        old = run.get("config") if pending and run.get("stage") == self.stage.name \
+            else manifest["configs"].get(self.stage.made_by)
+        return old, fingerprint_mismatch(old, self.config)
+
+    def earlier_rows(self, table: str, split: str | None = None, drop=()) -> list:
+        """The rows earlier runs put in OUT's ``table`` (one split or all), less those of ``drop``'s character IDs."""
+        if self.manifest() is None or not has_table(self.out_dir, table, split, allow_incomplete=True):
+            return []
+        return [r for r in read_records(self.out_dir, table, split, allow_incomplete=True)
+                if getattr(r, "character_id", None) not in drop]
+
+    def begin(self) -> None:
+        """Mark OUT incomplete (``pending``: this stage and its config) until :meth:`finish`."""
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.before, self.begun = self.manifest(), True
+        mark_incomplete(self.out_dir, self.stage.name, self.config)
+
+    def abandon(self, statuses: list[StatusRecord], what: str) -> DatasetError:
+        """Undo :meth:`begin` if it ran (the old manifest, or no folder) after a run in which every
+        item failed; return the error to raise, naming the first reasons."""
+        if self.begun and self.before is not None:
+            save_manifest(self.out_dir, self.before)
+        elif self.begun:
+            (self.out_dir / MANIFEST).unlink(missing_ok=True)
+            for folder in [self.out_dir / t for t in self.stage.outputs] + [self.out_dir]:
+                if folder.is_dir() and not any(folder.iterdir()):
+                    folder.rmdir()
+        reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3]) + ("; ..." if len(statuses) > 3 else "")
+        return DatasetError(f"{self.stage.name}: every {what} failed ({reasons}); {self.out_dir} left as it was"
+                            + ("" if self.before is not None else " (nothing written)"))
+
+    def write(self, table: str, records, split: str, config: dict | None | str = "run") -> list[dict]:
+        """Write one split of ``table``, return its entries; ``config`` for the table: ``"run"`` the
+        run's, None leaves the manifest's (part shards' table gets it in :meth:`finish`)."""
+        return write_records(self.out_dir, table, list(records), split, rows_per_shard(table, self.stage.name),
+                             config=self.config if config == "run" else config)
+
+    @contextmanager
+    def streams(self, keys: Iterable[tuple[str, str]], config: dict | None | str = "run"):
+        """``{(table, split): ShardStream}`` (``config`` as in :meth:`write`): closed at the end, aborted on an error."""
+        streams = {(t, s): ShardStream(self.out_dir, t, s, rows_per_shard(t, self.stage.name),
+                                       self.config if config == "run" else config) for t, s in keys}
+        try:
+            yield streams
+        except BaseException:
+            for stream in streams.values():
+                stream.abort()
+            raise
+        for stream in streams.values():
+            stream.close()
+
+    def write_status(self, rows: list[StatusRecord], config: dict | None | str = "run") -> None:
+        """The stage's status rows: split ``stage.name`` of the ``status`` table."""
+        self.write("status", rows, self.stage.name, config)
+
+    def finish(self, configs: Iterable[str] = ()) -> None:
+        """Give the ``configs`` tables the run's config, mark OUT complete, validate it."""
+        manifest = load_manifest_for_write(self.out_dir)
+        manifest["configs"].update({t: self.config for t in configs})
+        save_manifest(self.out_dir, manifest)
+        mark_complete(self.out_dir)
+        problems = validate_dataset(self.out_dir)
+        if problems:
+            raise RuntimeError(f"{self.stage.name} wrote an invalid dataset:\n" + "\n".join(problems))
+
+
+def copy_table(src: Path, dst: Path, table: str) -> None:
+    """Make ``dst``'s ``table`` a copy of ``src``'s (or drop it when ``src`` has none): paths confined
+    to their folders, each shard verified against ``src``'s manifest (size, sha256), then copied
+    through a fsynced temporary file; a config naming ``src``'s own tables (``inputs_from == "."``)
+    is rewritten to name ``src``'s folder."""
+    m_src = load_manifest_for_write(src)
+    info = m_src["tables"].get(table)
+    old = (load_manifest_for_write(dst)["tables"].get(table) or {}).get("shards", [])
+    for shard in (info or {}).get("shards", []):
+        verify_shard(entry_path(src, shard["path"]), shard)
+        final = entry_path(dst, shard["path"])
+        final.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent)
+        os.close(fd)
+        try:
+            shutil.copyfile(entry_path(src, shard["path"]), tmp)
+            fsync_file(tmp)
+            chmod_like_open(tmp)
+            os.replace(tmp, final)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    m_dst = load_manifest_for_write(dst)
+    if info:
+        m_dst["tables"][table] = {"rows": sum(s["rows"] for s in info["shards"]),
+                                  "shards": [dict(s) for s in info["shards"]]}
+        config = m_src.get("configs", {}).get(table)
+        if config is not None:
+            config = json.loads(json.dumps(config))
+            if (config.get("fingerprint") or {}).get("inputs_from") == ".":
+                config["fingerprint"]["inputs_from"] = str(src.resolve())
+            m_dst["configs"][table] = config
+    else:
+        m_dst["tables"].pop(table, None)
+        m_dst["configs"].pop(table, None)
+    save_manifest(dst, m_dst)
+    kept = {s["path"] for s in (info or {}).get("shards", [])}
+    _unlink_stale(dst, [s for s in old if s["path"] not in kept])

@@ -33,6 +33,20 @@ COLUMN_ENCODING = {"pairs": {"m_sink.list.element": "BYTE_STREAM_SPLIT"}}
 ROW_GROUP_SIZE = {"characters": 8, "motions": 16, "pairs": 256, "cases": 256, "status": 4096, "results": 4096,
                   "rigid_bodies": 4096, "joints": 4096}
 
+# Rows per shard, by table; a stage named in ROWS_PER_SHARD_OF_STAGE writes that table with its own
+# count (kept so that datasets made before this table keep their shard bytes). Memory holds one
+# shard while writing: characters of full meshes are the heaviest rows.
+ROWS_PER_SHARD = {"characters": 500, "motions": 500, "pairs": 5000, "cases": 5000, "status": 1000, "results": 1000,
+                  "rigid_bodies": 4096, "joints": 4096}
+ROWS_PER_SHARD_OF_STAGE = {("zoo", "characters"): 1000, ("ingest", "characters"): 200, ("ingest", "motions"): 200,
+                           ("ingest", "rigid_bodies"): 100000, ("ingest", "joints"): 100000,
+                           ("retarget", "characters"): 200, ("retarget", "motions"): 200}
+
+
+def rows_per_shard(table: str, stage: str | None = None) -> int:
+    """Rows a shard of ``table`` written by ``stage`` (see :data:`ROWS_PER_SHARD`)."""
+    return ROWS_PER_SHARD_OF_STAGE.get((stage, table), ROWS_PER_SHARD[table])
+
 
 def record_type(table: str) -> type:
     """The record class of ``table``; raises KeyError naming the known tables."""

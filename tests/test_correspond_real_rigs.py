@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datagen.correspond.stage import correspondence_for_skeletons
+from datagen.correspond.pair import correspondence_for_skeletons
 from tests.correspond_rig_tables import RIG_TABLES, table_rig
 
 

@@ -4,9 +4,7 @@ For every character with apparel bones and every kinematic clip, a simulated cli
 (motion ID ``<motion_id>@sim``) is written beside the kinematic one; the per-clip quality goes in
 the character's ``meta['apparel']['clips'][<clip>]``. A clip whose simulation explodes gets a
 ``failed`` status row (split ``apparel``) and keeps only its kinematic clip. Work is written after
-every batch of clips (atomic shards), and a re-run into the same OUT resumes: simulated clips are
-reused when the input tables' fingerprints and the parameters are unchanged, and recomputed
-otherwise. While it runs the manifest says ``"complete": false``. Output bytes depend only on the
+every batch of clips; resume: FORMAT.md, "Stages and resume". Output bytes depend only on the
 input and the parameters (status seconds are 0). Correspondences (``pairs``) are not carried
 over: run ``datagen correspond`` on OUT.
 """
@@ -14,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
@@ -23,18 +22,13 @@ from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
-from datagen.stage_runner import run_stage, summarize_statuses
+from datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_statuses
 from mimicbench.engines import Engine
 from schemas.errors import UserError
-from schemas.errors import DatasetError
-from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
-from schemas.manifest import MANIFEST, load_manifest_for_write, mark_complete, mark_incomplete
 from schemas.motion import SIM_SUFFIX
-from schemas.shards import has_table, read_records, splits_of, write_records
+from schemas.shards import has_table, read_records, splits_of
 from schemas.status import StatusRecord
-from schemas.validate import validate_dataset
 
-STAGE = "apparel"
 FILE_PHYSICS_TABLES = ("rigid_bodies", "joints")
 
 
@@ -51,6 +45,22 @@ def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
         return simulate_file_motion(record, *file_rows, motion, bones, vertices, physics_fps, relax, params.simulation)
     physics, world = character_world(record, bones, vertices, params, physics_step(physics_fps, motion.fps))
     return simulate_motion(record, physics, motion, params, physics_fps, relax, world)
+
+
+@dataclass(frozen=True)
+class ApparelStageParams:
+    """The simulation version and the arguments of :func:`simulate_dataset`."""
+
+    version: int
+    physics_fps: float
+    relax_frames: int
+    params: ApparelParams
+    apparel_bones: list | None = None
+
+
+STAGE = Stage("apparel", ApparelStageParams, inputs=("characters", "motions", *FILE_PHYSICS_TABLES),
+              item=_simulate_one, outputs=("characters", "motions", "status", *FILE_PHYSICS_TABLES), made_by="motions",
+              title="the apparel stage")
 
 
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -78,31 +88,17 @@ def _file_physics(in_dir: Path, tables: list[str], patterns: list[str] | None) -
             for c, (b, j) in rows.items()}
 
 
-def _previous_work(out_dir: Path, config: dict, progress: bool) -> tuple[dict, dict]:
-    """Simulated motions and their quality already in OUT, made with the same fingerprints.
-
-    Raises:
-        DatasetError: OUT holds a dataset that this stage did not make.
-    """
-    if not (out_dir / MANIFEST).exists():
+def _previous_work(run: StageRun, progress: bool) -> tuple[dict, dict]:
+    """Simulated motions and their quality already in OUT, made with the same fingerprints."""
+    old, why = run.previous()
+    if why is not None:
+        if why != NO_ROWS and progress:
+            print(f"apparel: {run.out_dir} holds a run that does not match ({why}); simulating every clip again")
         return {}, {}
-    manifest = load_manifest_for_write(out_dir)
-    made = (manifest["configs"].get("motions") or {})
-    pending = manifest.get("pending") or {}
-    if manifest["tables"] and made.get("stage") != STAGE and pending.get("stage") != STAGE:
-        by = made.get("stage") or made.get("generator") or "another stage"
-        raise DatasetError(f"{out_dir}: holds a dataset made by {by}, not by the apparel stage; choose an empty "
-                           f"or new OUT_DATASET (nothing was changed)")
-    previous = pending.get("config") if pending.get("stage") == STAGE else made
-    why = fingerprint_mismatch(previous, config)
-    if why is not None or not manifest["tables"].get("motions"):
-        if why is not None and manifest["tables"].get("motions") and progress:
-            print(f"apparel: {out_dir} holds a run that does not match ({why}); simulating every clip again")
-        return {}, {}
-    sims = {m.motion_id: m for m in read_records(out_dir, "motions", allow_incomplete=True) if is_simulated(m)}
+    sims = {m.motion_id: m for m in read_records(run.out_dir, "motions", allow_incomplete=True) if is_simulated(m)}
     quality = {}
-    for r in read_records(out_dir, "characters", allow_incomplete=True):
-        for clip, q in ((r.meta or {}).get(STAGE, {}).get("clips") or {}).items():
+    for r in read_records(run.out_dir, "characters", allow_incomplete=True):
+        for clip, q in ((r.meta or {}).get(STAGE.name, {}).get("clips") or {}).items():
             quality[f"{r.character_id}/{clip}{SIM_SUFFIX}"] = q
     return {k: v for k, v in sims.items() if k in quality}, quality
 
@@ -127,22 +123,15 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
-    if in_dir.resolve() == out_dir.resolve():
-        raise UserError("apparel: IN_DATASET and OUT_DATASET must differ")
     if not has_table(in_dir, "characters") or not has_table(in_dir, "motions"):
         raise UserError(f"{in_dir}: expected a dataset with characters and motions tables (manifest.json)")
-    if out_dir.resolve().is_relative_to(in_dir.resolve()) or in_dir.resolve().is_relative_to(out_dir.resolve()):
-        raise UserError(f"apparel: OUT_DATASET {out_dir} and IN_DATASET {in_dir} must not contain one another")
     params = params or ApparelParams()
-    stage_params = {"stage": STAGE, "version": SIM_VERSION, "physics_fps": float(physics_fps),
-                    "relax_frames": int(relax), "params": params.to_json(),
-                    "apparel_bones": list(apparel_bones) if apparel_bones else None}
+    run = StageRun(STAGE, ApparelStageParams(SIM_VERSION, float(physics_fps), int(relax), params,
+                                             list(apparel_bones) if apparel_bones else None),
+                   out_dir, in_dir, info={"source": str(in_dir)})
     file_tables = [t for t in FILE_PHYSICS_TABLES if has_table(in_dir, t)]
-    config = stage_config(stage_params, tables_fingerprint(in_dir, ["characters", "motions", *file_tables]),
-                          inputs_from=str(in_dir.resolve()), info={"source": str(in_dir)})
-    sims, quality = _previous_work(out_dir, config, progress)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    mark_incomplete(out_dir, STAGE, config)
+    sims, quality = _previous_work(run, progress)
+    run.begin()
     records = read_records(in_dir, "characters")
     kinematic = [m for m in read_records(in_dir, "motions") if not is_simulated(m)]
     masks = {r.character_id: _apparel_masks(r, apparel_bones) for r in records}
@@ -158,30 +147,26 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     statuses: list[StatusRecord] = []
     unusable = {cid: problem for cid, (bones, vertices) in masks.items() if bones.any() and cid not in file_rows
                 and (problem := selection_problem(by_id[cid].bone_names, by_id[cid].parents, bones, vertices))}
-    statuses += [StatusRecord(m.motion_id, STAGE, "failed", unusable[m.character_id], 0.0) for m in todo
+    statuses += [StatusRecord(m.motion_id, STAGE.name, "failed", unusable[m.character_id], 0.0) for m in todo
                  if m.character_id in unusable]  # the kinematic clip stays; a fixed selection re-runs them
     todo = [m for m in todo if m.character_id not in unusable]
-    fn = partial(_simulate_one, params=params, physics_fps=physics_fps, relax=relax)
+    fn = partial(STAGE.item, params=params, physics_fps=physics_fps, relax=relax)
     for i in range(0, max(len(todo), 1), batch):
         chunk = todo[i:i + batch]
         items = [(by_id[m.character_id], *masks[m.character_id], m, file_rows.get(m.character_id)) for m in chunk]
-        results, chunk_statuses = run_stage(items, fn, STAGE, name_of=lambda it: it[3].motion_id, jobs=jobs,
+        results, chunk_statuses = run_stage(items, fn, STAGE.name, name_of=lambda it: it[3].motion_id, jobs=jobs,
                                             progress=progress, engine=engine)
         for sim, q in results:
             sims[sim.motion_id] = sim
             quality[sim.motion_id] = q
         statuses += chunk_statuses
-        _write(in_dir, out_dir, records, kinematic, masks, sims, quality, statuses, config, apparel_bones)
+        _write(run, records, kinematic, masks, sims, quality, statuses, apparel_bones)
     close_cached_world()
     for table in file_tables:  # the physics tables travel with their characters
         for split in splits_of(in_dir, table):
-            write_records(out_dir, table, read_records(in_dir, table, split), split=split, rows_per_shard=4096,
-                          config=config)
-    mark_complete(out_dir)
-    problems = validate_dataset(out_dir)
-    if problems:
-        raise RuntimeError("apparel wrote an invalid dataset:\n" + "\n".join(problems))
-    qs = [q for q in quality.values()]
+            run.write(table, read_records(in_dir, table, split), split)
+    run.finish()
+    qs = list(quality.values())
 
     def mean(key):
         return float(np.mean([q[key] for q in qs])) if qs else None
@@ -198,7 +183,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     return summary
 
 
-def _write(in_dir: Path, out_dir: Path, records, kinematic, masks, sims, quality, statuses, config, patterns) -> None:
+def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, patterns) -> None:
     """Write characters (masks, meta), motions (kinematic, then each one's simulated clip), status."""
     chars = []
     for r in records:
@@ -207,29 +192,28 @@ def _write(in_dir: Path, out_dir: Path, records, kinematic, masks, sims, quality
         if bones.any():
             clips = {m.name: quality[m.motion_id + SIM_SUFFIX] for m in kinematic
                      if m.character_id == r.character_id and m.motion_id + SIM_SUFFIX in quality}
-            meta[STAGE] = {"version": SIM_VERSION, "apparel_bones": patterns, "clips": clips}
+            meta[STAGE.name] = {"version": SIM_VERSION, "apparel_bones": patterns, "clips": clips}
         if len(r.faces):
             r = dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices)
         chars.append(dataclasses.replace(r, meta=meta))
-    for split in splits_of(in_dir, "characters"):
-        write_records(out_dir, "characters", [c for c in chars if c.split == split], split=split, rows_per_shard=500,
-                      config=config)
-    for split in splits_of(in_dir, "motions"):
+    for split in splits_of(run.in_dir, "characters"):
+        run.write("characters", [c for c in chars if c.split == split], split)
+    for split in splits_of(run.in_dir, "motions"):
         rows = []
         for m in kinematic:
             if m.split == split:
                 rows.append(m)
                 if m.motion_id + SIM_SUFFIX in sims:
                     rows.append(sims[m.motion_id + SIM_SUFFIX])
-        write_records(out_dir, "motions", rows, split=split, rows_per_shard=500, config=config)
+        run.write("motions", rows, split)
     latest = {s.asset: s for s in statuses}
     rows = []
     for m in kinematic:
         sim_id = m.motion_id + SIM_SUFFIX
         if sim_id in sims and m.motion_id not in latest:  # simulated by an earlier run
-            rows.append(StatusRecord(m.motion_id, STAGE, "ok", "", 0.0))
+            rows.append(StatusRecord(m.motion_id, STAGE.name, "ok", "", 0.0))
         elif m.motion_id in latest:
             rows.append(dataclasses.replace(latest[m.motion_id], seconds=0.0))
-    rows += [StatusRecord(r.character_id, STAGE, "skipped", "no mesh" if len(r.faces) == 0 else "no apparel bones", 0.0)
+    rows += [StatusRecord(r.character_id, STAGE.name, "skipped", "no mesh" if len(r.faces) == 0 else "no apparel bones", 0.0)
              for r in records if not masks[r.character_id][0].any()]
-    write_records(out_dir, "status", rows, split=STAGE, config=config)
+    run.write_status(rows)

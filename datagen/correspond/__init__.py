@@ -16,8 +16,8 @@ _LAZY = {
     "canonicalize_bone_name": "datagen.correspond.canonical",
     "canonicalize_names": "datagen.correspond.canonical",
     "correspond_dataset": "datagen.correspond.stage",
-    "correspondence_for_names": "datagen.correspond.stage",
-    "correspondence_for_skeletons": "datagen.correspond.stage",
+    "correspondence_for_names": "datagen.correspond.pair",
+    "correspondence_for_skeletons": "datagen.correspond.pair",
     "get_matcher": "datagen.correspond.methods",
 }
 __all__ = sorted(_LAZY)

@@ -1,4 +1,4 @@
-"""The correspond stage: ``pairs/`` shards for a dataset, and one pair on the fly.
+"""The correspond stage: ``pairs/`` shards for a dataset (one pair on the fly: :mod:`.pair`).
 
 The method is chosen by name (:mod:`.methods`): ``structure`` (default) or ``text`` (the paper's).
 """
@@ -13,25 +13,22 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
 from datagen.correspond.canonical import canonicalize_names
 from datagen.correspond.encoders import get_encoder
 from datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch, skeleton_feature_table
 from datagen.correspond.report import format_report, role_agreement_report
 from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
-from datagen.correspond.structure import skeleton_features
-from datagen.stage_runner import run_stage
+from datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
 from mimicbench.engines import Engine, TaskResources
 from schemas.errors import DatasetError
-from schemas.fingerprint import stage_config, tables_fingerprint
 from schemas.manifest import atomic_write_bytes
 from schemas.pair import PairRecord
-from schemas.shard_stream import ShardStream
-from schemas.shards import read_records, remove_split, splits_of, write_records
+from schemas.shards import read_records, remove_split, splits_of
+from schemas.tables import rows_per_shard
 
 ACROSS = "across"  # the pair split of pairs between characters of different splits
 BATCH = 2048  # pairs a block (one task): Sinkhorn runs them CHUNK at a time in one padded batch
-ROWS_PER_SHARD = 5000  # pairs a shard: memory holds one shard's matrices while writing
+ROWS_PER_SHARD = rows_per_shard("pairs", "correspond")  # memory holds one shard's matrices while writing
 TASK_RESOURCES = TaskResources(num_cpus=1, memory=1 << 30)
 
 
@@ -43,62 +40,28 @@ def embed_skeletons(records, encoder) -> dict[str, np.ndarray]:
     return {cid: np.stack([table[t] for t in names]) for cid, names in canon.items() if names}
 
 
-def _embed_cached(enc, texts: list[str]) -> dict[str, np.ndarray]:
-    """Embeddings of ``texts`` by ``enc``, remembering every text the encoder has seen."""
-    cache = _EMBEDDING_CACHE.setdefault(enc.name, {})
-    missing = sorted(set(texts) - cache.keys())
-    if missing:
-        cache.update(zip(missing, enc.embed(missing)))
-    return cache
-
-
-_EMBEDDING_CACHE: dict[str, dict[str, np.ndarray]] = {}
-
-
-def correspondence_for_names(names_a, names_b, encoder: str = "minilm", temperature: float = DEFAULT_TEMPERATURE,
-                             clip_model: str = "ViT-B-32", clip_pretrained: str | None = None):
-    """One pair on the fly from two bone-name lists, by the text-only method (names are all it has).
-
-    Returns S_cos (K1, K2) float32, Hungarian pairs (min(K1, K2), 2) int32 and M_sink (K1, K2)
-    float32, as stored in ``pairs/`` by ``--method text``. The encoder and each canonical name's
-    embedding are cached, so repeated calls cost only the matrices. With the skeletons at hand,
-    :func:`correspondence_for_skeletons` gives the structure-aware default.
-    """
-    enc = get_encoder(encoder, clip_model, clip_pretrained)
-    ca, cb = canonicalize_names(list(names_a)), canonicalize_names(list(names_b))
-    if not ca or not cb:
-        raise ValueError(f"names_a, names_b: expected non-empty name lists, got {len(ca)} and {len(cb)} names")
-    table = _embed_cached(enc, ca + cb)
-    return correspondence_batch([np.stack([table[t] for t in ca])], [np.stack([table[t] for t in cb])], temperature)[0]
-
-
-def correspondence_for_skeletons(names_a, parents_a, keypoints_a, names_b, parents_b, keypoints_b,
-                                 method: str = DEFAULT_METHOD, encoder: str = "minilm",
-                                 temperature: float | None = None, no_match: float | None = None,
-                                 clip_model: str = "ViT-B-32", clip_pretrained: str | None = None):
-    """One pair on the fly from two skeletons: names (K,), parents (K,) and rest keypoints (K, 3).
-
-    Returns S_cos (K1, K2), Hungarian pairs (P, 2) int32 and M_sink (K1, K2) as ``pairs/`` stores
-    them for ``method`` (``structure`` by default, or ``text``).
-    """
-    m = get_matcher(method, temperature, no_match)
-    enc = get_encoder(encoder, clip_model, clip_pretrained)
-    ca, cb = canonicalize_names(list(names_a)), canonicalize_names(list(names_b))
-    if not ca or not cb:
-        raise ValueError(f"names_a, names_b: expected non-empty name lists, got {len(ca)} and {len(cb)} names")
-    table = _embed_cached(enc, ca + cb)
-    ea, eb = [np.stack([table[t] for t in ca])], [np.stack([table[t] for t in cb])]
-    if not m.uses_structure:
-        return match_batch(m, ea, eb)[0]
-    fa = skeleton_features(ca, parents_a, keypoints_a).matrix()
-    fb = skeleton_features(cb, parents_b, keypoints_b).matrix()
-    return match_batch(m, ea, eb, [fa], [fb])[0]
-
-
 def _match_block(ids: list[tuple[str, str]], method, emb: dict, feats: dict) -> list[tuple]:
     """(S_cos, M_hung pairs, M_sink) of a block of (source ID, target ID) pairs, batched (one task)."""
     return match_batch(method, [emb[a] for a, _ in ids], [emb[b] for _, b in ids],
                        [feats[a] for a, _ in ids] if feats else None, [feats[b] for _, b in ids] if feats else None)
+
+
+@dataclass(frozen=True)
+class CorrespondParams:
+    """The arguments of :func:`correspond_dataset` (``method``: the matcher's params; sampling: :mod:`.sampling`)."""
+
+    encoder: str
+    temperature: float
+    seed: int
+    pairs: int | None
+    all_pairs: bool
+    intra_fraction: float
+    method: dict
+    unordered: bool = omitted_unless_set(False)
+    across_splits: bool = omitted_unless_set(False)
+
+
+STAGE = Stage("correspond", CorrespondParams, inputs=("characters",), item=_match_block, outputs=("pairs", "status"))
 
 
 def pair_blocks(chosen: list[tuple], rows_per_shard: int = ROWS_PER_SHARD,
@@ -137,11 +100,9 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         method: ``structure`` (default: text and skeleton, no-match threshold) or ``text`` (the
             paper's S_cos, Hungarian, Sinkhorn); see :mod:`datagen.correspond.methods`.
         no_match: the structure method's no-match threshold (default 0.45).
-        temperature: Sinkhorn temperature T on the scores (default 0.1: a score gap of
-            0.1 between two candidate names weighs e times more, so M_sink spreads over names
-            that are nearly as similar, such as neighbouring chain segments, while the one-to-one
-            answer is stored separately as M_hung. On 300 zoo pairs Sinkhorn needed a median of 21
-            sweeps and at most 261; at 0.05 a few pairs needed thousands).
+        temperature: Sinkhorn temperature T on the scores (default 0.1: a score gap of 0.1 between
+            two candidate names weighs e times more, so M_sink spreads over names nearly as similar,
+            such as neighbouring chain segments; the one-to-one answer is M_hung).
         seed: pair sampling seed.
         across_splits: also the pairs between characters of different splits (as cct cases
             built with ``--all-pairs`` use them), sampled like a split's (``pairs``, ``all_pairs``,
@@ -166,12 +127,10 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     feats = skeleton_feature_table(records) if m.uses_structure else {}
     params = json.loads(m.params_json())
     written, matched, statuses = {}, [], []
-    config = stage_config({"stage": "correspond", "encoder": enc.name, "temperature": m.temperature, "seed": seed,
-                           "pairs": pairs, "all_pairs": all_pairs, "intra_fraction": INTRA_FRACTION, "method": params,
-                           **({"unordered": True} if unordered else {}),
-                           **({"across_splits": True} if across_splits else {})},
-                          tables_fingerprint(dataset_dir, ["characters"]))
-    fn = partial(_match_block, method=m, emb=emb, feats=feats)
+    stage_run = StageRun(STAGE, CorrespondParams(enc.name, m.temperature, seed, pairs, all_pairs, INTRA_FRACTION, params,
+                                           bool(unordered), bool(across_splits)),
+                         dataset_dir, dataset_dir, refuse_foreign=False)  # adds pairs to its input
+    fn = partial(STAGE.item, method=m, emb=emb, feats=feats)
     groups = [(split, sample_pairs([r for r in records if r.split == split], pairs, all_pairs, seed, unordered))
               for split in splits_of(dataset_dir, "characters")]
     if across_splits:
@@ -181,36 +140,32 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         remove_split(dataset_dir, "pairs", ACROSS)
     for split, chosen in groups:
         blocks, ends = pair_blocks(chosen, ROWS_PER_SHARD, block)
-        stream = ShardStream(dataset_dir, "pairs", split, ROWS_PER_SHARD, config)
         run: dict[int, PairRecord] = {}
+        written[split] = 0
+        with stage_run.streams([("pairs", split)]) as streams:
 
-        def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=stream, run=run) -> None:
-            for i, (s, h, sink) in zip(blocks[k], mats if ok else ()):  # a failed block's pairs are left out
-                a, b = chosen[i]
-                run[i] = PairRecord(f"{a.character_id}->{b.character_id}", a.character_id, b.character_id, split,
-                                    a.num_joints, b.num_joints, s, h, sink, enc.name, float(m.temperature),
-                                    a.category, b.category, m.name, params)
-            if k in ends:
-                rows = [run.pop(i) for i in sorted(run)]
-                stream.add(rows)
-                matched.extend(_Matched(p.source_id, p.target_id, p.hungarian) for p in rows)
-                written[split] = written.get(split, 0) + len(rows)
+            def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=streams["pairs", split],
+                        run=run) -> None:
+                for i, (s, h, sink) in zip(blocks[k], mats if ok else ()):  # a failed block's pairs are left out
+                    a, b = chosen[i]
+                    run[i] = PairRecord(f"{a.character_id}->{b.character_id}", a.character_id, b.character_id, split,
+                                        a.num_joints, b.num_joints, s, h, sink, enc.name, float(m.temperature),
+                                        a.category, b.category, m.name, params)
+                if k in ends:
+                    rows = [run.pop(i) for i in sorted(run)]
+                    stream.add(rows)
+                    matched.extend(_Matched(p.source_id, p.target_id, p.hungarian) for p in rows)
+                    written[split] += len(rows)
 
-        items = [[(chosen[i][0].character_id, chosen[i][1].character_id) for i in blk] for blk in blocks]
-        try:
+            items = [[(chosen[i][0].character_id, chosen[i][1].character_id) for i in blk] for blk in blocks]
             _, block_statuses = run_stage(items, fn, f"correspond/{split}", progress=progress, on_done=on_done,
                                           name_of=lambda ids: f"{split} block {ids[0][0]}->{ids[0][1]} "
                                                               f"(+{len(ids) - 1} pairs)",
                                           engine=engine, ordered=True, keep_results=False, resources=TASK_RESOURCES)
-        except BaseException:
-            stream.abort()
-            raise
-        stream.close()
-        written.setdefault(split, 0)
         statuses += [dataclasses.replace(st, stage="correspond", seconds=0.0) for st in block_statuses
                      if st.status != "ok"]
     if statuses:  # blocks whose task failed for good (e.g. its worker died on every retry)
-        write_records(dataset_dir, "status", statuses, split="correspond")
+        stage_run.write_status(statuses, config=None)  # the status table's config stays its maker's
     else:
         remove_split(dataset_dir, "status", "correspond")
     report = role_agreement_report(by_id, matched, params)

@@ -35,17 +35,16 @@ from datagen.ingest.job import run_job, status_of
 from datagen.ingest.uris import external_uri_problems
 from datagen.mmd.frame import MMD_UNIT_METRES
 from datagen.splits import split_of
+from datagen.stage_runner import Stage, StageRun, not_a_param
 from mimicbench.argtypes import MAX_JOBS
 from mimicbench.errors import UserError
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.skinning import linear_blend_skinning
 from schemas.character import CATEGORIES, CharacterRecord
 from schemas.finite import nonfinite_arrays
-from schemas.manifest import MANIFEST, mark_complete, mark_incomplete
+from schemas.manifest import MANIFEST
 from schemas.motion import MotionRecord
-from schemas.shards import has_table, read_records, write_records
 from schemas.status import StatusRecord
-from schemas.validate import validate_dataset
 from schemas.weights import SparseWeights
 
 CACHE = ".ingest"
@@ -57,16 +56,16 @@ PLAUSIBLE_EXTENT_M = (0.05, 30.0)  # a meshed character's largest rest extent ou
 
 @dataclass
 class IngestOptions:
-    """What ``datagen ingest`` may be asked; :meth:`check` says what is allowed."""
+    """What ``datagen ingest`` may be asked (the stage's params); :meth:`check` says what is allowed."""
 
-    jobs: int = 1
+    jobs: int = not_a_param(1)
     timeout: float = 300.0
     bvh_scale: float | str = DEFAULT_BVH_SCALE
     allow_external_uris: bool = False
-    export: tuple = ()
+    export: tuple = not_a_param(())
     split: str | None = None
     split_file: str | None = None
-    assets_per_process: int = 50
+    assets_per_process: int = not_a_param(50)
     category_map: dict = field(default_factory=dict)
     mmd_unit: float = MMD_UNIT_METRES
     mesh_unit: float = 1.0
@@ -124,6 +123,10 @@ class IngestOptions:
         scale, unit, plausible = auto_bvh_scale(height)
         return scale, {"bvh_scale_source": "auto", "bvh_unit": unit, "bvh_rest_height_units": round(height, 4),
                        "bvh_unit_plausible": plausible}
+
+
+STAGE = Stage("ingest", IngestOptions, inputs=(), item=run_job, outputs=("characters", "motions", "status"),
+              out_name="--out folder")
 
 
 def category_from_map(asset: Path, category_map: dict | None) -> str | None:
@@ -226,13 +229,6 @@ def _scaled_lengths(arrays: dict, unit: float) -> dict:
     return out
 
 
-def _existing(out_dir: Path, table: str) -> list:
-    """Rows an earlier run put in ``table`` (none when the folder is not a dataset yet)."""
-    if not (out_dir / MANIFEST).is_file() or not has_table(out_dir, table, allow_incomplete=True):
-        return []
-    return read_records(out_dir, table, allow_incomplete=True)
-
-
 def check_output_folder(out_dir: Path) -> None:
     """Refuse an output folder that holds files but no ``manifest.json``: its shards would be
     left unlisted and a fresh manifest would claim the dataset holds only this run's rows.
@@ -329,9 +325,10 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     start = time.perf_counter()
     out_dir = Path(out_dir)
     check_output_folder(out_dir)
+    run = StageRun(STAGE, opts, out_dir, info={"cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"})
     cache = out_dir / CACHE
     cache.mkdir(parents=True, exist_ok=True)
-    old_chars, old_motions, old_status = (_existing(out_dir, t) for t in ("characters", "motions", "status"))
+    old_chars, old_motions, old_status = (run.earlier_rows(t) for t in ("characters", "motions", "status"))
     taken = {c.character_id: c.source for c in old_chars}
     assets, empty_folders = expand_asset_paths(paths, skip=out_dir)
     from datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)
@@ -437,7 +434,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         chars.append(c)
         motions.extend(kept)
     mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), scale=float(opts.mmd_unit),
-                     progress=progress and bool(mmd_assets), out_dir=out_dir, taken=taken,
+                     progress=progress and bool(mmd_assets), run=run, taken=taken,
                      max_frames=opts.max_clip_frames)
     for c in mmd.characters:
         c.split = split or split_map.get(c.character_id) or c.split
@@ -464,26 +461,20 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     this_run = ({str(a) for a in assets} | {str(a) for a in mmd_assets} | {s.asset for s in mmd.statuses}
                 | set(empty_folders))
     statuses = [s for s in old_status if asset_of_row(s.asset, this_run) is None] + statuses
-    config = {"stage": "ingest", "timeout": timeout, "category_map": opts.category_map, "bvh_scale": bvh_scale,
-              "allow_external_uris": allow_external_uris, "mesh_unit": mesh_unit, "split": split, "split_file": split_file,
-              "cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"}
-    mark_incomplete(out_dir, "ingest", config)  # until every table below is written
+    run.begin()  # until every table below is written
     old_splits = {c.split for c in old_chars}
     for sp in sorted({c.split for c in chars} | old_splits):
-        write_records(out_dir, "characters", [c for c in chars if c.split == sp], sp, rows_per_shard=200, config=config)
-        write_records(out_dir, "motions", [m for m in motions if m.split == sp], sp, rows_per_shard=200, config=config)
-    write_records(out_dir, "status", statuses, split="ingest")
+        run.write("characters", [c for c in chars if c.split == sp], sp)
+        run.write("motions", [m for m in motions if m.split == sp], sp)
+    run.write_status(statuses, config=None)
     from datagen.ingest.card import write_card
 
-    write_card(out_dir, chars, motions, config)
-    mark_complete(out_dir)
+    write_card(out_dir, chars, motions, run.config)
+    run.finish()
     if export:
         from datagen.ingest.export import export_dataset
 
         export_dataset(out_dir, chars, motions, export)
-    problems = validate_dataset(out_dir)
-    if problems:
-        raise RuntimeError("ingest wrote an invalid dataset:\n" + "\n".join(problems))
     run_status = [s for s in statuses if asset_of_row(s.asset, this_run) is not None]
     is_clip = [asset_of_row(s.asset, this_run) != s.asset for s in run_status]
     return {"assets": len(assets) + len(mmd_assets), "ingested": sum(s.status == "ok" for s in run_status), "skipped": skipped,

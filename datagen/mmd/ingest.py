@@ -67,7 +67,7 @@ def motions_for(model: Path, models: list[Path], given: list[Path]) -> list[tupl
 
 
 def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progress: bool = False,
-               out_dir=None, taken: dict | None = None, max_frames: int | None = None) -> MMDIngest:
+               run=None, taken: dict | None = None, max_frames: int | None = None) -> MMDIngest:
     """Read MMD models and their motions into records.
 
     Args:
@@ -75,7 +75,8 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
         category_for: ``Path -> category`` (``unknown`` keeps the MMD guess: ``humanoid`` when the
             standard humanoid bones are present).
         scale: metres per MMD unit (default 0.08).
-        out_dir: when given, the ``rigid_bodies`` and ``joints`` tables are written there (per split).
+        run: the ingest's :class:`~datagen.stage_runner.StageRun`; when given, the ``rigid_bodies``
+            and ``joints`` tables are written to its folder (per split).
         taken: character ID -> source path already holding it (the dataset's and this run's other
             formats); updated with the IDs given here, so no two sources share an ID.
         max_frames: the most frames a motion may have (default
@@ -131,29 +132,24 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
         for p in given:
             out.statuses.append(StatusRecord(str(p), "ingest", "failed",
                                              f"{p}: a .vmd motion needs a .pmx/.pmd model in the same run", 0.0))
-    if out_dir is not None and out.characters:
-        _write_physics(out_dir, out)
+    if run is not None and out.characters:
+        _write_physics(run, out)
     return out
 
 
-def _write_physics(out_dir, out: MMDIngest) -> None:
+def _write_physics(run, out: MMDIngest) -> None:
     """Write this run's rigid bodies and joints, keeping the rows of characters that earlier runs
     ingested into the same dataset (ingest merges characters across runs)."""
-    from schemas.manifest import MANIFEST
-    from schemas.shards import has_table, read_records, splits_of, write_records
+    from schemas.shards import splits_of
 
     split = {c.character_id: c.split for c in out.characters}
-    config = {"stage": "ingest", "source": "mmd"}
     for table, rows in (("rigid_bodies", out.rigid_bodies), ("joints", out.joints)):
-        by_split: dict[str, list] = {}
-        if (Path(out_dir) / MANIFEST).exists() and has_table(out_dir, table, allow_incomplete=True):
-            for sp in splits_of(out_dir, table, allow_incomplete=True):
-                by_split[sp] = [r for r in read_records(out_dir, table, sp, allow_incomplete=True)
-                                if r.character_id not in split]
+        earlier = splits_of(run.out_dir, table, allow_incomplete=True) if run.manifest() is not None else []
+        by_split = {sp: run.earlier_rows(table, sp, drop=split) for sp in earlier}
         for r in rows:
             by_split.setdefault(split[r.character_id], []).append(r)
         for sp in sorted(set(by_split) | set(split.values())):
-            write_records(out_dir, table, by_split.get(sp, []), sp, rows_per_shard=100000, config=config)
+            run.write(table, by_split.get(sp, []), sp)
 
 
 def _reason(e: Exception, path: Path) -> str:

@@ -1,11 +1,5 @@
-"""The resample stage over a dataset: ``mimicbench datagen resample IN OUT``.
-
-Work is written as it completes: every ``flush_every`` finished characters (or ``flush_seconds``)
-go into ``characters`` shards of a part split (``part_00000``, ``part_00001``...) while the
-manifest says ``"complete": false``. At the end the parts become the final per-split shards, the
-motions and pairs are copied, and the manifest is marked complete. A killed run keeps its parts;
-a re-run reuses them, and the rows of a finished run, only when the fingerprints of the input
-tables and of the parameters (faces, backend) match; otherwise it redoes every character.
+"""The resample stage over a dataset: ``mimicbench datagen resample IN OUT`` (resume: FORMAT.md,
+"Stages and resume"; finished characters go to part splits ``part_00000``... as they come).
 
 Memory stays bounded however many characters there are: input characters are read a row group
 (8 characters) at a time and resampled ``BATCH`` at a time, the frames each is measured on are
@@ -16,12 +10,11 @@ time. What grows with the count is only a list of character IDs.
 from __future__ import annotations
 
 import dataclasses
-import json
-import os
+import functools
 import pickle
-import shutil
 import tempfile
 import time
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
@@ -30,23 +23,29 @@ import numpy as np
 from datagen.resample.character import resample_character
 from datagen.resample import MAX_FACES, MIN_FACES, RESAMPLE_VERSION
 from mimicbench.engines import Engine, TaskResources
-from datagen.stage_runner import run_stage, summarize_statuses
+from datagen.stage_runner import Stage, StageRun, copy_table, run_stage, summarize_statuses
 from schemas.errors import DatasetError
-from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
-from schemas.integrity import entry_path, verify_shard
-from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_incomplete,
-                              save_manifest)
-from schemas.shard_stream import ShardStream, checked_parquet_file, iter_records, iter_row_groups, read_row_group
-from schemas.shards import has_table, readable_entries, remove_split, splits_of, write_records
+from schemas.fingerprint import fingerprint_mismatch
+from schemas.manifest import load_manifest_for_write
+from schemas.shard_stream import checked_parquet_file, iter_records, iter_row_groups, read_row_group
+from schemas.shards import readable_entries, remove_split, splits_of
 from schemas.status import StatusRecord
-from schemas.tables import ROW_GROUP_SIZE
-from schemas.validate import validate_dataset
+from schemas.tables import ROW_GROUP_SIZE, rows_per_shard
 
 BACKENDS = ("fast", "pymeshlab")
 PART = "part_"  # split-name prefix of the shards written while the stage runs
-COPIED_TABLES = ("motions", "pairs")  # copied unchanged from the input
 TASK_RESOURCES = TaskResources(num_cpus=1, memory=2 << 30)  # one character: mesh, KD-tree, weights
 BATCH = 64  # input characters in memory (and handed to the engine) at a time
+
+
+@dataclass(frozen=True)
+class ResampleParams:
+    """version: the stage's code version (:data:`RESAMPLE_VERSION`); faces: target face count;
+    backend: one of :data:`BACKENDS`."""
+
+    version: str = RESAMPLE_VERSION
+    faces: int = 5000
+    backend: str = "fast"
 
 
 def _one(item, faces, backend):
@@ -54,111 +53,38 @@ def _one(item, faces, backend):
     return resample_character(record, motions, faces, backend)
 
 
-def _copy_file(src: Path, dst: Path) -> None:
-    """Copy ``src`` to ``dst`` through a temporary file (fsynced, umask mode) renamed into place."""
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent)
-    os.close(fd)
-    try:
-        shutil.copyfile(src, tmp)
-        fsync_file(tmp)
-        chmod_like_open(tmp)
-        os.replace(tmp, dst)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+STAGE = Stage("resample", ResampleParams, inputs=("characters", "motions"), item=_one,
+              outputs=("characters", "status"), copies=("motions", "pairs"))
 
 
-def _copy_table(src: Path, dst: Path, table: str) -> None:
-    """Make ``dst``'s ``table`` a verified copy of ``src``'s (or drop it when ``src`` has none).
-
-    Every path is confined to its dataset folder and each source shard is checked against its
-    manifest entry (size, sha256) before it is copied.
-    """
-    m_src = load_manifest_for_write(src)
-    info = m_src["tables"].get(table)
-    m_dst = load_manifest_for_write(dst)
-    old = (m_dst["tables"].get(table) or {}).get("shards", [])
-    entries = []
-    for shard in (info or {}).get("shards", []):
-        src_path, dst_path = entry_path(src, shard["path"]), entry_path(dst, shard["path"])
-        verify_shard(src_path, shard)
-        _copy_file(src_path, dst_path)
-        entries.append(dict(shard))
-    m_dst = load_manifest_for_write(dst)
-    if info:
-        m_dst["tables"][table] = {"rows": sum(e["rows"] for e in entries), "shards": entries}
-        if table in m_src.get("configs", {}):
-            config = json.loads(json.dumps(m_src["configs"][table]))
-            fp = config.get("fingerprint") or {}
-            if fp.get("inputs_from") == ".":  # made from the input dataset's tables, not from ours
-                fp["inputs_from"] = str(src.resolve())
-            m_dst["configs"][table] = config
-    else:
-        m_dst["tables"].pop(table, None)
-        m_dst["configs"].pop(table, None)
-    save_manifest(dst, m_dst)
-    kept = {e["path"] for e in entries}
-    for s in old:
-        if s["path"] not in kept:
-            try:
-                stale = entry_path(dst, s["path"])
-            except DatasetError:
-                continue
-            if stale.is_file():
-                stale.unlink()
-
-
-def _check_arguments(in_dir: Path, out_dir: Path, faces: int, backend: str, jobs: int, flush_every: int) -> None:
+def _check_arguments(faces: int, backend: str, jobs: int, flush_every: int) -> None:
     if isinstance(faces, bool) or not isinstance(faces, (int, np.integer)) or not MIN_FACES <= faces <= MAX_FACES:
         raise ValueError(f"faces: expected an integer from {MIN_FACES} to {MAX_FACES}, got {faces!r}")
     if backend not in BACKENDS:
         raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
     if jobs < 1 or flush_every < 1:
         raise ValueError(f"jobs, flush_every: expected >= 1, got {jobs}, {flush_every}")
-    if in_dir.resolve() == out_dir.resolve():
-        raise ValueError("resample: IN_DATASET and OUT_DATASET must differ")
 
 
-def _reusable_rows(out_dir: Path, config: dict) -> tuple[dict, list[str]]:
-    """Where the rows of ``out_dir`` made with the same fingerprints as ``config`` are
+def _reusable_rows(run: StageRun) -> tuple[dict, list[str]]:
+    """Where the rows of OUT made with the same fingerprints as ``run.config`` are
     (``{character_id: (manifest entry, row group)}``), and notes on the rows that cannot be reused
-    and why.
-
-    Drops part shards of an interrupted run with other fingerprints. Refuses an ``out_dir``
-    holding a dataset that resample did not make.
-    """
-    if not (out_dir / MANIFEST).exists():
-        return {}, []
-    manifest = load_manifest_for_write(out_dir)
-    final_config = manifest["configs"].get("characters")
-    pending = manifest.get("pending") or {}
-    if "characters" in manifest["tables"] and (final_config or {}).get("stage") != "resample" \
-            and pending.get("stage") != "resample":
-        made_by = (final_config or {}).get("stage") or (final_config or {}).get("generator") or "another stage"
-        raise DatasetError(f"{out_dir}: holds a dataset made by {made_by}, not by resample; choose an empty or "
-                           f"new OUT_DATASET (nothing was changed)")
+    and why. Drops part shards of an interrupted run with other fingerprints."""
+    manifest, done, notes = run.manifest() or {"tables": {}}, {}, []
     shards = manifest["tables"].get("characters", {}).get("shards", [])
-    part_splits = sorted({s["split"] for s in shards if s["split"].startswith(PART)})
-    final_splits = sorted({s["split"] for s in shards if not s["split"].startswith(PART)})
-    done: dict = {}
-    notes = []
-    why = fingerprint_mismatch(final_config, config) if final_splits else None
-    if final_splits and why is None:
-        for split in final_splits:
-            done.update(_rows_or_note(out_dir, split, notes))
-    elif final_splits:
-        notes.append(f"{out_dir} holds a run that does not match ({why}): every character is redone (the old "
-                     f"rows are replaced once this run has produced some)")
-    why_parts = fingerprint_mismatch(pending.get("config"), config) if part_splits else None
-    for split in part_splits:
-        if why_parts is None:
-            done.update(_rows_or_note(out_dir, split, notes))
-        else:
-            remove_split(out_dir, "characters", split)
-    if part_splits and why_parts is not None:
-        notes.append(f"dropped the parts of an interrupted run that does not match ({why_parts})")
+    for parts in (False, True):  # a finished run's splits (its config), then an interrupted run's (pending)
+        splits = sorted({s["split"] for s in shards if s["split"].startswith(PART) == parts})
+        why = None if not splits else run.previous(pending=False)[1] if not parts else \
+            fingerprint_mismatch((manifest.get("pending") or {}).get("config"), run.config)
+        for split in splits:
+            if why is None:
+                done.update(_rows_or_note(run.out_dir, split, notes))
+            elif parts:
+                remove_split(run.out_dir, "characters", split)
+        if why is not None:
+            notes.append(f"dropped the parts of an interrupted run that does not match ({why})" if parts else
+                         f"{run.out_dir} holds a run that does not match ({why}): every character is redone (the "
+                         f"old rows are replaced once this run has produced some)")
     return done, notes
 
 
@@ -179,22 +105,20 @@ def _rows_or_note(out_dir: Path, split: str, notes: list[str]) -> dict:
         return {}
 
 
-class _RowReader:
-    """Records of ``out_dir``'s characters by (manifest entry, row group), the last few groups kept."""
+def _row_reader(out_dir: Path, keep: int = 4):
+    """``read(cid, (manifest entry, row group))``: that record of OUT's characters (the last ``keep``
+    row groups read are kept)."""
+    entries: dict[str, dict] = {}
 
-    def __init__(self, out_dir: Path, keep: int = 4):
-        self.out_dir, self.keep = out_dir, keep
-        self.groups: dict = {}
+    @functools.lru_cache(maxsize=keep)
+    def group(path: str, g: int) -> dict:
+        return {r.character_id: r for r in read_row_group(checked_parquet_file(out_dir, entries[path], "characters"),
+                                                          g, "characters")}
 
-    def get(self, cid: str, where: tuple) -> object:
-        entry, group = where
-        key = (entry["path"], group)
-        if key not in self.groups:
-            if len(self.groups) >= self.keep:
-                self.groups.pop(next(iter(self.groups)))
-            pf = checked_parquet_file(self.out_dir, entry, "characters")
-            self.groups[key] = {r.character_id: r for r in read_row_group(pf, group, "characters")}
-        return self.groups[key][cid]
+    def read(cid: str, where: tuple):
+        entries[where[0]["path"]] = where[0]
+        return group(where[0]["path"], where[1])[cid]
+    return read
 
 
 class _FrameSpill:
@@ -239,8 +163,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
 
     Characters that fail get a status row (split ``resample``) with the reason and are left out;
     skeleton-only characters (no mesh) are copied as they are. The motions table (and pairs, if
-    any) are copied unchanged (verified against the input's manifest). A re-run resumes: rows
-    made from the same input tables with the same faces and backend are kept, others redone.
+    any) are copied unchanged (verified against the input's manifest).
 
     Args:
         flush_every, flush_seconds: write finished characters after this many, or this long.
@@ -253,13 +176,12 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
 
     Raises:
         ValueError: a bad argument.
-        DatasetError: ``in_dir`` is not a dataset or has no characters; ``out_dir`` holds a
-            dataset not made by resample; every character failed (``out_dir`` is then left as it
-            was).
+        DatasetError: ``in_dir`` is not a dataset or has no characters; ``out_dir`` holds another
+            stage's dataset; every character failed (``out_dir`` is then left as it was).
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
-    _check_arguments(in_dir, out_dir, faces, backend, jobs, flush_every)
+    _check_arguments(faces, backend, jobs, flush_every)
     order, meshless = [], {}  # (character ID, split) in input order; skeleton-only records (copied as they are)
     for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
         for r in group:
@@ -268,29 +190,23 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
                 meshless[r.character_id] = r
     if not order:
         raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
-    inputs = [t for t in ("characters", "motions") if has_table(in_dir, t)]
-    config = stage_config({"stage": "resample", "version": RESAMPLE_VERSION, "faces": int(faces),
-                           "backend": backend},
-                          tables_fingerprint(in_dir, inputs), inputs_from=str(in_dir.resolve()),
-                          info={"source": str(in_dir)})
+    run = StageRun(STAGE, ResampleParams(faces=int(faces), backend=backend), out_dir, in_dir, info={"source": str(in_dir)})
     spill = tempfile.TemporaryDirectory(prefix="mimicbench-resample-frames-")  # the system's temporary folder
     try:
         frames = _FrameSpill(Path(spill.name))
-        if "motions" in inputs:
+        if "motions" in run.config["fingerprint"]["inputs"]:
             frames.fill(in_dir)  # a damaged motions shard stops the stage here, before OUT is touched
-        return _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flush_seconds, engine,
-                         order, meshless, inputs, config, frames, start)
+        return _resample(run, jobs, progress, flush_every, flush_seconds, engine, order, meshless, frames, start)
     finally:
         spill.cleanup()
 
 
-def _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flush_seconds, engine, order, meshless,
-              inputs, config, frames, start) -> dict:
+def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine, order, meshless, frames,
+              start) -> dict:
     """:func:`resample_dataset` once the input is read and the sampled frames are spilled."""
-    existed = (out_dir / MANIFEST).exists()
-    done, notes = _reusable_rows(out_dir, config)
-    before = load_manifest_for_write(out_dir) if existed else None
-    mark_incomplete(out_dir, "resample", config)
+    in_dir, out_dir = run.in_dir, run.out_dir
+    done, notes = _reusable_rows(run)
+    run.begin()
 
     where = dict(done)  # character ID -> (shard entry, row group) of its resampled row
     parts = sorted({s["split"] for s in load_manifest_for_write(out_dir)["tables"].get("characters", {})
@@ -298,14 +214,13 @@ def _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flus
     next_part = [int(parts[-1][len(PART):]) + 1 if parts else 0]
     buffer: list = []
     last_flush = [time.monotonic()]
-    group_rows = ROW_GROUP_SIZE["characters"]
+    group_rows, shard_rows = ROW_GROUP_SIZE["characters"], rows_per_shard("characters", STAGE.name)
 
     def flush() -> None:
         if buffer:
-            entries = write_records(out_dir, "characters", buffer, split=f"{PART}{next_part[0]:05d}",
-                                    rows_per_shard=500)
+            entries = run.write("characters", buffer, f"{PART}{next_part[0]:05d}", config=None)
             for k, r in enumerate(buffer):
-                where[r.character_id] = (entries[k // 500], (k % 500) // group_rows)
+                where[r.character_id] = (entries[k // shard_rows], (k % shard_rows) // group_rows)
             next_part[0] += 1
             buffer.clear()
         last_flush[0] = time.monotonic()
@@ -318,7 +233,7 @@ def _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flus
 
     statuses: list[StatusRecord] = []
     todo = sum(has_mesh and cid not in done for cid, _, has_mesh in order)
-    fn = partial(_one, faces=faces, backend=backend)
+    fn = partial(STAGE.item, faces=run.params.faces, backend=run.params.backend)
     batch: list = []
     batches = 0
 
@@ -342,49 +257,31 @@ def _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flus
     flush()
     meshed = [cid for cid, _, has_mesh in order if has_mesh]
     if meshed and not any(cid in where for cid in meshed):
-        _restore(out_dir, before)
-        reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
-        raise DatasetError(f"resample: every character failed ({reasons}{'; ...' if len(statuses) > 3 else ''}); "
-                           f"{out_dir} left as it was" + ("" if existed else " (nothing written)"))
+        raise run.abandon(statuses, "character")
 
-    reader, quality, count = _RowReader(out_dir), [], 0
+    read, quality, count = _row_reader(out_dir), [], 0
     splits = splits_of(in_dir, "characters")
-    streams = {split: ShardStream(out_dir, "characters", split, rows_per_shard=500) for split in splits}
-    try:
+    with run.streams([("characters", split) for split in splits], config=None) as streams:
         for cid, split, has_mesh in order:
             if not has_mesh:
                 row = meshless[cid]
             elif cid in where:
-                row = reader.get(cid, where[cid])
+                row = read(cid, where[cid])
             else:
                 continue  # failed: its status row says why
-            streams[split].add([row])
+            streams["characters", split].add([row])
             count += 1
             if (row.meta or {}).get("resample"):
                 quality.append((row.meta["resample"]["hausdorff_pct"], row.meta["resample"]["transfer_error_pct"]))
-    except BaseException:
-        for stream in streams.values():
-            stream.abort()
-        raise
-    for stream in streams.values():
-        stream.close()
     wanted = set(splits)
     for split in splits_of(out_dir, "characters", allow_incomplete=True):
         if split not in wanted:  # parts, and splits of an earlier run the input no longer has
             remove_split(out_dir, "characters", split)
     skipped = [StatusRecord(cid, "resample", "skipped", "already resampled", 0.0) for cid in done]
-    write_records(out_dir, "status", statuses + skipped, split="resample")
-    for table in COPIED_TABLES:
-        _copy_table(in_dir, out_dir, table)
-    manifest = load_manifest_for_write(out_dir)
-    manifest["configs"]["characters"] = config
-    manifest["configs"]["status"] = config
-    manifest["complete"] = True
-    manifest.pop("pending", None)
-    save_manifest(out_dir, manifest)
-    problems = validate_dataset(out_dir)
-    if problems:
-        raise RuntimeError("resample wrote an invalid dataset:\n" + "\n".join(problems))
+    run.write_status(statuses + skipped)
+    for table in STAGE.copies:
+        copy_table(in_dir, out_dir, table)
+    run.finish(configs=["characters"])
     q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
     summary = {
         "characters": count, "resampled": sum(s.status == "ok" for s in statuses), "already_done": len(done),
@@ -396,16 +293,3 @@ def _resample(in_dir, out_dir, faces, backend, jobs, progress, flush_every, flus
     if progress:
         print(summarize_statuses(statuses))
     return summary
-
-
-def _restore(out_dir: Path, before: dict | None) -> None:
-    """Undo :func:`mark_incomplete` after a run that produced nothing: the old manifest, or no folder."""
-    if before is not None:
-        save_manifest(out_dir, before)
-        return
-    (out_dir / MANIFEST).unlink(missing_ok=True)
-    for folder in (out_dir / "characters", out_dir):
-        try:
-            folder.rmdir()  # only when empty
-        except OSError:
-            pass

@@ -5,15 +5,27 @@ from __future__ import annotations
 import fnmatch
 import json
 import time
-from pathlib import Path
+from dataclasses import dataclass
 
 from datagen.retarget.retarget import retarget_clip
 from datagen.retarget.roles import humanoid_roles
-from schemas.shards import read_records, write_records
+from datagen.stage_runner import Stage, StageRun
+from schemas.shards import read_records
 from schemas.status import StatusRecord
-from schemas.validate import validate_dataset
 
 MIN_ROLES = 8
+
+
+@dataclass(frozen=True)
+class RetargetParams:
+    """sources, targets: globs on the source and target character IDs."""
+
+    sources: str = "*"
+    targets: str = "*"
+
+
+STAGE = Stage("retarget", RetargetParams, inputs=("characters", "motions"), item=retarget_clip,
+              outputs=("characters", "motions", "status"), out_name="OUT folder")
 
 
 def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", targets: str = "*",
@@ -27,6 +39,8 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
     from tqdm.auto import tqdm
 
     start = time.perf_counter()
+    run = StageRun(STAGE, RetargetParams(sources, targets), out_dir, motions_dir,  # fingerprints: the clips' dataset
+                   info={"motions": str(motions_dir), "characters": str(characters_dir)})
     src_chars = {c.character_id: c for c in read_records(motions_dir, "characters")
                  if fnmatch.fnmatch(c.character_id, sources)}
     clips = [m for m in read_records(motions_dir, "motions") if m.character_id in src_chars]
@@ -42,7 +56,7 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
         t0 = time.perf_counter()
         asset = f"{m.motion_id} -> {t.character_id}"
         try:
-            rec, report = retarget_clip(src_chars[m.character_id], m, t)
+            rec, report = STAGE.item(src_chars[m.character_id], m, t)
         except ValueError as e:
             statuses.append(StatusRecord(asset, "retarget", "failed", str(e), time.perf_counter() - t0))
             continue
@@ -51,19 +65,14 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
         used[t.character_id] = t
         statuses.append(StatusRecord(asset, "retarget", "ok", f"{len(report['mapped'])} roles mapped, "
                                      f"{len(report['target_unmapped'])} target bones at rest", time.perf_counter() - t0))
-    out = Path(out_dir)
-    config = {"stage": "retarget", "motions": str(motions_dir), "characters": str(characters_dir),
-              "sources": sources, "targets": targets}
+    run.begin()
     chars = list(used.values())
     for split in sorted({c.split for c in chars}):
-        write_records(out, "characters", [c for c in chars if c.split == split], split, rows_per_shard=200, config=config)
-        write_records(out, "motions", [r for r in out_motions if r.split == split], split, rows_per_shard=200,
-                      config=config)
-    write_records(out, "status", statuses, split="retarget", config=config)
-    (out / "retarget_report.json").write_text(json.dumps(reports, ensure_ascii=False, indent=1))
-    problems = validate_dataset(out)
-    if problems:
-        raise RuntimeError("retarget wrote an invalid dataset:\n" + "\n".join(problems))
+        run.write("characters", [c for c in chars if c.split == split], split)
+        run.write("motions", [r for r in out_motions if r.split == split], split)
+    run.write_status(statuses)
+    (run.out_dir / "retarget_report.json").write_text(json.dumps(reports, ensure_ascii=False, indent=1))
+    run.finish()
     return {"pairs": len(pairs), "clips": len(out_motions), "characters": len(chars),
             "failed": sum(s.status == "failed" for s in statuses), "statuses": statuses,
             "seconds": time.perf_counter() - start}

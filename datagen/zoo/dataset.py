@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from mimicbench.engines import Engine
-from datagen.stage_runner import run_stage
+from datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
 from datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
 from datagen.zoo.clips import CLIP_SETS
 from datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries
@@ -17,11 +18,8 @@ from datagen.zoo.export_obj import write_obj
 from datagen.zoo.motions import FPS, MAX_FRAMES, NUM_FRAMES, RAMP_FRAMES
 from datagen.zoo.plan import assign_splits, plan_zoo
 from datagen.zoo.templates.humanoid import H2H_SKELETON_ID
-from schemas.errors import DatasetError
-from schemas.fingerprint import stage_config
-from schemas.manifest import MANIFEST, atomic_write_bytes, load_manifest_for_write, mark_complete, mark_incomplete
-from schemas.shard_stream import ShardStream
-from schemas.shards import SPLITS, write_records
+from schemas.manifest import atomic_write_bytes
+from schemas.shards import SPLITS
 
 EXPORT_FORMATS = ("obj", "bvh", "pmx")
 SPLIT_RULE = ("Split rule (stratified, deterministic; datagen/zoo/plan.py): per stratum (each category, the H2H "
@@ -47,17 +45,6 @@ def export_character(out: Path, built: BuiltCharacter, export: tuple[str, ...]) 
         write_pmx(out / "export" / f"{name}.pmx", r, *chain_physics(r))
 
 
-def _refuse_foreign_dataset(out: Path) -> None:
-    """Raise DatasetError when ``out`` holds characters that the zoo did not make."""
-    if not (out / MANIFEST).exists():
-        return
-    manifest = load_manifest_for_write(out)
-    made_by = (manifest["configs"].get("characters") or {})
-    if "characters" in manifest["tables"] and made_by.get("generator") != "mimicbench.zoo":
-        raise DatasetError(f"{out}: holds a dataset made by {made_by.get('stage') or 'another stage'}, not by the "
-                           f"zoo; choose an empty or new --out folder (nothing was changed)")
-
-
 def clips_per_character_for(specs: list, clips_per_character: int, motions: int | None) -> list[int]:
     """Clips of each character: ``clips_per_character`` each, or ``motions`` in all spread evenly.
 
@@ -81,17 +68,15 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     Writes ``characters/`` and ``motions/`` shards (one set per split; an empty split gets an
     empty shard so a rebuild replaces older data), a ``status`` table (split ``zoo``, one row a
     character; seconds are left 0 so the data is byte-identical for a seed), ``manifest.json``
-    with the build config and its fingerprint, ``CARD.md``, and with ``export`` the .obj/.bvh files.
-    While writing, the manifest says ``"complete": false``.
+    with the build config and its fingerprint, ``CARD.md``, and with ``export`` the .obj/.bvh files
+    (marks, refusal of another stage's dataset: FORMAT.md, "Stages and resume").
 
     Characters are built by ``engine`` (default: the local engine with ``jobs`` processes; the
     bytes do not depend on it) and streamed into the shards in plan order as they finish, so
     memory holds a few hundred clips, never the whole motions table (a PokeAnimDB-size zoo has
     4.5 million frames).
 
-    A zoo in which every character failed writes nothing: an existing dataset in ``out_dir`` is
-    left untouched and :class:`DatasetError` says why. A folder holding a dataset that the zoo did
-    not make (ingested assets, a resampled copy) is refused rather than overwritten.
+    A zoo in which every character failed writes nothing (:class:`DatasetError` says why).
 
     Args:
         motions: total clips, spread evenly over the characters (instead of ``clips_per_character``
@@ -128,57 +113,37 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         raise ValueError(f"num_characters: expected >= 1, got {num_characters}")
     clip_counts = clips_per_character_for(specs, clips_per_character, motions)
     splits = assign_splits(specs)
-    _refuse_foreign_dataset(out)
-    params = {"stage": "zoo", "generator": "mimicbench.zoo", "zoo_version": ZOO_VERSION, "seed": int(seed),
-              "num_characters": int(num_characters), "categories": list(categories) if categories else None,
-              "clips_per_character": int(clips_per_character), "fps": FPS, "frames_per_clip": int(frames_per_clip),
-              "h2h_skeleton_id": H2H_SKELETON_ID, "split_rule": SPLIT_RULE}
-    if motions is not None:
-        params["motions"] = int(motions)
-    if clip_set != "default":
-        params["clip_set"] = clip_set
-    config = stage_config(params, inputs={})
+    run = StageRun(STAGE, ZooParams(seed=int(seed), num_characters=int(num_characters),
+                                    categories=list(categories) if categories else None,
+                                    clips_per_character=int(clips_per_character), frames_per_clip=int(frames_per_clip),
+                                    motions=None if motions is None else int(motions), clip_set=clip_set), out)
     items = [(spec, splits[spec.character_id], count) for spec, count in zip(specs, clip_counts)]
-    work = partial(_build_one, out=out, export=export, frames_per_clip=int(frames_per_clip),
-                   clip_set=clip_set)
-    streams = {(table, split): ShardStream(out, table, split, rows, config)
-               for table, rows in (("characters", 1000), ("motions", 500)) for split in SPLITS}
+    work = partial(STAGE.item, out=out, export=export, frames_per_clip=int(frames_per_clip), clip_set=clip_set)
     characters, clips = [], []  # small summaries for the card, not the arrays
+    with run.streams([(table, split) for table in ("characters", "motions") for split in SPLITS]) as streams:
 
-    def on_done(i: int, ok: bool, result) -> None:
-        if not ok:
-            return
-        record, motions_of = result
-        streams["characters", record.split].add([record])
-        streams["motions", record.split].add(motions_of)
-        characters.append(character_summary(record))
-        clips.extend((m.character_id, int(m.num_frames)) for m in motions_of)
+        def on_done(i: int, ok: bool, result) -> None:
+            if not ok:
+                return
+            record, motions_of = result
+            streams["characters", record.split].add([record])
+            streams["motions", record.split].add(motions_of)
+            characters.append(character_summary(record))
+            clips.extend((m.character_id, int(m.num_frames)) for m in motions_of)
 
-    try:
         _, statuses = run_stage(items, work, "zoo", name_of=lambda it: it[0].character_id, jobs=jobs,
                                 progress=progress, on_done=on_done, engine=engine, ordered=True, keep_results=False)
-    except BaseException:
-        for stream in streams.values():
-            stream.abort()
-        raise
-    if not characters:
-        for stream in streams.values():
-            stream.abort()
-        reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3])
-        raise DatasetError(f"zoo: every one of the {len(specs)} characters failed ({reasons}"
-                           f"{'; ...' if len(statuses) > 3 else ''}); nothing written, {out} left as it was")
-    for s in statuses:
-        s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
-    mark_incomplete(out, "zoo", config)
-    for split in SPLITS:
-        streams["characters", split].close()
-        streams["motions", split].close()
-    write_records(out, "status", statuses, split="zoo", config=config)
-    mark_complete(out)
+        if not characters:
+            raise run.abandon(statuses, f"one of the {len(specs)} characters")  # begin() has not run: nothing written
+        for s in statuses:
+            s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
+        run.begin()  # the streams are named and listed when the block ends
+    run.write_status(statuses)
+    run.finish()
     split_counts = {s: sum(1 for c in characters if c["split"] == s) for s in SPLITS}
     family = sum(1 for c in characters if c["skeleton_id"] == H2H_SKELETON_ID)
     stats = zoo_stats_from_summaries(characters, clips)
-    atomic_write_bytes(out / "CARD.md", render_card(stats, config, split_counts, family).encode())
+    atomic_write_bytes(out / "CARD.md", render_card(stats, run.config, split_counts, family).encode())
     failed = [s for s in statuses if s.status != "ok"]
     joints = np.array([c["joints"] for c in characters])
     faces = np.array([c["faces"] for c in characters])
@@ -201,3 +166,25 @@ def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int, c
     if export:
         export_character(out, built, export)
     return built.record, built.motions
+
+
+@dataclass(frozen=True)
+class ZooParams:
+    """What a zoo is built from (:func:`build_zoo`), in the order of its config."""
+
+    generator: str = "mimicbench.zoo"
+    zoo_version: int = ZOO_VERSION
+    seed: int = 0
+    num_characters: int = 1
+    categories: list | None = None
+    clips_per_character: int = 3
+    fps: int = FPS
+    frames_per_clip: int = NUM_FRAMES
+    h2h_skeleton_id: str = H2H_SKELETON_ID
+    split_rule: str = SPLIT_RULE
+    motions: int | None = omitted_unless_set(None)
+    clip_set: str = omitted_unless_set("default")
+
+
+STAGE = Stage("zoo", ZooParams, inputs=(), item=_build_one, outputs=("characters", "motions", "status"),
+              out_name="--out folder", generator="mimicbench.zoo", title="the zoo")
