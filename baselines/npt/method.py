@@ -54,10 +54,8 @@ class Npt(PoseTransferMethod):
         return files_fingerprint({self.stage: checkpoint_path(self.checkpoint, self.stage)})
 
     def setup(self, device: str = "cpu") -> None:
-        from mimicbench.training.checkpoint import load_module
+        from mimicbench.training.checkpoint import load_module, read_header
         from mimicbench.training.registry import trainable
-
-        from mimicbench.training.checkpoint import read_header
 
         self.device = device
         stage = trainable(self.stage).stage(self.stage)
