@@ -23,8 +23,8 @@ SHIPPED = {
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "6",
               "91d5b822f8f918ea90243bbfc16d01abd686f4b1055335fddeabc7c11e4f0bea"),
-    "cgt": (Cgt.shipped, (Cgt,), "1", "3158ee9dc2be433c1b558b2d2112ae451a449f7a30f709487994eb1e629313ce"),
-    "npt": (Npt.shipped, (Npt,), "1", "5fe4232608fdcc97b790f7997b48b7479fe4d336c10d3f22288a5f311d5f5d15"),
+    "cgt": (Cgt.shipped, (Cgt,), "2", "cb95a17987eb02e49a598b1adcfc717a966109c6390df57c87cdf64e5d1cf4fe"),
+    "npt": (Npt.shipped, (Npt,), "2", "88656f5d8291536cf28fd7dc22acbbe6b5144460b4ba0e0166122a5f2be677e1"),
     "sfpt": (Sfpt.shipped, (Sfpt,), "1", "4e72e1e72735edfdcd6cae92ec24c38da013d46aa8cbd06565bdf912bee7e89a"),
 }
 

@@ -2,18 +2,18 @@
 ``paper`` (wider features, dense attention over every point, for GPUs).
 
 Keys as NPT's (:mod:`baselines.npt.config`, the same batches) plus ``blocks`` and ``heads`` of the
-cross-attention and ``cap``: the most points of each mesh attention runs over (farthest-point
-subsample, interpolated back: :mod:`baselines.cgt.sampling`), in training and at inference; 0 is the
-paper's dense attention over every point.
+cross-attention, ``residual`` (NPT's), and ``cap``: the most points of the posed source each target point
+attends over (farthest-point subsample: :mod:`baselines.cgt.sampling`), in training and at inference;
+0 is the paper's dense attention over every point.
 """
 from __future__ import annotations
 
 COMMON = {"knn": 6, "w_edge": 0.0005, "self_share": 0.5, "split": "all", "blocks": 4}
 
-SMALL = {**COMMON, "widths": [32, 64, 128], "heads": 4, "cap": 256, "points": 512, "batch_size": 4,
-         "batches_per_epoch": 60, "epochs": 5, "lr": 1e-3, "weight_decay": 0.0, "grad_clip": 1.0}
+SMALL = {**COMMON, "widths": [32, 64, 128], "heads": 4, "cap": 256, "residual": True, "points": 512, "batch_size": 4,
+         "batches_per_epoch": 60, "epochs": 6, "lr": 1e-3, "weight_decay": 0.0, "grad_clip": 1.0}
 
-PAPER = {**COMMON, "widths": [64, 128, 512], "heads": 8, "cap": 0, "points": 0, "batch_size": 8,
+PAPER = {**COMMON, "widths": [64, 128, 512], "heads": 8, "cap": 0, "residual": False, "points": 0, "batch_size": 8,
          "batches_per_epoch": 500, "epochs": 200, "lr": 5e-5, "weight_decay": 0.0}
 
 CONFIGS = {"small": SMALL, "paper": PAPER}

@@ -2,10 +2,9 @@
 
 The posed source and the target rest mesh are centred and scaled as :mod:`baselines.npt.placement`
 says and the answer put back where the target stands. CGT's attention is dense over every pair of
-points in the paper; here it runs over at most ``cap`` points of each mesh (the checkpoint config's
-``cap``, 256 in the shipped one): a farthest-point subsample, the attended features carried back to
-every target vertex by inverse-distance interpolation (:mod:`baselines.cgt.sampling`). The decoder
-then runs on every target vertex.
+points in the paper; here every target vertex attends over at most ``cap`` points of the posed
+source (the checkpoint config's ``cap``, 256 in the shipped one; a farthest-point subsample,
+:mod:`baselines.cgt.sampling`), and the decoder runs on every target vertex.
 
 Weights: ``checkpoints/cgt.safetensors`` (shipped), ``checkpoint=`` or ``MIMICBENCH_CGT_CHECKPOINT``
 (``RUN/cgt/model.safetensors``).
@@ -24,21 +23,17 @@ CITATION = ("Haoyu Chen, Hao Tang, Zitong Yu, Nicu Sebe, Guoying Zhao. Geometry-
 class Cgt(Npt):
     """CGT with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="cgt", version="1", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="cgt", version="2", licence="MIT", needs_training=True, citation=CITATION,
                               tags=("learned", "published", "re-implemented from the paper"),
-                              description="CGT (NPT's encoder/decoder with cross-attention blocks; attention capped "
-                                          "at 256 farthest points on CPU), re-implemented from the paper")
+                              description="CGT (NPT's encoder/decoder with cross-attention blocks; every target "
+                                          "point attends over 256 farthest source points on CPU), re-implemented from the paper")
     stage = "cgt"
     env = "MIMICBENCH_CGT_CHECKPOINT"
     shipped = Path(__file__).resolve().parent / "checkpoints"
 
     def setup(self, device: str = "cpu") -> None:
-        from mimicbench.training.checkpoint import read_header
-
-        from baselines.npt.method import checkpoint_path
-
         super().setup(device)
-        self.cap = int(read_header(checkpoint_path(self.checkpoint, self.stage))["config"]["cap"])
+        self.cap = int(self.config["cap"])
 
     def _answer(self, pose, identity):
         import torch

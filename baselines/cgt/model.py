@@ -7,15 +7,20 @@ SPAdaIN decoder with cross-attention between the pose and the identity point fea
   features (multi-head attention, then an MLP, both residual).
 - The attended identity features are the per-point pose features of NPT's SPAdaIN decoder.
 
-Attention runs over the points given in ``pose_rows`` / ``identity_rows`` (all points when None: the
-paper's dense attention); :mod:`baselines.cgt.sampling` caps them and carries the result back.
+Every target point queries; the keys and values are the pose points given in ``pose_rows`` (all
+points when None: the paper's dense attention; :mod:`baselines.cgt.sampling` caps them). Version 1
+also capped the queries and carried the attended features back to every target vertex by
+inverse-distance weights of the 3 nearest chosen points: that carry jumps where the third-nearest
+point changes, so two vertices a hair apart (the near-zero edges of resampled real meshes) were sent
+0.7% of the mesh apart and one edge drove a case's ELS to -13. A query per point costs N_t x cap,
+linear in the vertex count, and the answer is continuous in each point's own features.
+``residual`` (config key, ours) is NPT's (:mod:`baselines.npt.model`).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from baselines.cgt.sampling import interpolate
 from baselines.npt.model import PointFeatures, SPAdaINDecoder
 
 
@@ -39,35 +44,28 @@ class Cgt(nn.Module):
 
     Args:
         widths: the point encoders' (c1, c2, c3); attention and decoder are c3 wide.
-        blocks: cross-attention blocks; heads: attention heads.
+        blocks: cross-attention blocks; heads: attention heads; residual: the decoder answers offsets.
     """
 
-    def __init__(self, widths=(64, 128, 512), blocks: int = 4, heads: int = 8):
+    def __init__(self, widths=(64, 128, 512), blocks: int = 4, heads: int = 8, residual: bool = False):
         super().__init__()
         widths = tuple(int(w) for w in widths)
         c = widths[-1]
         self.pose_features = PointFeatures(widths)
         self.identity_features = PointFeatures(widths)
         self.blocks = nn.ModuleList([CrossAttentionBlock(c, heads) for _ in range(blocks)])
-        self.decoder = SPAdaINDecoder(c, c)
+        self.decoder = SPAdaINDecoder(c, c, residual=residual)
 
-    def forward(self, posed_source: torch.Tensor, identity: torch.Tensor, pose_rows: torch.Tensor | None = None,
-                identity_rows: torch.Tensor | None = None, index: torch.Tensor | None = None,
-                weight: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, posed_source: torch.Tensor, identity: torch.Tensor,
+                pose_rows: torch.Tensor | None = None) -> torch.Tensor:
         """posed_source (B, Ns, 3), identity (B, Nt, 3) centred unit-size frames -> (B, Nt, 3).
 
-        With ``pose_rows`` (Ms,) and ``identity_rows`` (Mt,) attention runs over those points only and
-        ``index``/``weight`` (Nt, k) (:func:`baselines.cgt.sampling.interpolation`) carry the attended
-        identity features back to every target point.
+        With ``pose_rows`` (Ms,) every target point attends over those pose points only.
         """
         p = self.pose_features(posed_source.transpose(1, 2)).transpose(1, 2)  # (B, Ns, C)
         x = self.identity_features(identity.transpose(1, 2)).transpose(1, 2)  # (B, Nt, C)
         if pose_rows is not None:
             p = p[:, pose_rows]
-        if identity_rows is not None:
-            x = x[:, identity_rows]
         for block in self.blocks:
             x = block(x, p)
-        if identity_rows is not None:
-            x = interpolate(x, index, weight)
         return self.decoder(x.transpose(1, 2), identity.transpose(1, 2)).transpose(1, 2)

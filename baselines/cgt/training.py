@@ -2,7 +2,7 @@
 
 One stage, ``cgt``, on NPT's batches (:func:`baselines.npt.training.pair_batches`: same-skeleton pairs
 and self-transfers, centred as :mod:`baselines.npt.placement` says) with NPT's loss; attention runs
-over at most ``cap`` points of each example's meshes (:func:`capped_rows`), as at inference.
+over at most ``cap`` points of each example's posed source (:func:`capped_rows`), as at inference.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import torch
 
 from baselines.cgt.config import CONFIGS
 from baselines.cgt.model import Cgt
-from baselines.cgt.sampling import farthest_points, interpolation
+from baselines.cgt.sampling import farthest_points
 from baselines.npt.losses import npt_loss
 from baselines.npt.training import pair_batches
 from mimicbench.training.registry import make_trainable
@@ -19,18 +19,15 @@ from mimicbench.training.stage import StageContext, TrainStage
 
 
 def build_cgt(config: dict, context: StageContext | None = None) -> Cgt:
-    return Cgt(config["widths"], config["blocks"], config["heads"])
+    return Cgt(config["widths"], config["blocks"], config["heads"], config.get("residual", False))
 
 
 def capped_rows(pose: np.ndarray, identity: np.ndarray, cap: int) -> dict:
-    """What :meth:`Cgt.forward` needs to attend over ``cap`` points of each mesh: ``pose_rows``,
-    ``identity_rows`` and the interpolation ``index``/``weight`` back to every identity point; {} when
-    ``cap`` is 0 (dense)."""
+    """What :meth:`Cgt.forward` needs for every identity point (N_t, 3) to attend over ``cap`` points of
+    the posed source (N_s, 3): ``{"pose_rows"}``; {} when ``cap`` is 0 (dense)."""
     if cap <= 0:
         return {}
-    rows_t = farthest_points(identity, cap)
-    index, weight = interpolation(identity, rows_t)
-    return {"pose_rows": farthest_points(pose, cap), "identity_rows": rows_t, "index": index, "weight": weight}
+    return {"pose_rows": farthest_points(pose, cap)}
 
 
 def batches_cgt(config: dict, context: StageContext, rng: np.random.Generator):

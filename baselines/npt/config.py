@@ -3,7 +3,8 @@
 
 Keys: ``widths`` the pose encoder's (c1, c2, c3); ``points`` vertices drawn from each mesh per
 example (the max-pool encoder and the per-point decoder accept any count; 0: every vertex);
-``knn`` neighbours standing in for mesh edges in the edge term on that subsample;
+``pose_mix`` and ``residual`` the decoder's options (:mod:`baselines.npt.model`; absent in version 1's
+config, whose decoder had neither); ``knn`` neighbours standing in for mesh edges in the edge term on that subsample;
 ``w_edge`` the edge term's weight (the paper's 0.0005); ``self_share`` the share of examples that are
 self-transfers of any character (ours, see training.py); ``batches_per_epoch`` steps an
 epoch; ``split`` the characters trained on.
@@ -12,10 +13,10 @@ from __future__ import annotations
 
 COMMON = {"knn": 6, "w_edge": 0.0005, "self_share": 0.5, "split": "all"}
 
-SMALL = {**COMMON, "widths": [32, 64, 256], "points": 512, "batch_size": 4, "batches_per_epoch": 60,
-         "epochs": 6, "lr": 1e-3, "weight_decay": 0.0, "grad_clip": 1.0}
+SMALL = {**COMMON, "widths": [32, 64, 256], "pose_mix": True, "residual": True, "points": 512, "batch_size": 4,
+         "batches_per_epoch": 60, "epochs": 10, "lr": 1e-3, "weight_decay": 0.0, "grad_clip": 1.0}
 
-PAPER = {**COMMON, "widths": [64, 128, 1024], "points": 0, "batch_size": 8, "batches_per_epoch": 500,
+PAPER = {**COMMON, "widths": [64, 128, 1024], "pose_mix": True, "residual": False, "points": 0, "batch_size": 8, "batches_per_epoch": 500,
          "epochs": 200, "lr": 5e-5, "weight_decay": 0.0}
 
 CONFIGS = {"small": SMALL, "paper": PAPER}

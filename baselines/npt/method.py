@@ -3,8 +3,10 @@
 For each request the posed source and the target rest mesh are centred and scaled as
 :mod:`baselines.npt.placement` says (NPT ignores global translation, as its evaluation does), the
 network answers the posed target in that frame, and :func:`baselines.npt.placement.place` puts it
-back where the target stands, moved as the source moved. Every vertex of both meshes is used. The
-method reads no rig: neither skeleton nor skin weights.
+back where the target stands, moved as the source moved. Every target vertex is answered; the pose
+encoder sees as many of the posed source's vertices as training drew (the checkpoint config's
+``points``, a fixed draw: a max over 7,000 vertices is not the max over 512 that training saw;
+every vertex when ``points`` is 0). The method reads no rig: neither skeleton nor skin weights.
 
 Weights: ``checkpoints/<stage>.safetensors`` next to this file (shipped), or a training run given as
 ``checkpoint=`` or by the environment variable ``MIMICBENCH_NPT_CHECKPOINT`` (a ``mimicbench train npt
@@ -15,6 +17,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 
 from benchmark.method import MethodMetadata, PoseTransferMethod
 
@@ -32,7 +35,7 @@ def checkpoint_path(folder: Path, stage: str) -> Path:
 class Npt(PoseTransferMethod):
     """Neural Pose Transfer with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="npt", version="1", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="npt", version="2", licence="MIT", needs_training=True, citation=CITATION,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="Neural Pose Transfer (SPAdaIN decoder, max-pool pose code), "
                                           "re-implemented from the paper, trained on the zoo")
@@ -51,13 +54,21 @@ class Npt(PoseTransferMethod):
         return files_fingerprint({self.stage: checkpoint_path(self.checkpoint, self.stage)})
 
     def setup(self, device: str = "cpu") -> None:
-        from mimicbench.training.checkpoint import load_module
+        from mimicbench.training.checkpoint import load_module, read_header
         from mimicbench.training.registry import trainable
 
         self.device = device
         stage = trainable(self.stage).stage(self.stage)
-        self.module = load_module(checkpoint_path(self.checkpoint, self.stage), lambda cfg: stage.build(cfg, None),
-                                  device)
+        path = checkpoint_path(self.checkpoint, self.stage)
+        self.module = load_module(path, lambda cfg: stage.build(cfg, None), device)
+        self.config = read_header(path)["config"]
+
+    def pose_rows(self, count: int):
+        """(P,) sorted rows of a posed source of ``count`` vertices the pose encoder sees: a draw of the
+        config's ``points`` (generator seed 0, as :func:`baselines.pose_pairs.subsample` draws in training)."""
+        from baselines.pose_pairs import subsample
+
+        return subsample(count, int(self.config.get("points", 0)), np.random.default_rng(0))
 
     def _answer(self, pose, identity):
         """The network's centred answer (1, Nt, 3) for pose (1, Ns, 3) and identity (1, Nt, 3) tensors."""
@@ -72,7 +83,8 @@ class Npt(PoseTransferMethod):
             self.setup(self.device)
         out = []
         for r in requests:
-            pose = torch.as_tensor(centred(r.source_posed, r.source.vertices), device=self.device)[None]
+            rows = self.pose_rows(len(r.source_posed))
+            pose = torch.as_tensor(centred(r.source_posed, r.source.vertices)[rows], device=self.device)[None]
             identity = torch.as_tensor(centred(r.target.vertices, r.target.vertices), device=self.device)[None]
             with torch.no_grad():
                 answer = self._answer(pose, identity)[0].cpu().numpy()

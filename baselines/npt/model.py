@@ -7,6 +7,19 @@
   coordinates, a 1x1 conv to c3, then SPAdaIN residual blocks c3 -> c3/2 -> c3/4 conditioned on the
   identity coordinates, and a final SPAdaIN -> 1x1 conv to xyz, squashed by 2 tanh.
 
+Two options of ours (config keys; a config without them is version 1's network):
+
+- ``pose_mix``: the code and the coordinates pass a 1x1 conv, a ReLU and a second 1x1 conv before the
+  first SPAdaIN. Without it the pose is lost: the code is the same at every point, so after the one
+  linear conv it is a constant per channel, which every SPAdaIN's instance norm (each block and its
+  shortcut start with one) subtracts; version 1's answer did not depend on the source's pose
+  (changing the pose moved it by 3e-6). Through the ReLU the code decides which points each channel
+  is active at, which the norm keeps. (NPT's published max-pool variant needs the same care; its
+  per-point variant feeds pose features that differ from point to point.)
+- ``residual``: the answer is the identity point plus the 2 tanh output (the last conv starts at
+  zero, so an untrained network answers the rest pose), so CPU-scale training spends its steps on
+  the pose rather than on reproducing the identity mesh.
+
 Paper widths (c1, c2, c3) = (64, 128, 1024); the ``small`` preset narrows them for CPU training.
 Inputs and outputs are in the centred unit-size frames of :mod:`baselines.npt.placement`.
 """
@@ -47,19 +60,27 @@ class PoseEncoder(nn.Module):
 class SPAdaINDecoder(nn.Module):
     """Posed target (B, 3, N) from per-point pose features (B, c_pose, N) and identity points (B, 3, N)."""
 
-    def __init__(self, c_pose: int, width: int):
+    def __init__(self, c_pose: int, width: int, pose_mix: bool = False, residual: bool = False):
         super().__init__()
         self.inp = nn.Conv1d(c_pose + 3, width, 1)
+        self.mix = nn.Conv1d(width, width, 1) if pose_mix else None
+        self.residual = bool(residual)
         self.blocks = nn.ModuleList([SPAdaINResBlock(width, width), SPAdaINResBlock(width, width // 2),
                                      SPAdaINResBlock(width // 2, width // 4)])
         self.out_norm = SPAdaIN(width // 4)
         self.out = nn.Conv1d(width // 4, 3, 1)
+        if self.residual:
+            nn.init.zeros_(self.out.weight)
+            nn.init.zeros_(self.out.bias)
 
     def forward(self, pose_features: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
         h = self.inp(torch.cat([pose_features, identity], dim=1))
+        if self.mix is not None:
+            h = self.mix(torch.relu(h))
         for block in self.blocks:
             h = block(h, identity)
-        return 2.0 * torch.tanh(self.out(torch.relu(self.out_norm(h, identity))))
+        out = 2.0 * torch.tanh(self.out(torch.relu(self.out_norm(h, identity))))
+        return identity + out if self.residual else out
 
 
 class NeuralPoseTransfer(nn.Module):
@@ -67,13 +88,14 @@ class NeuralPoseTransfer(nn.Module):
 
     Args:
         widths: the pose encoder's (c1, c2, c3); the decoder is c3 wide.
+        pose_mix, residual: the decoder's options (module docstring).
     """
 
-    def __init__(self, widths=(64, 128, 1024)):
+    def __init__(self, widths=(64, 128, 1024), pose_mix: bool = False, residual: bool = False):
         super().__init__()
         widths = tuple(int(w) for w in widths)
         self.encoder = PoseEncoder(widths)
-        self.decoder = SPAdaINDecoder(widths[-1], widths[-1])
+        self.decoder = SPAdaINDecoder(widths[-1], widths[-1], pose_mix, residual)
 
     def forward(self, posed_source: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
         """posed_source (B, Ns, 3), identity (B, Nt, 3), centred unit-size frames -> (B, Nt, 3)."""
