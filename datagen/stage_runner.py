@@ -15,6 +15,7 @@ import dataclasses
 import json
 import os
 import shutil
+import sys
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -25,7 +26,7 @@ from tqdm.auto import tqdm
 
 from mimicbench.engines import Engine, LocalEngine, Outcome, TaskResources
 from schemas.errors import DatasetError, UserError
-from schemas.fingerprint import fingerprint_mismatch, stage_config, tables_fingerprint
+from schemas.fingerprint import fingerprint_mismatch, stage_config, stale_inputs, tables_fingerprint
 from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_complete,
                               mark_incomplete, save_manifest)
@@ -231,12 +232,19 @@ class StageRun:
         self.write("status", rows, self.stage.name, config)
 
     def finish(self, configs: Iterable[str] = ()) -> None:
-        """Give the ``configs`` tables the run's config, mark OUT complete, validate it."""
+        """Give the ``configs`` tables the run's config, mark OUT complete, validate it. A table of
+        another stage that this run made stale (``cases`` of a zoo rebuilt in place) is a warning
+        on stderr naming the command to re-run, not a failure of this stage."""
         manifest = load_manifest_for_write(self.out_dir)
         manifest["configs"].update({t: self.config for t in configs})
         save_manifest(self.out_dir, manifest)
         mark_complete(self.out_dir)
-        problems = validate_dataset(self.out_dir)
+        manifest = load_manifest_for_write(self.out_dir)
+        stale = {stale_inputs(self.out_dir, manifest, t) for t in manifest["tables"] if t not in self.stage.outputs}
+        stale.discard(None)
+        for message in sorted(stale):
+            print(f"warning: {message}", file=sys.stderr)
+        problems = [p for p in validate_dataset(self.out_dir) if p not in stale]
         if problems:
             raise RuntimeError(f"{self.stage.name} wrote an invalid dataset:\n" + "\n".join(problems))
 
