@@ -15,7 +15,7 @@ point changes, so two vertices a hair apart (the near-zero edges of resampled re
 0.7% of the mesh apart and one edge drove a case's ELS to -13. A query per point costs N_t x cap,
 linear in the vertex count, and the answer is continuous in each point's own features.
 ``residual`` (config key, ours) is NPT's (:mod:`baselines.npt.model`). ``pose_cond`` (config key, ours,
-version 3) is NPT's too: the max over the pose point features (every pose point, before the cap)
+not in the presets) is NPT's too: the max over the pose point features (every pose point, before the cap)
 also modulates every SPAdaIN of the decoder.
 """
 from __future__ import annotations

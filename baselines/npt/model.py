@@ -19,7 +19,7 @@ Two options of ours (config keys; a config without them is version 1's network):
 - ``residual``: the answer is the identity point plus the 2 tanh output (the last conv starts at
   zero, so an untrained network answers the rest pose), so CPU-scale training spends its steps on
   the pose rather than on reproducing the identity mesh.
-- ``pose_cond`` (version 3): the pose code also enters every SPAdaIN's gamma and beta
+- ``pose_cond`` (tried for a version 3, not in the presets: README): the pose code also enters every SPAdaIN's gamma and beta
   (:class:`baselines.npt.spadain.SPAdaIN` with ``code``). ``pose_mix`` alone was not enough: trained,
   version 2's answer still did not follow the pose (its std over 6 poses of one pair 7e-7 against
   the code's 0.3; validation MSE 0.0029 against 0.0021 for the mean pose of the pair): a ReLU of a

@@ -4,7 +4,7 @@ SPAdaIN(x, m) = IN(x) * gamma(m) + beta(m): the features x (B, C, N) are instanc
 channel over the N points (no affine parameters), then scaled and shifted point by point by two
 1x1 convolutions of the identity mesh's vertices m (B, 3, N) (the same points, in the same order).
 
-With ``code`` > 0 (ours, NPT version 3's ``pose_cond``) gamma and beta also take a global pose code
+With ``code`` > 0 (ours, the decoders' ``pose_cond`` option) gamma and beta also take a global pose code
 z (B, code): gamma = conv(m) + A z, beta = conv(m) + B z (AdaIN's per-sample modulation added to
 SPAdaIN's per-point one). A code repeated at every point and fed into x is a per-channel constant
 that the norm subtracts; in the modulation it scales and shifts features that vary point by point,
