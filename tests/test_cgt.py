@@ -2,6 +2,7 @@
 dense one and continuous in the target point, training steps, the checkpoint round trip and the
 shipped weights' self-transfer."""
 import numpy as np
+import pytest
 import torch
 
 from baselines.cgt.sampling import farthest_points
@@ -41,13 +42,15 @@ def test_capped_answer_moves_a_hair_when_a_target_point_moves_a_hair(tube):
     assert float((a - a[:, :1]).abs().max()) > 1e-2  # and the answer is not one point everywhere
 
 
-def test_capped_attention_is_the_dense_one_when_the_cap_holds_every_point_or_drops_only_duplicates(tube):
+@pytest.mark.parametrize("pose_cond", [False, True])
+def test_capped_attention_is_the_dense_one_when_the_cap_holds_every_point_or_drops_only_duplicates(tube, pose_cond):
+    # with pose_cond the decoder's code is the max over every pose point, taken before the cap
     from baselines.cgt.model import Cgt
     from baselines.cgt.training import capped_rows
     from baselines.npt.placement import centred
 
     torch.manual_seed(0)
-    model = Cgt((8, 16, 32), blocks=2, heads=2).eval()
+    model = Cgt((8, 16, 32), blocks=2, heads=2, pose_cond=pose_cond).eval()
     v = centred(tube["vertices"], tube["vertices"])
     posed = v.copy()
     posed[v[:, 1] > 0.1] += [0.05, 0.0, 0.0]
@@ -61,7 +64,7 @@ def test_capped_attention_is_the_dense_one_when_the_cap_holds_every_point_or_dro
     rows = capped_rows(twice, v, len(v))
     assert sorted(rows["pose_rows"] % len(v)) == list(range(len(v)))
     capped = model(torch.as_tensor(twice)[None], i, **{k: torch.as_tensor(x) for k, x in rows.items()})
-    torch.testing.assert_close(capped, dense, atol=1e-5, rtol=0)
+    torch.testing.assert_close(capped, dense, atol=3e-5, rtol=0)  # float32 sums over twice the keys
 
 
 def test_a_few_steps_lower_the_loss(small_zoo):

@@ -27,6 +27,25 @@ def test_spadain_is_instance_norm_scaled_and_shifted_by_convs_of_the_identity_po
                 assert out[b, c, i] == pytest.approx(normed[i] * gamma + beta, abs=1e-4)
 
 
+def test_spadain_with_a_pose_code_adds_linear_maps_of_the_code_to_gamma_and_beta():
+    torch.manual_seed(1)
+    layer = SPAdaIN(4, code=6)
+    x, m, z = torch.randn(2, 4, 30), torch.randn(2, 3, 30), torch.randn(2, 6)
+    out = layer(x, m, z).detach().numpy().astype(np.float64)
+    xn, mn, zn = (t.numpy().astype(np.float64) for t in (x, m, z))
+    wg, bg = layer.gamma.weight.detach().numpy()[:, :, 0], layer.gamma.bias.detach().numpy()
+    wb, bb = layer.beta.weight.detach().numpy()[:, :, 0], layer.beta.bias.detach().numpy()
+    ag, ab = layer.gamma_code.weight.detach().numpy(), layer.beta_code.weight.detach().numpy()  # (4, 6)
+    for b in range(2):
+        for c in range(4):
+            row = xn[b, c]
+            normed = (row - row.mean()) / np.sqrt(((row - row.mean()) ** 2).mean() + 1e-5)
+            for i in range(30):
+                gamma = sum(wg[c, j] * mn[b, j, i] for j in range(3)) + bg[c] + sum(ag[c, k] * zn[b, k] for k in range(6))
+                beta = sum(wb[c, j] * mn[b, j, i] for j in range(3)) + bb[c] + sum(ab[c, k] * zn[b, k] for k in range(6))
+                assert out[b, c, i] == pytest.approx(normed[i] * gamma + beta, abs=1e-4)
+
+
 def test_placement_puts_a_centred_answer_back_where_the_target_stands_moved_as_the_source():
     rng = np.random.default_rng(0)
     rest = rng.uniform([-0.3, 0.0, -0.2], [0.3, 1.8, 0.2], (200, 3))
@@ -65,6 +84,21 @@ def test_the_answer_depends_on_the_pose_only_through_pose_mix():
         with torch.no_grad():
             gap = float((model(pose_a, identity) - model(pose_b, identity)).abs().max())
         assert (gap > 1e-2) == moved, (mix, gap)
+
+
+def test_pose_cond_lets_the_pose_through_the_norms_without_pose_mix():
+    # version 3: the code modulates every SPAdaIN, so even version 1's decoder (no pose_mix), whose
+    # input norm removes the repeated code, answers two poses differently
+    from baselines.npt.model import NeuralPoseTransfer
+
+    identity = torch.randn(1, 120, 3)
+    pose_a, pose_b = torch.randn(1, 300, 3), 0.5 * torch.randn(1, 300, 3)
+    for cond in (False, True):
+        torch.manual_seed(0)
+        model = NeuralPoseTransfer((8, 16, 32), pose_mix=False, pose_cond=cond).eval()
+        with torch.no_grad():
+            gap = float((model(pose_a, identity) - model(pose_b, identity)).abs().max())
+        assert (gap > 1e-2) == cond, (cond, gap)
 
 
 def test_residual_network_starts_at_the_identity_points_and_keeps_the_range():

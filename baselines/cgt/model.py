@@ -14,7 +14,9 @@ inverse-distance weights of the 3 nearest chosen points: that carry jumps where 
 point changes, so two vertices a hair apart (the near-zero edges of resampled real meshes) were sent
 0.7% of the mesh apart and one edge drove a case's ELS to -13. A query per point costs N_t x cap,
 linear in the vertex count, and the answer is continuous in each point's own features.
-``residual`` (config key, ours) is NPT's (:mod:`baselines.npt.model`).
+``residual`` (config key, ours) is NPT's (:mod:`baselines.npt.model`). ``pose_cond`` (config key, ours,
+not in the presets) is NPT's too: the max over the pose point features (every pose point, before the cap)
+also modulates every SPAdaIN of the decoder.
 """
 from __future__ import annotations
 
@@ -47,14 +49,16 @@ class Cgt(nn.Module):
         blocks: cross-attention blocks; heads: attention heads; residual: the decoder answers offsets.
     """
 
-    def __init__(self, widths=(64, 128, 512), blocks: int = 4, heads: int = 8, residual: bool = False):
+    def __init__(self, widths=(64, 128, 512), blocks: int = 4, heads: int = 8, residual: bool = False,
+                 pose_cond: bool = False):
         super().__init__()
         widths = tuple(int(w) for w in widths)
         c = widths[-1]
         self.pose_features = PointFeatures(widths)
         self.identity_features = PointFeatures(widths)
         self.blocks = nn.ModuleList([CrossAttentionBlock(c, heads) for _ in range(blocks)])
-        self.decoder = SPAdaINDecoder(c, c, residual=residual)
+        self.pose_cond = bool(pose_cond)
+        self.decoder = SPAdaINDecoder(c, c, residual=residual, code=c if pose_cond else 0)
 
     def forward(self, posed_source: torch.Tensor, identity: torch.Tensor,
                 pose_rows: torch.Tensor | None = None) -> torch.Tensor:
@@ -64,8 +68,9 @@ class Cgt(nn.Module):
         """
         p = self.pose_features(posed_source.transpose(1, 2)).transpose(1, 2)  # (B, Ns, C)
         x = self.identity_features(identity.transpose(1, 2)).transpose(1, 2)  # (B, Nt, C)
+        code = p.max(dim=1).values if self.pose_cond else None  # (B, C)
         if pose_rows is not None:
             p = p[:, pose_rows]
         for block in self.blocks:
             x = block(x, p)
-        return self.decoder(x.transpose(1, 2), identity.transpose(1, 2)).transpose(1, 2)
+        return self.decoder(x.transpose(1, 2), identity.transpose(1, 2), code).transpose(1, 2)

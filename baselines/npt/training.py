@@ -24,7 +24,8 @@ from mimicbench.training.stage import StageContext, TrainStage
 
 
 def build_npt(config: dict, context: StageContext | None = None) -> NeuralPoseTransfer:
-    return NeuralPoseTransfer(config["widths"], config.get("pose_mix", False), config.get("residual", False))
+    return NeuralPoseTransfer(config["widths"], config.get("pose_mix", False), config.get("residual", False),
+                              config.get("pose_cond", False))
 
 
 def pair_item(pool: PosePool, source: str, target: str, config: dict, rng: np.random.Generator) -> dict:
