@@ -23,8 +23,8 @@ SHIPPED = {
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "6",
               "91d5b822f8f918ea90243bbfc16d01abd686f4b1055335fddeabc7c11e4f0bea"),
-    "cgt": (Cgt.shipped, (Cgt,), "2", "cb95a17987eb02e49a598b1adcfc717a966109c6390df57c87cdf64e5d1cf4fe"),
-    "npt": (Npt.shipped, (Npt,), "2", "88656f5d8291536cf28fd7dc22acbbe6b5144460b4ba0e0166122a5f2be677e1"),
+    "cgt": (Cgt.shipped, (Cgt,), "3", "290c85714ab2869ea1c1865a3cd14702c15534f723ed1bcbe3f90bb1a7f39681"),
+    "npt": (Npt.shipped, (Npt,), "3", "a99a0487e9514dad5b2dc0c2b01c8e267e79da10ffe95beb18e22790fc8f08f3"),
     "sfpt": (Sfpt.shipped, (Sfpt,), "1", "4e72e1e72735edfdcd6cae92ec24c38da013d46aa8cbd06565bdf912bee7e89a"),
 }
 
@@ -96,6 +96,7 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
 
 
 def test_shipped_published_baselines_are_small():
+    # issue 34's bound: each shipped checkpoint below 20 MB (npt v3 is 6.2 MB: pose_cond's code maps)
     for method in (Npt, Cgt, Sfpt):
         size = (method.shipped / f"{method.stage}.safetensors").stat().st_size
-        assert size < 3 * 2**20, (method.metadata.name, size)
+        assert size < 20 * 10**6, (method.metadata.name, size)

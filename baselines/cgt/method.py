@@ -23,7 +23,7 @@ CITATION = ("Haoyu Chen, Hao Tang, Zitong Yu, Nicu Sebe, Guoying Zhao. Geometry-
 class Cgt(Npt):
     """CGT with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="cgt", version="2", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="cgt", version="3", licence="MIT", needs_training=True, citation=CITATION,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="CGT (NPT's encoder/decoder with cross-attention blocks; every target "
                                           "point attends over 256 farthest source points on CPU), re-implemented from the paper")

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 COMMON = {"knn": 6, "w_edge": 0.0005, "self_share": 0.5, "split": "all"}
 
-SMALL = {**COMMON, "widths": [32, 64, 256], "pose_mix": True, "residual": True, "points": 512, "batch_size": 4,
-         "batches_per_epoch": 60, "epochs": 10, "lr": 1e-3, "weight_decay": 0.0, "grad_clip": 1.0}
+SMALL = {**COMMON, "widths": [32, 64, 256], "pose_mix": True, "pose_cond": True, "residual": True, "points": 512,
+         "batch_size": 4, "batches_per_epoch": 60, "epochs": 20, "lr": 1e-3, "weight_decay": 0.0, "grad_clip": 1.0}
 
 PAPER = {**COMMON, "widths": [64, 128, 1024], "pose_mix": True, "residual": False, "points": 0, "batch_size": 8, "batches_per_epoch": 500,
          "epochs": 200, "lr": 5e-5, "weight_decay": 0.0}

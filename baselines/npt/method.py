@@ -35,7 +35,7 @@ def checkpoint_path(folder: Path, stage: str) -> Path:
 class Npt(PoseTransferMethod):
     """Neural Pose Transfer with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="npt", version="2", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="npt", version="3", licence="MIT", needs_training=True, citation=CITATION,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="Neural Pose Transfer (SPAdaIN decoder, max-pool pose code), "
                                           "re-implemented from the paper, trained on the zoo")
