@@ -239,3 +239,32 @@ def test_pose_protocols_draw_kinematic_clips_only(tmp_path):
     assert len(draws) == 19 and {m.name for m, _ in draws} == {"turn"}  # every frame but the rest frame, once
     cases = get_protocol("h2h").build_cases(pool, None, 50, seed=0)
     assert len(cases) == 2 * 19 and {k.motion_id.rsplit("/", 1)[1] for k in cases} == {"turn"}
+
+
+def test_strips_show_the_window_middle_frame_after_a_burn_in(tmp_path):
+    """With burn-in frames in the request, the source panel is still the window's middle frame: the
+    kinematic pose at frame + 8 (by hand: LBS of the clip's frame, one-hot weights), the prediction's frame."""
+    from benchmark.aggregate import aggregate
+    from benchmark.cases import write_cases
+    from benchmark.evaluator import run_benchmark
+    from benchmark.leaderboard_strips import build_strips
+    from datagen.render.panel import Panel
+    from mimicbench.skinning import linear_blend_skinning
+
+    c, kin, sim = _long_hand_case(130)
+    root = tmp_path / "long"
+    write_records(root, "characters", [c], split="train")
+    write_records(root, "motions", [kin, sim], split="train")
+    proto = get_protocol("apparel")
+    cases = [proto.make_case(c, c, (kin, sim), f) for f in (40, 100)]
+    write_cases(root, {"apparel": cases}, {"protocols": ["apparel"]})
+    res = tmp_path / "res"
+    run_benchmark(root, ["lbs_kinematic"], ("apparel",), res, progress=False, in_process=True)
+    strips, note = build_strips(res, aggregate(res))
+    assert note is None and {s.case_id for s in strips} == {k.case_id for k in cases}
+    frame = {k.case_id: k.frame for k in cases}
+    for s in strips:
+        source, truth, pred = [p for p in s.items if isinstance(p, Panel)]
+        expect = linear_blend_skinning(c.vertices, c.keypoints, c.weights, kin.transforms[frame[s.case_id] + 8])
+        np.testing.assert_allclose(source.vertices, expect, atol=1e-5)
+        np.testing.assert_allclose(pred.vertices, expect, atol=1e-5)
