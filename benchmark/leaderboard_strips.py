@@ -119,7 +119,9 @@ def build_strips(results, agg: dict, per_protocol: int = STRIPS_PER_PROTOCOL) ->
                 continue
             src, tgt = chars[case.source_id], chars[case.target_id]
             cycle = case.target_transforms is None
-            items = [Panel(_posed(src, case.source_transforms), src.faces,
+            # apparel: the source rows hold burn-in frames before the window; its last rows are the window
+            shown = case.source_transforms if cycle else case.source_transforms[-len(case.target_transforms):]
+            items = [Panel(_posed(src, shown), src.faces,
                            f"posed source\n{src.character_id}", "source", frame=f"{cid}/source")]
             if not cycle:
                 items.append(Panel(_posed(tgt, case.target_transforms), tgt.faces,

@@ -11,7 +11,7 @@ from baselines.lbs_kinematic import LbsKinematic
 from benchmark.batch import evaluate_batch
 from benchmark.normalisation import RestFrame
 from benchmark.protocols import get_protocol
-from benchmark.protocols.apparel import apparel_scores
+from benchmark.protocols.apparel import BURN_IN, apparel_scores, burn_in_frames
 from benchmark.protocols.base import CasePool, EvalData
 from benchmark.registry import get_method
 from datagen.apparel.stage import simulate_dataset
@@ -43,7 +43,8 @@ def test_scores_by_hand_and_lbs_kinematic_on_a_hand_case(tmp_path):
     k = len(c.parents)
     for case in cases:
         assert case.motion_id == "toy/a/turn" and case.case_id.startswith("apparel/toy/a->toy/a/turn#")
-        assert case.source_transforms.shape == (16 * k, 7) and case.target_transforms.shape == (16 * k, 7)
+        # the request starts at the clip's first frame (the window starts within BURN_IN of it)
+        assert case.source_transforms.shape == ((case.frame + 16) * k, 7) and case.target_transforms.shape == (16 * k, 7)
     rows = {r.case_id: r for r in evaluate_batch(get_method("lbs_kinematic"), proto, cases, EvalData.load(root))}
     height = float(np.ptp(c.vertices[:, 1]))
     share = c.apparel_vertex_mask.mean()
@@ -59,6 +60,72 @@ def test_scores_by_hand_and_lbs_kinematic_on_a_hand_case(tmp_path):
     # a method that does not list the protocol gets not_supported rows, not failures
     assert {r.status for r in evaluate_batch(get_method("identity"), proto, cases, EvalData.load(root))} == \
         {"not_supported"}
+
+
+def _long_hand_case(frames: int):
+    """A hand case's character and its (kinematic, simulated) clip of ``frames`` frames, in memory."""
+    c = make_character("toy/a")
+    kin = make_motion(c, np.linspace(0.0, np.pi, frames), "spin")
+    sim_t = kin.transforms.copy()
+    sim_t[:, 1:, 4] += SHIFT
+    return c, kin, dataclasses.replace(kin, motion_id=kin.motion_id + "@sim", name="spin@sim", transforms=sim_t)
+
+
+def test_a_request_starts_at_the_clip_start_or_burn_in_before_the_window():
+    """Case rows by hand: kinematic frames from max(0, start - BURN_IN) to the window's end, simulated
+    frames of the window only."""
+    c, kin, sim = _long_hand_case(130)
+    proto, k = get_protocol("apparel"), len(c.parents)
+    assert BURN_IN == 90
+    for start, first in ((0, 0), (7, 0), (90, 0), (100, 10), (114, 24)):
+        case = proto.make_case(c, c, (kin, sim), start)
+        assert case.frame == start
+        np.testing.assert_array_equal(case.source_transforms.reshape(-1, k, 7), kin.transforms[first:start + 16])
+        np.testing.assert_array_equal(case.target_transforms.reshape(-1, k, 7), sim.transforms[start:start + 16])
+        assert burn_in_frames(case, k) == start - first
+    with pytest.raises(ValueError, match="B>=0"):  # more simulated than kinematic frames: refused
+        burn_in_frames(dataclasses.replace(case, source_transforms=case.source_transforms[: 8 * k]), k)
+
+
+class _RightInTheWindowOnly(LbsKinematic):
+    """The hand case's truth in the last WINDOW frames (LBS, apparel vertices + SHIFT in x) and 1 m off
+    everywhere in the burn-in frames before them."""
+
+    def __init__(self, apparel):
+        self.apparel = apparel
+        self.frames = []
+
+    def transfer_motion(self, requests):
+        out = []
+        for r, pred in zip(requests, super().transfer_motion(requests)):
+            self.frames.append(len(pred))
+            pred = pred.copy()
+            pred[-16:, self.apparel, 0] += SHIFT
+            pred[:-16] += 1.0
+            out.append(pred)
+        return out
+
+
+def test_only_the_window_is_scored(tmp_path):
+    c, kin, sim = _long_hand_case(130)
+    root = tmp_path / "long"
+    write_records(root, "characters", [c], split="train")
+    write_records(root, "motions", [kin, sim], split="train")
+    proto = get_protocol("apparel")
+    cases = [proto.make_case(c, c, (kin, sim), f) for f in (0, 40, 100, 114)]
+    method = _RightInTheWindowOnly(np.asarray(c.apparel_vertex_mask, bool))
+    rows = evaluate_batch(method, proto, cases, EvalData.load(root))
+    assert sorted(method.frames) == [16, 56, 106, 106]  # every request: burn-in + window frames
+    for r in rows:
+        assert r.status == "ok", r.error
+        assert len(r.pmd_frames) == 16
+        for key in ("pmd", "pmd_apparel", "pmd_body"):
+            assert getattr(r, key) == pytest.approx(0.0, abs=1e-4)
+        assert r.els == pytest.approx(1.0, abs=1e-5)
+    # lbs_kinematic on the same cases: the apparel off by SHIFT in the window, as on the short clip
+    height = float(np.ptp(c.vertices[:, 1]))
+    for r in evaluate_batch(get_method("lbs_kinematic"), proto, cases, EvalData.load(root)):
+        assert r.pmd_apparel == pytest.approx(SHIFT / height * 100, rel=1e-4)
 
 
 def test_apparel_scores_per_frame_by_hand():
@@ -172,3 +239,32 @@ def test_pose_protocols_draw_kinematic_clips_only(tmp_path):
     assert len(draws) == 19 and {m.name for m, _ in draws} == {"turn"}  # every frame but the rest frame, once
     cases = get_protocol("h2h").build_cases(pool, None, 50, seed=0)
     assert len(cases) == 2 * 19 and {k.motion_id.rsplit("/", 1)[1] for k in cases} == {"turn"}
+
+
+def test_strips_show_the_window_middle_frame_after_a_burn_in(tmp_path):
+    """With burn-in frames in the request, the source panel is still the window's middle frame: the
+    kinematic pose at frame + 8 (by hand: LBS of the clip's frame, one-hot weights), the prediction's frame."""
+    from benchmark.aggregate import aggregate
+    from benchmark.cases import write_cases
+    from benchmark.evaluator import run_benchmark
+    from benchmark.leaderboard_strips import build_strips
+    from datagen.render.panel import Panel
+    from mimicbench.skinning import linear_blend_skinning
+
+    c, kin, sim = _long_hand_case(130)
+    root = tmp_path / "long"
+    write_records(root, "characters", [c], split="train")
+    write_records(root, "motions", [kin, sim], split="train")
+    proto = get_protocol("apparel")
+    cases = [proto.make_case(c, c, (kin, sim), f) for f in (40, 100)]
+    write_cases(root, {"apparel": cases}, {"protocols": ["apparel"]})
+    res = tmp_path / "res"
+    run_benchmark(root, ["lbs_kinematic"], ("apparel",), res, progress=False, in_process=True)
+    strips, note = build_strips(res, aggregate(res))
+    assert note is None and {s.case_id for s in strips} == {k.case_id for k in cases}
+    frame = {k.case_id: k.frame for k in cases}
+    for s in strips:
+        source, truth, pred = [p for p in s.items if isinstance(p, Panel)]
+        expect = linear_blend_skinning(c.vertices, c.keypoints, c.weights, kin.transforms[frame[s.case_id] + 8])
+        np.testing.assert_allclose(source.vertices, expect, atol=1e-5)
+        np.testing.assert_allclose(pred.vertices, expect, atol=1e-5)

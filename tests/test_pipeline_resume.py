@@ -126,6 +126,18 @@ def test_a_bench_steps_fingerprint_holds_its_methods_versions(tmp_path, monkeypa
     assert code_versions(step)["method:identity"] == "next"
 
 
+def test_a_cases_steps_fingerprint_holds_the_apparel_cases_version(monkeypatch):
+    """New apparel case rows (cases version 2: the burn-in frames) make a finished cases step run again."""
+    import benchmark.protocols.apparel as apparel
+    from mimicbench.pipeline.spec import Step
+    from mimicbench.pipeline.state import code_versions
+
+    step = Step("cases", "cases", {"dataset": "d"})
+    assert code_versions(step)["benchmark.protocols.apparel:CASES_VERSION"] == "2"
+    monkeypatch.setattr(apparel, "CASES_VERSION", 3)
+    assert code_versions(step)["benchmark.protocols.apparel:CASES_VERSION"] == "3"
+
+
 def test_a_killed_pipeline_resumes_without_redoing_finished_steps(tmp_path, capsys):
     work = tmp_path / "work"
     toml = write_pipeline(tmp_path)

@@ -1,9 +1,10 @@
 """The MMDMC forward pass at inference (Fig. 2): f_c's apparel mask, f_s's weights and LBS of the
 body motion, f_d's rollout on the apparel vertices, f_j's refinement.
 
-The rollout starts where a request starts: nothing is known of the apparel before the window, so
-the K = 3 history states are the body state of the window's first frame (the apparel at rest on
-the body, not moving). Per-character results (mask, weights, EdgeConv neighbours) are cached on
+The rollout starts where a request starts: nothing is known of the apparel before it, so the
+K = 3 history states are the body state of the request's first frame (the apparel at rest on the
+body, not moving). The apparel protocol's requests (cases version 2) start at the clip's first
+frame, where the simulation started from rest too, or 90 frames before the scored window. Per-character results (mask, weights, EdgeConv neighbours) are cached on
 the :class:`~baselines.mmdmc.data.Prepared` character.
 """
 from __future__ import annotations

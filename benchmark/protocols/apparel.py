@@ -1,15 +1,23 @@
 """``apparel``: motion transfer on characters with simulated apparel (MMDMC's task).
 
-Cases: a character with apparel bones and a window of ``WINDOW`` consecutive frames of one of its
-clips that ``datagen apparel`` simulated (the motion ``<clip>@sim`` beside the kinematic
-``<clip>``). The case row's ``source_id`` and ``target_id`` are the character, ``motion_id`` the
-kinematic clip, ``frame`` the window's first frame; ``source_transforms`` holds the kinematic
-window and ``target_transforms`` the simulated one, each (F*K, 7) (F frames of K bones, frame
-after frame).
+Cases (cases version :data:`CASES_VERSION`): a character with apparel bones and a window of
+``WINDOW`` consecutive frames of one of its clips that ``datagen apparel`` simulated (the motion
+``<clip>@sim`` beside the kinematic ``<clip>``). The case row's ``source_id`` and ``target_id`` are
+the character, ``motion_id`` the kinematic clip, ``frame`` the window's first frame;
+``source_transforms`` holds the kinematic clip from the request's first frame to the window's end,
+(B+F)*K rows, and ``target_transforms`` the simulated window, F*K rows (F frames of K bones, frame
+after frame). B, the burn-in, is the frames before the window: the request starts where the
+simulation started (the clip's first frame, where the apparel hangs at rest after the relaxation
+frames) unless the window starts more than :data:`BURN_IN` frames in, then ``BURN_IN`` frames
+before it; B = rows(source) / K - rows(target) / K. Cases version 1 had B = 0: the kinematic
+window alone, so a method started the apparel at rest where the simulation had it lag the body
+from the motion before the window (about 3 cm); those rows still evaluate (as B = 0).
 
 Request (:class:`benchmark.request.MotionRequest`): the character at rest with its rig, the
-kinematic window (F, K, 7) with the mask of body bones, and the fps; the apparel vertex mask is
-not given (except to oracle ablations tagged ``reads_gt_apparel_mask``, in ``extras``). The method returns the posed mesh of every frame, (F, N, 3).
+kinematic frames (B+F, K, 7) with the mask of body bones, and the fps; the apparel vertex mask is
+not given (except to oracle ablations tagged ``reads_gt_apparel_mask``, in ``extras``). The method
+returns the posed mesh of every frame of the request, (B+F, N, 3); only the last F (the window)
+are scored.
 
 Ground truth: the simulated window posed by LBS. Scores per frame, then the mean over the
 window (MMDMC): PMD over all vertices, PMD_a over the ground truth's apparel vertices and PMD_b
@@ -31,7 +39,15 @@ from schemas.case import CaseRecord
 from schemas.motion import SIM_SUFFIX
 
 WINDOW = 16
-"""Frames a case covers."""
+"""Frames a case scores."""
+BURN_IN = 90
+"""Most frames of kinematic motion a request carries before its window (3 s at 30 fps). A window
+that starts later than this in its clip gets a request that starts BURN_IN frames before it, where
+the simulated apparel is no longer at rest: a method started there at rest carries what is left of
+that lag (damped over BURN_IN frames) into the window. The cap bounds a request at BURN_IN + WINDOW
+frames (106: about 6.6x the frames of a 16-frame request to compute)."""
+CASES_VERSION = 2
+"""Version of the apparel case rows: 2 adds the burn-in frames to ``source_transforms``."""
 DEFAULT_FPS = 30.0
 """The fps a request states when the evaluation data does not know the clip's."""
 REFERENCE_HEIGHT_CM = 170.0
@@ -66,6 +82,22 @@ def apparel_scores(pred: np.ndarray, truth: np.ndarray, apparel: np.ndarray, fra
     return out
 
 
+def burn_in_start(frame: int, cap: int = BURN_IN) -> int:
+    """First clip frame of the request of a window that starts at ``frame``: the clip's first frame
+    (where the simulation started from rest), or ``cap`` frames before the window."""
+    return max(0, int(frame) - int(cap))
+
+
+def burn_in_frames(case: CaseRecord, bones: int) -> int:
+    """B: the frames of ``case``'s request before its window (``bones`` = K)."""
+    total, window = len(case.source_transforms) // bones, len(case.target_transforms) // bones
+    if total * bones != len(case.source_transforms) or window * bones != len(case.target_transforms) \
+            or window < 1 or total < window:
+        raise ValueError(f"{case.case_id}: apparel case rows must be (B+F)*K source and F*K target rows with "
+                         f"K={bones}, F>=1, B>=0; got {len(case.source_transforms)} and {len(case.target_transforms)}")
+    return total - window
+
+
 class ApparelMotion(BenchmarkProtocol):
     name = "apparel"
     title = "apparel motion transfer: body motion in, the posed mesh with simulated apparel out"
@@ -97,17 +129,19 @@ class ApparelMotion(BenchmarkProtocol):
         return cases
 
     def make_case(self, source, target, motion, frame: int) -> CaseRecord:
-        """``motion`` is the pair (kinematic clip, simulated clip); ``frame`` the window's start."""
+        """``motion`` is the pair (kinematic clip, simulated clip); ``frame`` the window's start.
+        The kinematic rows start :func:`burn_in_start` frames in, the simulated ones at ``frame``."""
         kin, sim = motion
         window = min(self.window, kin.num_frames - frame)
-        span = slice(frame, frame + window)
+        end = frame + window
         return CaseRecord(self.case_id(source, target, kin, frame), self.name, source.character_id,
                           target.character_id, kin.motion_id, frame,
-                          kin.transforms[span].reshape(-1, 7), sim.transforms[span].reshape(-1, 7),
-                          source.category, target.category)
+                          kin.transforms[burn_in_start(frame):end].reshape(-1, 7),
+                          sim.transforms[frame:end].reshape(-1, 7), source.category, target.category)
 
     def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
         chars = [data.characters[c.target_id] for c in cases]
+        burn = [burn_in_frames(c, len(ch.rig.parents)) for c, ch in zip(cases, chars)]  # bad rows: before any call
         gt_mask = GT_MASK_TAG in getattr(call, "method_tags", ())
         requests = []
         for c, ch in zip(cases, chars):
@@ -118,12 +152,13 @@ class ApparelMotion(BenchmarkProtocol):
                                           float(data.motion_fps.get(c.motion_id, DEFAULT_FPS)), c.case_id, extras))
         answers = call(requests)
         out = []
-        for c, ch, (pred, err, sec) in zip(cases, chars, answers):
+        for c, ch, b, (pred, err, sec) in zip(cases, chars, burn, answers):
             if err:
                 out.append(Outcome(c, "failed", err, sec))
                 continue
             k = len(ch.rig.parents)
             truth = data.posed(ch, np.asarray(c.target_transforms, np.float32).reshape(-1, k, 7))
+            pred = pred[b:]  # the burn-in frames are the method's to use, not scored
             metrics = apparel_scores(pred, truth, ch.record.apparel_vertex_mask, data.frame(ch))
             out.append(Outcome(c, "ok", None, sec, metrics, {"forward": pred[len(pred) // 2]}))
         return out
