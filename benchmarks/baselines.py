@@ -19,13 +19,11 @@ import argparse
 import importlib.util
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
     sys.path.pop(0)  # run as a script, this file's own name would hide the `baselines` package
 
-import numpy as np
 import torch
 
 METHODS = ("npt", "cgt", "sfpt")
@@ -35,41 +33,18 @@ _mimicat_benchmark = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(_mimicat_benchmark)
 dataset = _mimicat_benchmark.dataset  # the same zoo, resampled, with pairs and cases, as benchmarks/mimicat.py
 seconds_per_case = _mimicat_benchmark.seconds_per_case
+timed_steps = _mimicat_benchmark.timed_steps
 
 
 def training_steps_per_second(name: str, data: Path, device: torch.device, steps: int) -> float:
-    from baselines.npt.method import checkpoint_path
+    from baselines.checkpointed import checkpoint_path
     from benchmark.registry import get_method
     from mimicbench.training.checkpoint import read_header
-    from mimicbench.training.loop import _to_device
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
 
-    stage = trainable(name).stage(name)
     config = read_header(checkpoint_path(get_method(name).shipped, name))["config"]
-    ctx = StageContext(data, device, config)
-    torch.manual_seed(0)
-    module = stage.build(config, ctx).to(device)
-    opt = torch.optim.AdamW(module.parameters(), lr=1e-4)
-    rng = np.random.default_rng(0)
-
-    def batches():
-        while True:
-            yield from stage.batches(config, ctx, rng)
-
-    it = batches()
-    for i in range(steps + 2):
-        if i == 2:
-            if device.type == "cuda":
-                torch.cuda.synchronize()
-            t0 = time.perf_counter()
-        loss = stage.loss(module, _to_device(next(it), device), ctx)["total"]
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-    if device.type == "cuda":
-        torch.cuda.synchronize()
-    return steps / (time.perf_counter() - t0)
+    return timed_steps(trainable(name).stage(name), config, StageContext(data, device, config), device, steps)
 
 
 def main() -> None:

@@ -56,7 +56,6 @@ def dataset(work: Path) -> Path:
 def training_steps_per_second(stage_name: str, data: Path, checkpoint: Path, device: torch.device, steps: int) -> float:
     from baselines.mimicat.method import checkpoint_path
     from mimicbench.training.checkpoint import load_module, read_header
-    from mimicbench.training.loop import _to_device
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
 
@@ -69,6 +68,14 @@ def training_steps_per_second(stage_name: str, data: Path, checkpoint: Path, dev
         for p in m.parameters():
             p.requires_grad_(False)
         ctx.frozen[need] = m.eval()
+    return timed_steps(stage, config, ctx, device, steps)
+
+
+def timed_steps(stage, config: dict, ctx, device: torch.device, steps: int) -> float:
+    """Training steps per second of a fresh network of ``stage`` (seed 0, AdamW lr 1e-4) over its own
+    batches: ``steps`` timed after two warm-up steps that fill the caches."""
+    from mimicbench.training.loop import _to_device
+
     torch.manual_seed(0)
     module = stage.build(config, ctx).to(device)
     opt = torch.optim.AdamW(module.parameters(), lr=1e-4)
@@ -79,7 +86,7 @@ def training_steps_per_second(stage_name: str, data: Path, checkpoint: Path, dev
             yield from stage.batches(config, ctx, rng)
 
     it = batches()
-    for i in range(steps + 2):  # two warm-up steps fill the caches
+    for i in range(steps + 2):
         if i == 2:
             if device.type == "cuda":
                 torch.cuda.synchronize()

@@ -79,19 +79,10 @@ def test_a_few_steps_lower_the_loss(small_zoo):
 
 
 def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
-    from safetensors.torch import load_file
-
     from baselines.cgt.method import Cgt
-    from mimicbench.training.loop import train_stage
-    from tests.test_npt import first_batch, tiny
+    from tests.test_npt import trained_method
 
-    path = train_stage("cgt", "cgt", small_zoo, tmp_path / "run", tiny("cgt"), epochs=1, progress=False)
-    method = Cgt(checkpoint=tmp_path / "run")
-    method.setup("cpu")
-    trained = first_batch("cgt", small_zoo, tiny("cgt"))[1]
-    trained.load_state_dict(load_file(str(path)))
-    for name, value in trained.state_dict().items():
-        torch.testing.assert_close(method.module.state_dict()[name], value, rtol=0, atol=0)
+    method = trained_method(Cgt, small_zoo, tmp_path / "run")[0]
     assert method.cap == 64
 
 

@@ -149,21 +149,30 @@ def test_a_few_steps_lower_the_loss(small_zoo, term):
     assert last[term] < first[term], (first, last)
 
 
-def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
-    from baselines.npt.method import Npt
-    from benchmark.request import Rig, TransferRequest
-    from mimicbench.training.loop import train_stage
-    from schemas.shards import read_records
-
-    path = train_stage("npt", "npt", small_zoo, tmp_path / "run", tiny("npt"), epochs=1, progress=False)
-    method = Npt(checkpoint=tmp_path / "run")
-    method.setup("cpu")
-    trained = first_batch("npt", small_zoo, tiny("npt"))[1]
+def trained_method(cls, zoo, run):
+    """(method, network): a one-epoch training run of ``cls.stage`` at toy size in ``run``, loaded
+    through ``cls``, and a network built apart with the weights the run wrote; the method's holds
+    exactly those."""
     from safetensors.torch import load_file
 
+    from mimicbench.training.loop import train_stage
+
+    path = train_stage(cls.stage, cls.stage, zoo, run, tiny(cls.stage), epochs=1, progress=False)
+    method = cls(checkpoint=run)
+    method.setup("cpu")
+    trained = first_batch(cls.stage, zoo, tiny(cls.stage))[1]
     trained.load_state_dict(load_file(str(path)))
     for name, value in trained.state_dict().items():
         torch.testing.assert_close(method.module.state_dict()[name], value, rtol=0, atol=0)
+    return method, trained
+
+
+def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
+    from baselines.npt.method import Npt
+    from benchmark.request import Rig, TransferRequest
+    from schemas.shards import read_records
+
+    method, trained = trained_method(Npt, small_zoo, tmp_path / "run")
     rec = next(iter(read_records(small_zoo, "characters")))
     rig = Rig(rec.character_id, rec.category, rec.vertices, rec.faces, rec.keypoints, rec.parents, rec.weights,
               rec.bone_names)

@@ -83,19 +83,10 @@ def test_a_few_steps_lower_each_loss(small_zoo, term):
 
 
 def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
-    from safetensors.torch import load_file
-
     from baselines.sfpt.method import Sfpt
-    from mimicbench.training.loop import train_stage
-    from tests.test_npt import first_batch, tiny
+    from tests.test_npt import tiny, trained_method
 
-    path = train_stage("sfpt", "sfpt", small_zoo, tmp_path / "run", tiny("sfpt"), epochs=1, progress=False)
-    method = Sfpt(checkpoint=tmp_path / "run")
-    method.setup("cpu")
-    trained = first_batch("sfpt", small_zoo, tiny("sfpt"))[1]
-    trained.load_state_dict(load_file(str(path)))
-    for name, value in trained.state_dict().items():
-        torch.testing.assert_close(method.module.state_dict()[name], value, rtol=0, atol=0)
+    method = trained_method(Sfpt, small_zoo, tmp_path / "run")[0]
     assert method.knn == tiny("sfpt")["knn"]
 
 

@@ -14,25 +14,18 @@ Weights: ``checkpoints/<stage>.safetensors`` next to this file (shipped), or a t
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
+from baselines.checkpointed import CheckpointedMethod
+from benchmark.method import MethodMetadata
 
 CITATION = ("Jiashun Wang, Chao Wen, Yanwei Fu, Haitao Lin, Tianyun Zou, Xiangyang Xue, Yinda Zhang. Neural Pose "
             "Transfer by Spatially Adaptive Instance Normalization. CVPR 2020 (re-implemented from the paper)")
 
 
-def checkpoint_path(folder: Path, stage: str) -> Path:
-    """The weights of ``stage`` (``npt``, ``cgt``, ``sfpt``) in a checkpoint folder (shipped or run layout)."""
-    from mimicbench.training.checkpoint import stage_weights
-
-    return stage_weights(folder, stage, stage)
-
-
-class Npt(PoseTransferMethod):
+class Npt(CheckpointedMethod):
     """Neural Pose Transfer with the shipped (or a given) checkpoint."""
 
     metadata = MethodMetadata(name="npt", version="3", licence="MIT", needs_training=True, citation=CITATION,
@@ -42,26 +35,6 @@ class Npt(PoseTransferMethod):
     stage = "npt"
     env = "MIMICBENCH_NPT_CHECKPOINT"
     shipped = Path(__file__).resolve().parent / "checkpoints"
-
-    def __init__(self, checkpoint: str | os.PathLike | None = None):
-        self.checkpoint = Path(checkpoint or os.environ.get(self.env) or self.shipped)
-        self.device = "cpu"
-        self.module = None
-
-    def weights_fingerprint(self) -> str:
-        from schemas.fingerprint import files_fingerprint
-
-        return files_fingerprint({self.stage: checkpoint_path(self.checkpoint, self.stage)})
-
-    def setup(self, device: str = "cpu") -> None:
-        from mimicbench.training.checkpoint import load_module, read_header
-        from mimicbench.training.registry import trainable
-
-        self.device = device
-        stage = trainable(self.stage).stage(self.stage)
-        path = checkpoint_path(self.checkpoint, self.stage)
-        self.module = load_module(path, lambda cfg: stage.build(cfg, None), device)
-        self.config = read_header(path)["config"]
 
     def pose_rows(self, count: int):
         """(P,) sorted rows of a posed source of ``count`` vertices the pose encoder sees: a draw of the

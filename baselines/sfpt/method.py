@@ -23,14 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from baselines.npt.method import checkpoint_path
+from baselines.checkpointed import CheckpointedMethod
+from benchmark.method import MethodMetadata
 
 CITATION = ("Zhouyingcheng Liao, Jimei Yang, Jun Saito, Gerard Pons-Moll, Yang Zhou. Skeleton-free Pose Transfer "
             "for Stylized 3D Characters. ECCV 2022 (re-implemented from the paper)")
 
 
-class Sfpt(PoseTransferMethod):
+class Sfpt(CheckpointedMethod):
     """Skeleton-free Pose Transfer with the shipped (or a given) checkpoint."""
 
     metadata = MethodMetadata(name="sfpt", version="1", licence="MIT", needs_training=True, citation=CITATION,
@@ -43,27 +43,14 @@ class Sfpt(PoseTransferMethod):
     shipped = Path(__file__).resolve().parent / "checkpoints"
 
     def __init__(self, checkpoint: str | os.PathLike | None = None):
-        self.checkpoint = Path(checkpoint or os.environ.get(self.env) or self.shipped)
-        self.device = "cpu"
-        self.module = None
+        super().__init__(checkpoint)
         self.knn = 8
         self.chunk = 4  # motion frames through the networks at once
         self._chars: dict = {}
 
-    def weights_fingerprint(self) -> str:
-        from schemas.fingerprint import files_fingerprint
-
-        return files_fingerprint({self.stage: checkpoint_path(self.checkpoint, self.stage)})
-
     def setup(self, device: str = "cpu") -> None:
-        from mimicbench.training.checkpoint import load_module, read_header
-        from mimicbench.training.registry import trainable
-
-        self.device = device
-        path = checkpoint_path(self.checkpoint, self.stage)
-        stage = trainable(self.stage).stage(self.stage)
-        self.module = load_module(path, lambda cfg: stage.build(cfg, None), device)
-        self.knn = int(read_header(path)["config"]["knn"])
+        super().setup(device)
+        self.knn = int(self.config["knn"])
 
     def _character(self, vertices: np.ndarray, key) -> tuple:
         """(rest (1, N, 3), neighbours (N, k), handle weights (1, N, H)) tensors of a rest mesh, cached."""
