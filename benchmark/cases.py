@@ -16,6 +16,7 @@ from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
 from benchmark.protocols.base import CasePool
 from schemas.case import CaseRecord
 from schemas.shards import write_records
+from schemas.tables import rows_per_shard
 
 
 def build_cases(dataset, split: str = "test", h2h_pairs: int | None = 100, h2h_poses: int = 20,
@@ -62,6 +63,6 @@ def write_cases(dataset, cases: dict[str, list[CaseRecord]], config: dict) -> di
     config = cases_config(dataset, config)
     counts = {}
     for protocol, recs in cases.items():
-        write_records(dataset, "cases", recs, split=protocol, rows_per_shard=5000, config=config)
+        write_records(dataset, "cases", recs, split=protocol, rows_per_shard=rows_per_shard("cases"), config=config)
         counts[protocol] = len(recs)
     return counts
