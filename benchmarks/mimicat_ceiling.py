@@ -20,13 +20,16 @@ rescores the return leg with the lost bones (``no forward match``) changed:
   characters by the zoo's hidden ``bone_roles`` (ground truth, never a method input: this makes
   the regression easier than anything an H must do, so it is an upper bound on a generalising
   rule of this kind too). A lost bone whose role no training character has keeps the identity.
+- ``knn k=K`` (``--alpha -K``): the mean (6D, then Gram-Schmidt) of the same bone in the K
+  training frames nearest in those features, a nonlinear check of the same information.
 
 Descendants of a changed bone follow it (forward kinematics with the returned local
 translations). Prints cct cycle PMD x100 (largest extent, as the benchmark) per variant with the
-paired difference to ``init`` and its standard error, per clip kind, and the ridge's angular error
-on the lost bones against the identity's.
+paired difference to ``init`` and its standard error, per clip kind, the predictors' angular error
+on the lost bones against the identity's, and what the best predictor and the oracle would give
+if told which clips are random poses (a bound on gating them; no method is told).
 
-    python benchmarks/mimicat_ceiling.py DATA [--cases N] [--alpha A]
+    python benchmarks/mimicat_ceiling.py DATA [--cases N] [--alpha 1,10,100,10000,-1,-8,-32]
 
 DATA: a training zoo with cases (``bench cases --split val``), resampled, correspondences computed.
 """
@@ -150,7 +153,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("data", type=Path, help="training zoo with cct cases")
     ap.add_argument("--cases", type=int, default=None, help="first N cct cases (default: all)")
-    ap.add_argument("--alpha", default="1,100,10000", help="ridge penalties on the 6D features (comma list; -k: the mean of the k nearest training frames)")
+    ap.add_argument("--alpha", default="1,10,100,10000,-1,-8,-32", help="ridge penalties on the 6D features (comma list; -k: the mean of the k nearest training frames)")
     args = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     import torch
