@@ -2,8 +2,9 @@
 
 Every method reads the source's pose off its posed vertices (:func:`baselines.posing.source_pose`,
 weighted Kabsch per bone); a bone that owns no vertices (total skin weight 0: a rig's ``root`` or
-``Body`` on some artist rigs, pole targets, MMD's helper bones) cannot be read and takes its
-parent's rotation. This script scores ``mimicat_init_only`` and ``text_soft`` on the h2h and cct
+``Body`` on some artist rigs, pole targets, MMD's helper bones) cannot be read off the mesh (until
+version 6 it took its parent's rotation; since, the rotation its children agree on, where they
+do). This script scores ``mimicat_init_only`` and ``text_soft`` on the h2h and cct
 cases of DATA twice: as they are, and with the forward leg's read-off of those bones replaced by
 the case's ground-truth source pose (the return leg, whose source is the forward prediction, has
 no ground truth and stays as it is). A case whose source owns every bone counts the same in both.
