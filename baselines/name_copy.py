@@ -19,7 +19,7 @@ from benchmark.method import MethodMetadata, PoseTransferMethod
 
 
 class NameCopy(PoseTransferMethod):
-    metadata = MethodMetadata(name="name_copy", version="3", licence="MIT",
+    metadata = MethodMetadata(name="name_copy", version="4", licence="MIT",
                               description="rotations and local translations copied between bones of the same name")
 
     def transfer(self, requests):

@@ -28,7 +28,7 @@ def nearest_joint_pairs(source, target) -> np.ndarray:
 
 
 class NearestJoint(PoseTransferMethod):
-    metadata = MethodMetadata(name="nearest_joint", version="3", licence="MIT",
+    metadata = MethodMetadata(name="nearest_joint", version="4", licence="MIT",
                               description="Hungarian matching of unit-height rest joints")
 
     def transfer(self, requests):

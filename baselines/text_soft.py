@@ -24,7 +24,7 @@ from mimicbench.rotation_average import weighted_quaternion_average
 
 class TextSoft(PoseTransferMethod):
     metadata = MethodMetadata(
-        name="text_soft", version="3", licence="MIT",
+        name="text_soft", version="4", licence="MIT",
         description="Sinkhorn soft matching of bone-name embeddings, rotation averaging (Eq. 4)",
         citation="MimiCAT initialisation: S_cos of CLIP/MiniLM bone-name embeddings, Sinkhorn, Eq. 3-4",
     )

@@ -19,7 +19,7 @@ from baselines.sfpt.method import Sfpt
 # version of every method reading the folder -> sha256 over its .safetensors files (sorted by name,
 # each as name + NUL + bytes)
 SHIPPED = {
-    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior, MimicatInitOnly), "6",
+    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior, MimicatInitOnly), "7",
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "6",
               "91d5b822f8f918ea90243bbfc16d01abd686f4b1055335fddeabc7c11e4f0bea"),

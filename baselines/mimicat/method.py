@@ -57,7 +57,7 @@ class Mimicat(PoseTransferMethod):
         batch_size: requests run through the networks at once.
     """
 
-    metadata = MethodMetadata(name="mimicat", version="6", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mimicat", version="7", licence="MIT", needs_training=True, citation=CITATION,
                               description="MimiCAT cascade: shape encoder, correspondence transformer G, "
                                           "pose-transfer transformer H, LBS + ARAP (bundled checkpoint)")
     transfer_stage = "transfer"
@@ -178,20 +178,20 @@ def _header_config(path: Path) -> dict:
 
 
 class MimicatNaiveAvg(Mimicat):
-    metadata = MethodMetadata(name="mimicat_naive_avg", version="6", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_naive_avg", version="7", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT ablation A1: plain weighted quaternion sum instead of Eq. 4")
     average = "naive"
 
 
 class MimicatNoPrior(Mimicat):
-    metadata = MethodMetadata(name="mimicat_no_prior", version="6", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_no_prior", version="7", licence="MIT", needs_training=True,
                               citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg")
     transfer_stage = "transfer_no_prior"
 
 
 class MimicatInitOnly(Mimicat):
-    metadata = MethodMetadata(name="mimicat_init_only", version="6", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_init_only", version="7", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT without H: G's correspondences of both directions decoded as "
                                           "one one-to-one assignment and the structured initialisation, LBS + ARAP")
