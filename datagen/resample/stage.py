@@ -1,18 +1,11 @@
 """The resample stage over a dataset: ``mimicbench datagen resample IN OUT`` (resume: FORMAT.md,
-"Stages and resume"; finished characters go to part splits ``part_00000``... as they come).
-
-Memory stays bounded however many characters there are: input characters are read a row group
-(8 characters) at a time and resampled ``BATCH`` at a time, the frames each is measured on are
-spilled to a temporary folder, finished characters go to part shards as they come, and the final
-shards are streamed (:class:`schemas.shard_stream.ShardStream`) from the parts, a row group at a
-time. What grows with the count is only a list of character IDs.
+"Stages and resume"). Input characters are read a row group at a time and resampled ``BATCH`` at a
+time; finished ones go to part splits ``part_00000``... as they come, streamed into the final shards.
 """
 from __future__ import annotations
 
 import dataclasses
 import functools
-import pickle
-import tempfile
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -121,32 +114,12 @@ def _row_reader(out_dir: Path, keep: int = 4):
     return read
 
 
-class _FrameSpill:
-    """Each character's sampled motions (:func:`_sampled`) in a temporary folder, one file a
-    character, so they are read once from the motions table and held one batch at a time."""
-
-    def __init__(self, folder: Path):
-        self.folder = folder
-        self.files: dict[str, Path] = {}
-
-    def fill(self, in_dir: Path) -> None:
-        per_character: dict[str, list] = {}
-        for m in iter_records(in_dir, "motions"):  # one shard in memory
-            per_character.setdefault(m.character_id, []).append(_sampled(m))
-            if sum(len(v) for v in per_character.values()) >= 4096:
-                self._write(per_character)
-        self._write(per_character)
-
-    def _write(self, per_character: dict) -> None:
-        for cid, motions in per_character.items():
-            path = self.files.setdefault(cid, self.folder / f"{len(self.files):08d}.pkl")
-            old = pickle.loads(path.read_bytes()) if path.exists() else []
-            path.write_bytes(pickle.dumps(old + motions, protocol=pickle.HIGHEST_PROTOCOL))
-        per_character.clear()
-
-    def motions(self, cid: str) -> list:
-        path = self.files.get(cid)
-        return pickle.loads(path.read_bytes()) if path is not None else []
+def _sampled_motions(in_dir: Path) -> dict[str, list]:
+    """``{character_id: [motion cut to its 3 measured frames]}`` (:func:`_sampled`): 3 (K, 7) frames a clip."""
+    out: dict[str, list] = {}
+    for m in iter_records(in_dir, "motions"):  # one shard in memory
+        out.setdefault(m.character_id, []).append(_sampled(m))
+    return out
 
 
 def _sampled(m):
@@ -191,20 +164,8 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     if not order:
         raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
     run = StageRun(STAGE, ResampleParams(faces=int(faces), backend=backend), out_dir, in_dir, info={"source": str(in_dir)})
-    spill = tempfile.TemporaryDirectory(prefix="mimicbench-resample-frames-")  # the system's temporary folder
-    try:
-        frames = _FrameSpill(Path(spill.name))
-        if "motions" in run.config["fingerprint"]["inputs"]:
-            frames.fill(in_dir)  # a damaged motions shard stops the stage here, before OUT is touched
-        return _resample(run, jobs, progress, flush_every, flush_seconds, engine, order, meshless, frames, start)
-    finally:
-        spill.cleanup()
-
-
-def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine, order, meshless, frames,
-              start) -> dict:
-    """:func:`resample_dataset` once the input is read and the sampled frames are spilled."""
-    in_dir, out_dir = run.in_dir, run.out_dir
+    # a damaged motions shard stops the stage here, before OUT is touched
+    frames = _sampled_motions(in_dir) if "motions" in run.config["fingerprint"]["inputs"] else {}
     done, notes = _reusable_rows(run)
     run.begin()
 
@@ -239,7 +200,7 @@ def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine,
 
     def run_batch() -> None:
         nonlocal batches
-        items = [(r, frames.motions(r.character_id)) for r in batch]
+        items = [(r, frames.get(r.character_id, [])) for r in batch]
         batches += 1
         _, st = run_stage(items, fn, "resample" if todo <= len(batch) else
                           f"resample {min(batches * BATCH, todo)}/{todo}",
