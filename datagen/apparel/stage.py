@@ -1,12 +1,7 @@
-"""The apparel stage over a dataset: ``mimicbench datagen apparel IN OUT``.
-
-For every character with apparel bones and every kinematic clip, a simulated clip ``<clip>@sim``
-(motion ID ``<motion_id>@sim``) is written beside the kinematic one; the per-clip quality goes in
-the character's ``meta['apparel']['clips'][<clip>]``. A clip whose simulation explodes gets a
-``failed`` status row (split ``apparel``) and keeps only its kinematic clip. Work is written after
-every batch of clips; resume: FORMAT.md, "Stages and resume". Output bytes depend only on the
-input and the parameters (status seconds are 0). Correspondences (``pairs``) are not carried
-over: run ``datagen correspond`` on OUT.
+"""The apparel stage over a dataset: ``mimicbench datagen apparel IN OUT``. Beside every kinematic
+clip of a character with apparel bones goes a simulated ``<clip>@sim``, its quality in the
+character's ``meta['apparel']['clips']``; an exploding clip is a failed status row. Resume:
+FORMAT.md, "Stages and resume". Correspondences (``pairs``) are not carried over.
 """
 from __future__ import annotations
 
@@ -22,7 +17,7 @@ from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
-from datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_statuses
+from datagen.stage_runner import NO_ROWS, Stage, StageRun, copy_table, run_stage, summarize_statuses
 from mimicbench.engines import Engine
 from schemas.errors import UserError
 from schemas.motion import SIM_SUFFIX
@@ -59,8 +54,8 @@ class ApparelStageParams:
 
 
 STAGE = Stage("apparel", ApparelStageParams, inputs=("characters", "motions", *FILE_PHYSICS_TABLES),
-              item=_simulate_one, outputs=("characters", "motions", "status", *FILE_PHYSICS_TABLES), made_by="motions",
-              title="the apparel stage")
+              item=_simulate_one, outputs=("characters", "motions", "status"), copies=FILE_PHYSICS_TABLES,
+              made_by="motions", title="the apparel stage")
 
 
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -162,9 +157,8 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         statuses += chunk_statuses
         _write(run, records, kinematic, masks, sims, quality, statuses, apparel_bones)
     close_cached_world()
-    for table in file_tables:  # the physics tables travel with their characters
-        for split in splits_of(in_dir, table):
-            run.write(table, read_records(in_dir, table, split), split)
+    for table in STAGE.copies:  # the physics tables travel with their characters
+        copy_table(in_dir, out_dir, table)
     run.finish()
     qs = list(quality.values())
 
