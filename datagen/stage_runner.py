@@ -1,13 +1,7 @@
-"""The stage skeleton of every datagen stage (:class:`Stage`, :class:`StageRun`), and :func:`run_stage`.
-
-A stage declares its params dataclass, inputs, per-item function and outputs (:class:`Stage`); a
-:class:`StageRun` owns the rest: config and fingerprint, refusal of a dataset another stage made,
-the config earlier rows were made under, incomplete/complete marks, rows per shard, status rows,
-untouched tables copied from the input, validation. The resume rule: ``schemas/FORMAT.md``
-("Stages and resume"). :func:`run_stage` calls the per-item function for every item through an
-engine (:mod:`mimicbench.engines`) with a progress bar; an exception fails that item only (its
-status row names it), and ``on_done`` sees each result when it is ready, so finished work can be
-written as it comes.
+"""The skeleton of every datagen stage: a :class:`Stage` declares its params dataclass, inputs,
+per-item function and outputs; a :class:`StageRun` owns config, fingerprint reuse, refusal of a
+foreign dataset, marks, status rows and copied tables (resume: FORMAT.md, "Stages and resume");
+:func:`run_stage` runs the per-item function on an engine, a failure failing only its item.
 """
 from __future__ import annotations
 
@@ -62,11 +56,7 @@ def run_stage(items: Sequence[Any], fn: Callable[[Any], Any], stage: str, name_o
     waiting: dict[int, Outcome] = {}
     next_in_order = 0
     bar = tqdm(total=len(items), desc=stage, unit="item", disable=not progress)
-
-    def deliver(i: int, outcome: Outcome) -> None:
-        if on_done is not None:
-            on_done(i, outcome.ok, outcome.result)
-
+    deliver = (lambda i, outcome: on_done(i, outcome.ok, outcome.result)) if on_done else (lambda i, outcome: None)
     for i, outcome in engine.imap(fn, items, chunk, resources):
         outcomes[i] = (outcome.ok, outcome.reason, outcome.seconds)
         if outcome.ok and keep_results:
@@ -226,6 +216,18 @@ class StageRun:
             raise
         for stream in streams.values():
             stream.close()
+
+    def write_splits(self, table: str, records, splits=()) -> None:
+        """Write ``records`` of ``table`` a split at a time, in sorted order; a split of ``splits``
+        that none of them is in gets an empty shard (it replaces what an earlier run wrote there)."""
+        records = list(records)
+        for split in sorted(set(splits) | {r.split for r in records}):
+            self.write(table, [r for r in records if r.split == split], split)
+
+    def copy_inputs(self) -> None:
+        """Copy the tables the stage ``copies`` from IN, untouched (:func:`copy_table`)."""
+        for table in self.stage.copies:
+            copy_table(self.in_dir, self.out_dir, table)
 
     def write_status(self, rows: list[StatusRecord], config: dict | None | str = "run") -> None:
         """The stage's status rows: split ``stage.name`` of the ``status`` table."""

@@ -17,7 +17,7 @@ from datagen.apparel.params import ApparelParams
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
-from datagen.stage_runner import NO_ROWS, Stage, StageRun, copy_table, run_stage, summarize_statuses
+from datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_statuses
 from mimicbench.engines import Engine
 from schemas.errors import UserError
 from schemas.motion import SIM_SUFFIX
@@ -157,8 +157,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         statuses += chunk_statuses
         _write(run, records, kinematic, masks, sims, quality, statuses, apparel_bones)
     close_cached_world()
-    for table in STAGE.copies:  # the physics tables travel with their characters
-        copy_table(in_dir, out_dir, table)
+    run.copy_inputs()  # the physics tables travel with their characters
     run.finish()
     qs = list(quality.values())
 
@@ -190,16 +189,9 @@ def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, pa
         if len(r.faces):
             r = dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices)
         chars.append(dataclasses.replace(r, meta=meta))
-    for split in splits_of(run.in_dir, "characters"):
-        run.write("characters", [c for c in chars if c.split == split], split)
-    for split in splits_of(run.in_dir, "motions"):
-        rows = []
-        for m in kinematic:
-            if m.split == split:
-                rows.append(m)
-                if m.motion_id + SIM_SUFFIX in sims:
-                    rows.append(sims[m.motion_id + SIM_SUFFIX])
-        run.write("motions", rows, split)
+    run.write_splits("characters", chars, splits_of(run.in_dir, "characters"))
+    run.write_splits("motions", [x for m in kinematic for x in (m, sims.get(m.motion_id + SIM_SUFFIX)) if x is not None],
+                     splits_of(run.in_dir, "motions"))
     latest = {s.asset: s for s in statuses}
     rows = []
     for m in kinematic:

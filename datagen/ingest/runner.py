@@ -33,6 +33,7 @@ from mimicbench.argtypes import MAX_JOBS
 from mimicbench.errors import UserError
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.skinning import linear_blend_skinning
+from mimicbench.validation import expect, is_whole
 from schemas.character import CATEGORIES, CharacterRecord
 from schemas.finite import nonfinite_arrays
 from schemas.manifest import MANIFEST
@@ -45,11 +46,6 @@ SUPPORTED = BLENDER_SUFFIXES
 EXPORT_FORMATS = ("obj", "bvh")
 DEFAULT_BVH_SCALE = "auto"  # metres per BVH unit from the rest skeleton (datagen/ingest/bvh_units.py)
 PLAUSIBLE_EXTENT_M = (0.05, 30.0)  # a meshed character's largest rest extent outside this: warn (--mesh-unit)
-
-
-def _expect(ok: bool, option: str, expected: str, value) -> None:
-    if not ok:
-        raise ValueError(f"{option}: expected {expected}, got {value!r}")
 
 
 def _positive(x) -> bool:
@@ -82,27 +78,26 @@ class IngestOptions:
 
     def check(self) -> None:
         """Raise ValueError naming the option and the allowed range."""
-        _expect(isinstance(self.jobs, int) and 1 <= self.jobs <= MAX_JOBS, "--jobs",
+        expect(isinstance(self.jobs, int) and 1 <= self.jobs <= MAX_JOBS, "--jobs",
                 f"a whole number of Blender processes from 1 to {MAX_JOBS}", self.jobs)
-        _expect(self.timeout > 0, "--timeout", "seconds per asset greater than 0", self.timeout)
-        _expect(self.bvh_scale == "auto" or (isinstance(self.bvh_scale, (int, float)) and self.bvh_scale > 0),
+        expect(self.timeout > 0, "--timeout", "seconds per asset greater than 0", self.timeout)
+        expect(self.bvh_scale == "auto" or (isinstance(self.bvh_scale, (int, float)) and self.bvh_scale > 0),
                 "--bvh-scale", "'auto' or metres per BVH unit greater than 0 (0.01 for centimetres)", self.bvh_scale)
-        _expect(_positive(self.mmd_unit), "--mmd-unit",
+        expect(_positive(self.mmd_unit), "--mmd-unit",
                 "metres per MMD unit, a finite number greater than 0 (MMD's usual 0.08)", self.mmd_unit)
-        _expect(_positive(self.mesh_unit), "--mesh-unit", "metres per unit of the imported scene, a finite number "
+        expect(_positive(self.mesh_unit), "--mesh-unit", "metres per unit of the imported scene, a finite number "
                 "greater than 0 (1: glTF's metres; 0.01 for a file authored in centimetres)", self.mesh_unit)
-        _expect(not isinstance(self.max_clip_frames, bool) and isinstance(self.max_clip_frames, int)
-                and self.max_clip_frames >= 1, "--max-clip-frames",
+        expect(is_whole(self.max_clip_frames) and self.max_clip_frames >= 1, "--max-clip-frames",
                 f"a whole number of frames of at least 1 (default {MAX_CLIP_FRAMES})", self.max_clip_frames)
-        _expect(isinstance(self.assets_per_process, int) and self.assets_per_process >= 1, "assets_per_process",
+        expect(isinstance(self.assets_per_process, int) and self.assets_per_process >= 1, "assets_per_process",
                 "at least 1", self.assets_per_process)
         unknown = [x for x in self.export if x not in EXPORT_FORMATS]
-        _expect(not unknown, "--export", f"a comma-separated list of {', '.join(EXPORT_FORMATS)}", unknown)
+        expect(not unknown, "--export", f"a comma-separated list of {', '.join(EXPORT_FORMATS)}", unknown)
         bad = {k: v for k, v in self.category_map.items() if v not in CATEGORIES}
-        _expect(not bad, "--category-map", f"categories of {', '.join(CATEGORIES)}", bad)
-        _expect(self.split is None or self.split_file is None, "--split and --split-file", "one of them, not both",
+        expect(not bad, "--category-map", f"categories of {', '.join(CATEGORIES)}", bad)
+        expect(self.split is None or self.split_file is None, "--split and --split-file", "one of them, not both",
                 self.split_file)
-        _expect(self.split in (None, "train", "val", "test"), "--split", "train, val or test", self.split)
+        expect(self.split in (None, "train", "val", "test"), "--split", "train, val or test", self.split)
 
     def child_options(self, asset: Path) -> dict:
         """The options that change what a child writes for ``asset`` (part of its cache key); the
@@ -416,10 +411,9 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
                 | set(empty_folders))
     statuses = [s for s in old_status if asset_of_row(s.asset, this_run) is None] + statuses
     run.begin()  # until every table below is written
-    old_splits = {c.split for c in old_chars}
-    for sp in sorted({c.split for c in chars} | old_splits):
-        run.write("characters", [c for c in chars if c.split == sp], sp)
-        run.write("motions", [m for m in motions if m.split == sp], sp)
+    splits = {c.split for c in chars} | {c.split for c in old_chars}
+    run.write_splits("characters", chars, splits)
+    run.write_splits("motions", motions, splits)
     run.write_status(statuses, config=None)
     from datagen.ingest.card import write_card
 

@@ -16,7 +16,8 @@ import numpy as np
 from datagen.resample.character import resample_character
 from datagen.resample import MAX_FACES, MIN_FACES, RESAMPLE_VERSION
 from mimicbench.engines import Engine, TaskResources
-from datagen.stage_runner import Stage, StageRun, copy_table, run_stage, summarize_statuses
+from mimicbench.validation import expect, is_whole
+from datagen.stage_runner import Stage, StageRun, run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch
 from schemas.manifest import load_manifest_for_write
@@ -48,15 +49,6 @@ def _one(item, faces, backend):
 
 STAGE = Stage("resample", ResampleParams, inputs=("characters", "motions"), item=_one,
               outputs=("characters", "status"), copies=("motions", "pairs"))
-
-
-def _check_arguments(faces: int, backend: str, jobs: int, flush_every: int) -> None:
-    if isinstance(faces, bool) or not isinstance(faces, (int, np.integer)) or not MIN_FACES <= faces <= MAX_FACES:
-        raise ValueError(f"faces: expected an integer from {MIN_FACES} to {MAX_FACES}, got {faces!r}")
-    if backend not in BACKENDS:
-        raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
-    if jobs < 1 or flush_every < 1:
-        raise ValueError(f"jobs, flush_every: expected >= 1, got {jobs}, {flush_every}")
 
 
 def _reusable_rows(run: StageRun) -> tuple[dict, list[str]]:
@@ -154,7 +146,10 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
-    _check_arguments(faces, backend, jobs, flush_every)
+    expect(is_whole(faces) and MIN_FACES <= faces <= MAX_FACES, "faces", f"an integer from {MIN_FACES} to {MAX_FACES}",
+           faces)
+    expect(backend in BACKENDS, "backend", f"one of {BACKENDS}", backend)
+    expect(jobs >= 1 and flush_every >= 1, "jobs, flush_every", ">= 1", (jobs, flush_every))
     order, meshless = [], {}  # (character ID, split) in input order; skeleton-only records (copied as they are)
     for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
         for r in group:
@@ -240,8 +235,7 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
             remove_split(out_dir, "characters", split)
     skipped = [StatusRecord(cid, "resample", "skipped", "already resampled", 0.0) for cid in done]
     run.write_status(statuses + skipped)
-    for table in STAGE.copies:
-        copy_table(in_dir, out_dir, table)
+    run.copy_inputs()
     run.finish(configs=["characters"])
     q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
     summary = {

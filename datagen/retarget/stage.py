@@ -67,9 +67,8 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
                                      f"{len(report['target_unmapped'])} target bones at rest", time.perf_counter() - t0))
     run.begin()
     chars = list(used.values())
-    for split in sorted({c.split for c in chars}):
-        run.write("characters", [c for c in chars if c.split == split], split)
-        run.write("motions", [r for r in out_motions if r.split == split], split)
+    run.write_splits("characters", chars)
+    run.write_splits("motions", out_motions)
     run.write_status(statuses)
     (run.out_dir / "retarget_report.json").write_text(json.dumps(reports, ensure_ascii=False, indent=1))
     run.finish()
