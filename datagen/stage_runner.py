@@ -35,19 +35,12 @@ def run_stage(items: Sequence[Any], fn: Callable[[Any], Any], stage: str, name_o
               jobs: int = 1, progress: bool = True, on_done: Callable[[int, bool, Any], None] | None = None,
               engine: Engine | None = None, chunk: int = 1, resources: TaskResources = TaskResources(),
               ordered: bool = False, keep_results: bool = True) -> tuple[list[Any], list[StatusRecord]]:
-    """Apply ``fn`` (picklable for a process pool or Ray) to each item; return (results in item
-    order, one status record per item: ``stage``, the asset ``name_of(item)``).
-
-    Args:
-        jobs: worker processes of the local engine when ``engine`` is None; 1 runs in this process.
-        on_done: called in this process as ``on_done(index, ok, result)`` when an item finishes
-            (``result`` None for a failed item); in completion order, or in item order with ``ordered``
-            (a finished item waits for those before it, so a stage writing as it goes writes the
-            same bytes on every engine).
-        engine: where the work runs (:mod:`mimicbench.engines`); default ``LocalEngine(jobs)``.
-        chunk: items per task. resources: what each task asks the engine for (CPUs, memory).
-        keep_results: False returns no results (``on_done`` has seen them): memory stays bounded.
-    """
+    """Apply ``fn`` (picklable for a process pool or Ray) to each item on ``engine`` (default
+    ``LocalEngine(jobs)``; ``jobs`` 1 runs here), ``chunk`` items a task asking for ``resources``;
+    return (results in item order, unless not ``keep_results``; a status record per item named
+    ``name_of(item)``). ``on_done(index, ok, result)`` is called here as each item finishes (result
+    None when it failed), in completion order or, with ``ordered``, in item order (the same bytes
+    on every engine for a stage that writes as it goes)."""
     if jobs < 1:
         raise ValueError(f"jobs: expected >= 1, got {jobs}")
     engine = engine or LocalEngine(jobs)
@@ -120,9 +113,9 @@ class Stage:
 
 
 class StageRun:
-    """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` for a
-    stage that adds tables to its input, with ``refuse_foreign=False``) into ``out_dir``; refuses at
-    once (nothing changed) folders inside one another and an ``out_dir`` holding another stage's dataset."""
+    """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` with
+    ``refuse_foreign=False``: a stage adding tables to its input) into ``out_dir``; refuses at once
+    folders inside one another and an ``out_dir`` holding another stage's dataset."""
 
     def __init__(self, stage: Stage, params, out_dir, in_dir=None, info: dict | None = None,
                  refuse_foreign: bool = True):

@@ -131,9 +131,8 @@ def category_from_map(asset: Path, category_map: dict | None) -> str | None:
 
 def reproduction_error(char: CharacterRecord, transforms: np.ndarray, scale: np.ndarray | None, frames: np.ndarray,
                        evaluated: np.ndarray) -> dict:
-    """Mean and max distance (percent of height) between the stored clip posed by LBS and the
-    mesh Blender evaluated from the file at ``frames`` (in a second import of the file,
-    each clip from the file's defaults, not the scene the clip was sampled in: :func:`datagen.ingest.blender_child._reproduce`)."""
+    """Mean and max distance (percent of height) between the stored clip posed by LBS and the mesh
+    Blender evaluated at ``frames`` in a second import of the file (:func:`.blender_child._reproduce`)."""
     if not len(char.vertices) or not char.height:
         return {}
     pred = linear_blend_skinning(char.vertices, char.keypoints, char.weights, transforms[frames],
@@ -159,10 +158,8 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
         d = _scaled_lengths(d, unit)
     verts = d["vertices"].astype(np.float32)
     k = len(meta["bone_names"])
-    if len(verts):
-        w = SparseWeights.from_dense(d["weights"])
-    else:
-        w = SparseWeights(np.zeros((0, 8), np.int32), np.zeros((0, 8), np.float32), k)
+    w = SparseWeights.from_dense(d["weights"]) if len(verts) else \
+        SparseWeights(np.zeros((0, 8), np.int32), np.zeros((0, 8), np.float32), k)
     height = float(np.ptp(verts[:, 1])) if len(verts) else None
     parents = d["parents"].astype(np.int32)
     mapped = category_from_map(asset, category_map)
@@ -174,13 +171,11 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
             "default_pose_bones": meta.get("default_pose_bones", 0), "cache_key": key}
     if meta.get("left_out_vertices"):  # unweighted vertices on no bone: not stored (FORMAT.md)
         info["left_out_vertices"] = meta["left_out_vertices"]
-    if asset.suffix.lower() != ".bvh":
-        info["metres_per_unit"] = unit
     if asset.suffix.lower() == ".bvh":
-        kp = d["keypoints"]
         info["bvh_scale"], unit_evidence = bvh_scale
-        info.update(unit_evidence)
-        info["skeleton_height_m"] = round(float(np.ptp(kp[:, 1])), 4)
+        info.update(unit_evidence, skeleton_height_m=round(float(np.ptp(d["keypoints"][:, 1])), 4))
+    else:
+        info["metres_per_unit"] = unit
     char = CharacterRecord(
         character_id=character_id, category=category, source=str(asset), split=split, vertices=verts,
         faces=d["faces"].astype(np.int32), keypoints=d["keypoints"].astype(np.float32), parents=parents,
@@ -216,12 +211,8 @@ def _scaled_lengths(arrays: dict, unit: float) -> dict:
 
 
 def check_output_folder(out_dir: Path) -> None:
-    """Refuse an output folder that holds files but no ``manifest.json``: its shards would be
-    left unlisted and a fresh manifest would claim the dataset holds only this run's rows.
-
-    Raises:
-        UserError: ``out_dir`` is a non-empty folder (besides the ingest cache) without a manifest.
-    """
+    """UserError for an ``out_dir`` holding files (besides the ingest cache) but no ``manifest.json``:
+    its shards would be left unlisted and a fresh manifest would claim only this run's rows."""
     if not out_dir.is_dir() or (out_dir / MANIFEST).is_file():
         return
     present = sorted(p.name for p in out_dir.iterdir() if p.name != CACHE)
@@ -338,8 +329,7 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
         from datagen.ingest.engine_task import TASK_RESOURCES, ingest_task
         from datagen.stage_runner import run_stage
 
-        items = [(str(a), str(cache / f"{plan[a][0]}.npz"), opts.child_options(a), opts.timeout,
-                  opts.assets_per_process)
+        items = [(str(a), str(cache / f"{plan[a][0]}.npz"), opts.child_options(a), opts.timeout, opts.assets_per_process)
                  for a in jobs_todo]
         returned, task_rows = run_stage(items, ingest_task, "ingest", name_of=lambda it: it[0], progress=progress,
                                         engine=engine, resources=TASK_RESOURCES)

@@ -15,6 +15,7 @@ from datagen.mmd import MODEL_SUFFIXES, MOTION_SUFFIXES, read_model
 from datagen.mmd.frame import MMD_UNIT_METRES
 from datagen.mmd.records import character_from_mmd
 from datagen.splits import split_of
+from schemas.shards import splits_of
 from schemas.status import StatusRecord
 
 
@@ -135,8 +136,6 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
 def _write_physics(run, out: MMDIngest) -> None:
     """Write this run's rigid bodies and joints, keeping the rows of characters that earlier runs
     ingested into the same dataset (ingest merges characters across runs)."""
-    from schemas.shards import splits_of
-
     split = {c.character_id: c.split for c in out.characters}
     for table, rows in (("rigid_bodies", out.rigid_bodies), ("joints", out.joints)):
         earlier = splits_of(run.out_dir, table, allow_incomplete=True) if run.manifest() is not None else []

@@ -20,7 +20,6 @@ from mimicbench.validation import expect, is_whole
 from datagen.stage_runner import Stage, StageRun, run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch
-from schemas.manifest import load_manifest_for_write
 from schemas.shard_stream import checked_parquet_file, iter_records, iter_row_groups, read_row_group
 from schemas.shards import readable_entries, remove_split, splits_of
 from schemas.status import StatusRecord
@@ -165,9 +164,8 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     run.begin()
 
     where = dict(done)  # character ID -> (shard entry, row group) of its resampled row
-    parts = sorted({s["split"] for s in load_manifest_for_write(out_dir)["tables"].get("characters", {})
-                    .get("shards", []) if s["split"].startswith(PART)})
-    next_part = [int(parts[-1][len(PART):]) + 1 if parts else 0]
+    parts = [s for s in splits_of(out_dir, "characters", allow_incomplete=True) if s.startswith(PART)]
+    next_part = [max((int(p[len(PART):]) for p in parts), default=-1) + 1]
     buffer: list = []
     last_flush = [time.monotonic()]
     group_rows, shard_rows = ROW_GROUP_SIZE["characters"], rows_per_shard("characters", STAGE.name)
@@ -211,9 +209,8 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     if batch:
         run_batch()
     flush()
-    meshed = [cid for cid, _, has_mesh in order if has_mesh]
-    if meshed and not any(cid in where for cid in meshed):
-        raise run.abandon(statuses, "character")
+    if any(has_mesh for *_, has_mesh in order) and not any(has_mesh and cid in where for cid, _, has_mesh in order):
+        raise run.abandon(statuses, "character")  # every meshed character failed
 
     read, quality, count = _row_reader(out_dir), [], 0
     splits = splits_of(in_dir, "characters")
@@ -238,13 +235,10 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     run.copy_inputs()
     run.finish(configs=["characters"])
     q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
-    summary = {
-        "characters": count, "resampled": sum(s.status == "ok" for s in statuses), "already_done": len(done),
-        "failed": sum(s.status == "failed" for s in statuses),
-        "hausdorff_pct_mean": float(np.mean(q[:, 0])) if len(q) else None,
-        "transfer_error_pct_mean": float(np.mean(q[:, 1])) if len(q) else None,
-        "seconds": time.perf_counter() - start, "statuses": statuses, "notes": notes,
-    }
     if progress:
         print(summarize_statuses(statuses))
-    return summary
+    return {"characters": count, "resampled": sum(s.status == "ok" for s in statuses), "already_done": len(done),
+            "failed": sum(s.status == "failed" for s in statuses),
+            "hausdorff_pct_mean": float(np.mean(q[:, 0])) if len(q) else None,
+            "transfer_error_pct_mean": float(np.mean(q[:, 1])) if len(q) else None,
+            "seconds": time.perf_counter() - start, "statuses": statuses, "notes": notes}

@@ -30,12 +30,10 @@ STAGE = Stage("retarget", RetargetParams, inputs=("characters", "motions"), item
 
 def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", targets: str = "*",
                       progress: bool = True) -> dict:
-    """Retarget the clips of ``motions_dir`` (characters matching the glob ``sources``) onto the
-    characters of ``characters_dir`` matching ``targets`` that have at least 8 humanoid bone roles.
-
-    Writes ``out_dir``: the target characters, the retargeted clips (``<target>/<source>/<clip>``),
-    ``status`` (stage ``retarget``, one row per pair) and ``retarget_report.json`` (mapped and
-    unmapped bones per pair). Returns a summary."""
+    """Retarget the clips of ``motions_dir``'s characters matching the glob ``sources`` onto those of
+    ``characters_dir`` matching ``targets`` with at least :data:`MIN_ROLES` humanoid bone roles, into
+    ``out_dir``: the targets, the clips (``<target>/<source>/<clip>``), a status row per pair and
+    ``retarget_report.json`` (mapped and unmapped bones per pair). Returns a summary."""
     from tqdm.auto import tqdm
 
     start = time.perf_counter()

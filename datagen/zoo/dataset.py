@@ -128,18 +128,15 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     stats = zoo_stats_from_summaries(characters, clips)
     atomic_write_bytes(out / "CARD.md", render_card(stats, run.config, split_counts, family).encode())
     failed = [s for s in statuses if s.status != "ok"]
-    joints = np.array([c["joints"] for c in characters])
-    faces = np.array([c["faces"] for c in characters])
-    return {
-        "out": str(out), "characters": len(characters), "motions": len(clips),
-        "frames": int(sum(f for _, f in clips)), "failed": len(failed),
-        "failures": [f"{s.asset}: {s.reason}" for s in failed],
-        "by_category": {k: v["characters"] for k, v in stats.items() if k != "all"},
-        "splits": split_counts, "h2h_family": family,
-        "joints": [int(joints.min()), float(joints.mean()), int(joints.max())],
-        "faces": [int(faces.min()), float(faces.mean()), int(faces.max())],
-        "seconds": time.perf_counter() - start,
-    }
+
+    def spread(key: str) -> list:  # min, mean, max over the characters
+        v = np.array([c[key] for c in characters])
+        return [int(v.min()), float(v.mean()), int(v.max())]
+
+    return {"out": str(out), "characters": len(characters), "motions": len(clips),
+            "frames": int(sum(f for _, f in clips)), "failed": len(failed), "failures": [f"{s.asset}: {s.reason}" for s in failed],
+            "by_category": {k: v["characters"] for k, v in stats.items() if k != "all"}, "splits": split_counts,
+            "h2h_family": family, "joints": spread("joints"), "faces": spread("faces"), "seconds": time.perf_counter() - start}
 
 
 def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int, clip_set: str = "default"):
