@@ -113,6 +113,18 @@ def _sampled_motions(in_dir: Path) -> dict[str, list]:
     return out
 
 
+def _batches(in_dir: Path, done: dict):
+    """The meshed characters of ``in_dir`` not in ``done``, :data:`BATCH` or more at a time (a row group read at a time)."""
+    batch = []
+    for _, _, group in iter_row_groups(in_dir, "characters"):
+        batch += [r for r in group if len(r.faces) > 0 and r.character_id not in done]
+        if len(batch) >= BATCH:
+            yield batch
+            batch = []
+    if batch:
+        yield batch
+
+
 def _sampled(m):
     """A motion cut to the 3 frames :func:`sample_frames` takes of each clip (first, middle, last)."""
     idx = np.linspace(0, m.num_frames - 1, 3).astype(int)
@@ -188,26 +200,11 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     statuses: list[StatusRecord] = []
     todo = sum(has_mesh and cid not in done for cid, _, has_mesh in order)
     fn = partial(STAGE.item, faces=run.params.faces, backend=run.params.backend)
-    batch: list = []
-    batches = 0
-
-    def run_batch() -> None:
-        nonlocal batches
-        items = [(r, frames.get(r.character_id, [])) for r in batch]
-        batches += 1
-        _, st = run_stage(items, fn, "resample" if todo <= len(batch) else
-                          f"resample {min(batches * BATCH, todo)}/{todo}",
-                          name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress,
-                          on_done=on_done, engine=engine, resources=TASK_RESOURCES, keep_results=False)
-        statuses.extend(st)
-        batch.clear()
-
-    for _, _, group in iter_row_groups(in_dir, "characters"):
-        batch.extend(r for r in group if len(r.faces) > 0 and r.character_id not in done)
-        if len(batch) >= BATCH:
-            run_batch()
-    if batch:
-        run_batch()
+    for n, batch in enumerate(_batches(in_dir, done), 1):
+        label = "resample" if todo <= len(batch) else f"resample {min(n * BATCH, todo)}/{todo}"
+        statuses += run_stage([(r, frames.get(r.character_id, [])) for r in batch], fn, label,
+                              name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress, on_done=on_done,
+                              engine=engine, resources=TASK_RESOURCES, keep_results=False)[1]
     flush()
     if any(has_mesh for *_, has_mesh in order) and not any(has_mesh and cid in where for cid, _, has_mesh in order):
         raise run.abandon(statuses, "character")  # every meshed character failed
