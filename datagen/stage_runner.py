@@ -75,9 +75,8 @@ def summarize_statuses(statuses: Iterable[StatusRecord]) -> str:
     """One line per failure and a count line, for printing at the end of a stage."""
     statuses = list(statuses)
     failed = [s for s in statuses if s.status == "failed"]
-    lines = [f"  FAILED {s.asset} [{s.stage}]: {s.reason}" for s in failed]
-    lines.append(f"{len(statuses) - len(failed)} ok, {len(failed)} failed")
-    return "\n".join(lines)
+    return "\n".join([f"  FAILED {s.asset} [{s.stage}]: {s.reason}" for s in failed]
+                     + [f"{len(statuses) - len(failed)} ok, {len(failed)} failed"])
 
 
 NO_ROWS = "OUT holds no earlier rows"  # StageRun.previous's reason when there is nothing to reuse

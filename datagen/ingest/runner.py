@@ -347,14 +347,11 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
         finally:
             workers.put(w)
 
-    bar = tqdm(total=len(jobs_todo), desc="ingest", unit="asset", disable=not progress)
     try:
         with ThreadPoolExecutor(max_workers=opts.jobs) as pool:
-            for status in pool.map(job, jobs_todo):
-                statuses.append(status)
-                bar.update(1)
+            statuses += tqdm(pool.map(job, jobs_todo), total=len(jobs_todo), desc="ingest", unit="asset",
+                             disable=not progress)
     finally:
-        bar.close()
         while not workers.empty():
             workers.get().stop()
     chars, motions = [], []
