@@ -1,13 +1,7 @@
-"""The stage skeleton of every datagen stage (:class:`Stage`, :class:`StageRun`), and :func:`run_stage`.
-
-A stage declares its params dataclass, inputs, per-item function and outputs (:class:`Stage`); a
-:class:`StageRun` owns the rest: config and fingerprint, refusal of a dataset another stage made,
-the config earlier rows were made under, incomplete/complete marks, rows per shard, status rows,
-untouched tables copied from the input, validation. The resume rule: ``schemas/FORMAT.md``
-("Stages and resume"). :func:`run_stage` calls the per-item function for every item through an
-engine (:mod:`mimicbench.engines`) with a progress bar; an exception fails that item only (its
-status row names it), and ``on_done`` sees each result when it is ready, so finished work can be
-written as it comes.
+"""The skeleton of every datagen stage: a :class:`Stage` declares its params dataclass, inputs,
+per-item function and outputs; a :class:`StageRun` owns config, fingerprint reuse, refusal of a
+foreign dataset, marks, status rows and copied tables (resume: FORMAT.md, "Stages and resume");
+:func:`run_stage` runs the per-item function on an engine, a failure failing only its item.
 """
 from __future__ import annotations
 
@@ -41,19 +35,12 @@ def run_stage(items: Sequence[Any], fn: Callable[[Any], Any], stage: str, name_o
               jobs: int = 1, progress: bool = True, on_done: Callable[[int, bool, Any], None] | None = None,
               engine: Engine | None = None, chunk: int = 1, resources: TaskResources = TaskResources(),
               ordered: bool = False, keep_results: bool = True) -> tuple[list[Any], list[StatusRecord]]:
-    """Apply ``fn`` (picklable for a process pool or Ray) to each item; return (results in item
-    order, one status record per item: ``stage``, the asset ``name_of(item)``).
-
-    Args:
-        jobs: worker processes of the local engine when ``engine`` is None; 1 runs in this process.
-        on_done: called in this process as ``on_done(index, ok, result)`` when an item finishes
-            (``result`` None for a failed item); in completion order, or in item order with ``ordered``
-            (a finished item waits for those before it, so a stage writing as it goes writes the
-            same bytes on every engine).
-        engine: where the work runs (:mod:`mimicbench.engines`); default ``LocalEngine(jobs)``.
-        chunk: items per task. resources: what each task asks the engine for (CPUs, memory).
-        keep_results: False returns no results (``on_done`` has seen them): memory stays bounded.
-    """
+    """Apply ``fn`` (picklable for a process pool or Ray) to each item on ``engine`` (default
+    ``LocalEngine(jobs)``; ``jobs`` 1 runs here), ``chunk`` items a task asking for ``resources``;
+    return (results in item order, unless not ``keep_results``; a status record per item named
+    ``name_of(item)``). ``on_done(index, ok, result)`` is called here as each item finishes (result
+    None when it failed), in completion order or, with ``ordered``, in item order (the same bytes
+    on every engine for a stage that writes as it goes)."""
     if jobs < 1:
         raise ValueError(f"jobs: expected >= 1, got {jobs}")
     engine = engine or LocalEngine(jobs)
@@ -62,11 +49,7 @@ def run_stage(items: Sequence[Any], fn: Callable[[Any], Any], stage: str, name_o
     waiting: dict[int, Outcome] = {}
     next_in_order = 0
     bar = tqdm(total=len(items), desc=stage, unit="item", disable=not progress)
-
-    def deliver(i: int, outcome: Outcome) -> None:
-        if on_done is not None:
-            on_done(i, outcome.ok, outcome.result)
-
+    deliver = (lambda i, outcome: on_done(i, outcome.ok, outcome.result)) if on_done else (lambda i, outcome: None)
     for i, outcome in engine.imap(fn, items, chunk, resources):
         outcomes[i] = (outcome.ok, outcome.reason, outcome.seconds)
         if outcome.ok and keep_results:
@@ -92,9 +75,8 @@ def summarize_statuses(statuses: Iterable[StatusRecord]) -> str:
     """One line per failure and a count line, for printing at the end of a stage."""
     statuses = list(statuses)
     failed = [s for s in statuses if s.status == "failed"]
-    lines = [f"  FAILED {s.asset} [{s.stage}]: {s.reason}" for s in failed]
-    lines.append(f"{len(statuses) - len(failed)} ok, {len(failed)} failed")
-    return "\n".join(lines)
+    return "\n".join([f"  FAILED {s.asset} [{s.stage}]: {s.reason}" for s in failed]
+                     + [f"{len(statuses) - len(failed)} ok, {len(failed)} failed"])
 
 
 NO_ROWS = "OUT holds no earlier rows"  # StageRun.previous's reason when there is nothing to reuse
@@ -130,9 +112,9 @@ class Stage:
 
 
 class StageRun:
-    """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` for a
-    stage that adds tables to its input, with ``refuse_foreign=False``) into ``out_dir``; refuses at
-    once (nothing changed) folders inside one another and an ``out_dir`` holding another stage's dataset."""
+    """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` with
+    ``refuse_foreign=False``: a stage adding tables to its input) into ``out_dir``; refuses at once
+    folders inside one another and an ``out_dir`` holding another stage's dataset."""
 
     def __init__(self, stage: Stage, params, out_dir, in_dir=None, info: dict | None = None,
                  refuse_foreign: bool = True):
@@ -226,6 +208,18 @@ class StageRun:
             raise
         for stream in streams.values():
             stream.close()
+
+    def write_splits(self, table: str, records, splits=()) -> None:
+        """Write ``records`` of ``table`` a split at a time, in sorted order; a split of ``splits``
+        that none of them is in gets an empty shard (it replaces what an earlier run wrote there)."""
+        records = list(records)
+        for split in sorted(set(splits) | {r.split for r in records}):
+            self.write(table, [r for r in records if r.split == split], split)
+
+    def copy_inputs(self) -> None:
+        """Copy the tables the stage ``copies`` from IN, untouched (:func:`copy_table`)."""
+        for table in self.stage.copies:
+            copy_table(self.in_dir, self.out_dir, table)
 
     def write_status(self, rows: list[StatusRecord], config: dict | None | str = "run") -> None:
         """The stage's status rows: split ``stage.name`` of the ``status`` table."""

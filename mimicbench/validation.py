@@ -43,3 +43,14 @@ def check_parents(parents, num_joints: int | None = None) -> np.ndarray:
             f"got parents[{i}] = {int(p[i])}"
         )
     return p.astype(np.int64)
+
+
+def expect(ok: bool, name: str, expected: str, value) -> None:
+    """Raise ValueError ``"{name}: expected {expected}, got {value!r}"`` unless ``ok``."""
+    if not ok:
+        raise ValueError(f"{name}: expected {expected}, got {value!r}")
+
+
+def is_whole(x) -> bool:
+    """True for a Python or numpy integer that is not a bool."""
+    return not isinstance(x, bool) and isinstance(x, (int, np.integer))

@@ -46,6 +46,24 @@ def test_ingest_mmd_models_motions_physics_and_bad_files(tmp_path):
     assert len(joints) == 2 and {j.kind for j in joints} == {"spring_6dof"}
 
 
+def test_mmd_physics_rows_follow_the_chosen_split(tmp_path):
+    """``--split`` / ``--split-file`` move an MMD character's rigid bodies and joints with it (its
+    hashed split would be train: ``assets/small``)."""
+    import json
+
+    from schemas.shards import shard_entries
+
+    (tmp_path / "small.pmx").write_bytes(pmx_bytes())
+    (tmp_path / "splits.json").write_text(json.dumps({"val": ["assets/small"]}))
+    for name, options in (("by_split", {"split": "test"}), ("by_file", {"split_file": str(tmp_path / "splits.json")})):
+        out = tmp_path / name
+        ingest_assets([tmp_path / "small.pmx"], out, progress=False, **options)
+        want = options.get("split", "val")
+        assert [c.split for c in read_records(out, "characters")] == [want]
+        for table in ("rigid_bodies", "joints"):
+            assert {e["split"] for e in shard_entries(out, table) if e["rows"]} == {want}, table
+
+
 @pytest.mark.slow
 def test_ingest_gene_with_its_motion(tmp_path, assets_dir):
     out = tmp_path / "ds"

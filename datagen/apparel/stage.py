@@ -1,12 +1,7 @@
-"""The apparel stage over a dataset: ``mimicbench datagen apparel IN OUT``.
-
-For every character with apparel bones and every kinematic clip, a simulated clip ``<clip>@sim``
-(motion ID ``<motion_id>@sim``) is written beside the kinematic one; the per-clip quality goes in
-the character's ``meta['apparel']['clips'][<clip>]``. A clip whose simulation explodes gets a
-``failed`` status row (split ``apparel``) and keeps only its kinematic clip. Work is written after
-every batch of clips; resume: FORMAT.md, "Stages and resume". Output bytes depend only on the
-input and the parameters (status seconds are 0). Correspondences (``pairs``) are not carried
-over: run ``datagen correspond`` on OUT.
+"""The apparel stage over a dataset: ``mimicbench datagen apparel IN OUT``. Beside every kinematic
+clip of a character with apparel bones goes a simulated ``<clip>@sim``, its quality in the
+character's ``meta['apparel']['clips']``; an exploding clip is a failed status row. Resume:
+FORMAT.md, "Stages and resume". Correspondences (``pairs``) are not carried over.
 """
 from __future__ import annotations
 
@@ -59,8 +54,8 @@ class ApparelStageParams:
 
 
 STAGE = Stage("apparel", ApparelStageParams, inputs=("characters", "motions", *FILE_PHYSICS_TABLES),
-              item=_simulate_one, outputs=("characters", "motions", "status", *FILE_PHYSICS_TABLES), made_by="motions",
-              title="the apparel stage")
+              item=_simulate_one, outputs=("characters", "motions", "status"), copies=FILE_PHYSICS_TABLES,
+              made_by="motions", title="the apparel stage")
 
 
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -72,16 +67,16 @@ def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.n
     return bones, apparel_vertex_mask(record.weights, bones)
 
 
-def _file_physics(in_dir: Path, tables: list[str], patterns: list[str] | None) -> dict:
+def _file_physics(in_dir: Path, patterns: list[str] | None) -> dict:
     """``{character_id: (rigid bodies, joints)}`` in file order for characters that have rigid
     bodies (their physics comes from the file, :mod:`datagen.apparel.file_physics`); none when
     ``--apparel-bones`` patterns choose the apparel (then the chain defaults apply)."""
-    if patterns or "rigid_bodies" not in tables:
+    if patterns or not has_table(in_dir, "rigid_bodies"):
         return {}
     rows: dict[str, tuple[list, list]] = {}
     for b in read_records(in_dir, "rigid_bodies"):
         rows.setdefault(b.character_id, ([], []))[0].append(b)
-    for j in read_records(in_dir, "joints") if "joints" in tables else []:
+    for j in read_records(in_dir, "joints") if has_table(in_dir, "joints") else []:
         if j.character_id in rows:
             rows[j.character_id][1].append(j)
     return {c: (sorted(b, key=lambda r: r.body_index), sorted(j, key=lambda r: r.joint_index))
@@ -129,21 +124,18 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     run = StageRun(STAGE, ApparelStageParams(SIM_VERSION, float(physics_fps), int(relax), params,
                                              list(apparel_bones) if apparel_bones else None),
                    out_dir, in_dir, info={"source": str(in_dir)})
-    file_tables = [t for t in FILE_PHYSICS_TABLES if has_table(in_dir, t)]
     sims, quality = _previous_work(run, progress)
-    run.begin()
     records = read_records(in_dir, "characters")
     kinematic = [m for m in read_records(in_dir, "motions") if not is_simulated(m)]
     masks = {r.character_id: _apparel_masks(r, apparel_bones) for r in records}
     by_id = {r.character_id: r for r in records}
-    reused = len(sims)
-    todo = [m for m in kinematic if masks.get(m.character_id, (np.zeros(0, bool),))[0].any()
-            and m.motion_id + SIM_SUFFIX not in sims]
     unknown = sorted({m.character_id for m in kinematic} - set(by_id))
     if unknown:
         raise UserError(f"{in_dir}: motions of unknown characters {unknown[:3]}; expected every motion's "
                         f"character_id in the characters table")
-    file_rows = _file_physics(in_dir, file_tables, apparel_bones)
+    reused, file_rows = len(sims), _file_physics(in_dir, apparel_bones)
+    todo = [m for m in kinematic if masks[m.character_id][0].any() and m.motion_id + SIM_SUFFIX not in sims]
+    run.begin()
     statuses: list[StatusRecord] = []
     unusable = {cid: problem for cid, (bones, vertices) in masks.items() if bones.any() and cid not in file_rows
                 and (problem := selection_problem(by_id[cid].bone_names, by_id[cid].parents, bones, vertices))}
@@ -162,25 +154,22 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         statuses += chunk_statuses
         _write(run, records, kinematic, masks, sims, quality, statuses, apparel_bones)
     close_cached_world()
-    for table in file_tables:  # the physics tables travel with their characters
-        for split in splits_of(in_dir, table):
-            run.write(table, read_records(in_dir, table, split), split)
+    run.copy_inputs()  # the physics tables travel with their characters
     run.finish()
     qs = list(quality.values())
 
     def mean(key):
         return float(np.mean([q[key] for q in qs])) if qs else None
 
-    summary = {"characters": sum(1 for b, _ in masks.values() if b.any()), "clips": len(kinematic),
-               "simulated": sum(s.status == "ok" for s in statuses), "reused": reused,
-               "failed": sum(s.status == "failed" for s in statuses),
-               "new_inside_pct_mean": mean("new_inside_pct"), "inside_pct_mean": mean("inside_pct"),
-               "secondary_motion_pct_mean": mean("secondary_motion_pct"),
-               "max_edge_stretch": max((q["max_edge_stretch"] for q in qs), default=None),
-               "seconds": time.perf_counter() - start, "statuses": statuses}
     if progress:
         print(summarize_statuses(statuses))
-    return summary
+    return {"characters": sum(1 for b, _ in masks.values() if b.any()), "clips": len(kinematic),
+            "simulated": sum(s.status == "ok" for s in statuses), "reused": reused,
+            "failed": sum(s.status == "failed" for s in statuses),
+            "new_inside_pct_mean": mean("new_inside_pct"), "inside_pct_mean": mean("inside_pct"),
+            "secondary_motion_pct_mean": mean("secondary_motion_pct"),
+            "max_edge_stretch": max((q["max_edge_stretch"] for q in qs), default=None),
+            "seconds": time.perf_counter() - start, "statuses": statuses}
 
 
 def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, patterns) -> None:
@@ -196,16 +185,9 @@ def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, pa
         if len(r.faces):
             r = dataclasses.replace(r, apparel_bone_mask=bones, apparel_vertex_mask=vertices)
         chars.append(dataclasses.replace(r, meta=meta))
-    for split in splits_of(run.in_dir, "characters"):
-        run.write("characters", [c for c in chars if c.split == split], split)
-    for split in splits_of(run.in_dir, "motions"):
-        rows = []
-        for m in kinematic:
-            if m.split == split:
-                rows.append(m)
-                if m.motion_id + SIM_SUFFIX in sims:
-                    rows.append(sims[m.motion_id + SIM_SUFFIX])
-        run.write("motions", rows, split)
+    run.write_splits("characters", chars, splits_of(run.in_dir, "characters"))
+    run.write_splits("motions", [x for m in kinematic for x in (m, sims.get(m.motion_id + SIM_SUFFIX)) if x is not None],
+                     splits_of(run.in_dir, "motions"))
     latest = {s.asset: s for s in statuses}
     rows = []
     for m in kinematic:

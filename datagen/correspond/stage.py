@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from collections import namedtuple
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -26,6 +27,7 @@ from schemas.pair import PairRecord
 from schemas.shards import read_records, remove_split, splits_of
 from schemas.tables import rows_per_shard
 
+_Matched = namedtuple("_Matched", "source_id target_id hungarian")  # what the role-agreement report reads of a pair
 ACROSS = "across"  # the pair split of pairs between characters of different splits
 BATCH = 2048  # pairs a block (one task): Sinkhorn runs them CHUNK at a time in one padded batch
 ROWS_PER_SHARD = rows_per_shard("pairs", "correspond")  # memory holds one shard's matrices while writing
@@ -92,28 +94,17 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
 
     Args:
         dataset_dir: dataset folder with a ``characters`` table.
-        pairs: ordered pairs per split to sample (ignored with ``all_pairs``); None means all.
-        all_pairs: every ordered pair within each split.
-        unordered: each pair of characters once, a->b with a's ID first (C(n, 2) a split of n with
-            ``all_pairs``; see :mod:`.sampling`).
+        pairs, all_pairs, unordered: ordered pairs per split to sample (None: all), or every
+            ordered pair, or each pair of characters once (a->b with a's ID first): :mod:`.sampling`.
         encoder: ``minilm`` (offline default) or ``clip``.
-        method: ``structure`` (default: text and skeleton, no-match threshold) or ``text`` (the
-            paper's S_cos, Hungarian, Sinkhorn); see :mod:`datagen.correspond.methods`.
-        no_match: the structure method's no-match threshold (default 0.45).
-        temperature: Sinkhorn temperature T on the scores (default 0.1: a score gap of 0.1 between
-            two candidate names weighs e times more, so M_sink spreads over names nearly as similar,
-            such as neighbouring chain segments; the one-to-one answer is M_hung).
-        seed: pair sampling seed.
-        across_splits: also the pairs between characters of different splits (as cct cases
-            built with ``--all-pairs`` use them), sampled like a split's (``pairs``, ``all_pairs``,
-            ``unordered``) and written as the pair split :data:`ACROSS` (``pairs/across-*.parquet``);
-            without it a previous run's ``across`` shards are removed.
-        block: pairs a task (default ``BATCH``).
-        engine: where blocks of ``block`` pairs are matched (:mod:`mimicbench.engines`; default this
-            process). Names are embedded once in this process; each block is one task; shards of
-            ``ROWS_PER_SHARD`` pairs are written in sampled order as their blocks come in, so
-            memory holds one shard however many pairs there are, and the bytes do not depend on
-            the engine.
+        method: ``structure`` (default: text and skeleton, ``no_match`` threshold, default 0.45) or
+            ``text`` (the paper's S_cos, Hungarian, Sinkhorn): :mod:`datagen.correspond.methods`.
+        temperature: Sinkhorn temperature T on the scores (default 0.1); seed: pair sampling seed.
+        across_splits: also the pairs between characters of different splits, sampled like a
+            split's and written as the pair split :data:`ACROSS`; without it an earlier run's are removed.
+        engine, block: where blocks of ``block`` pairs (one task each) are matched (default this
+            process); shards of ``ROWS_PER_SHARD`` pairs are written in sampled order as their
+            blocks come in, so memory holds one shard and the bytes do not depend on the engine.
     """
     start = time.perf_counter()
     dataset_dir = Path(dataset_dir)
@@ -144,8 +135,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
         written[split] = 0
         with stage_run.streams([("pairs", split)]) as streams:
 
-            def on_done(k: int, ok: bool, mats, blocks=blocks, ends=ends, chosen=chosen, stream=streams["pairs", split],
-                        run=run) -> None:
+            def on_done(k: int, ok: bool, mats) -> None:  # called by run_stage below, in this iteration
                 for i, (s, h, sink) in zip(blocks[k], mats if ok else ()):  # a failed block's pairs are left out
                     a, b = chosen[i]
                     run[i] = PairRecord(f"{a.character_id}->{b.character_id}", a.character_id, b.character_id, split,
@@ -153,7 +143,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
                                         a.category, b.category, m.name, params)
                 if k in ends:
                     rows = [run.pop(i) for i in sorted(run)]
-                    stream.add(rows)
+                    streams["pairs", split].add(rows)
                     matched.extend(_Matched(p.source_id, p.target_id, p.hungarian) for p in rows)
                     written[split] += len(rows)
 
@@ -175,12 +165,3 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
     return {"pairs": written, "failed_blocks": [f"{st.asset}: {st.reason}" for st in statuses],
             "encoder": enc.name, "method": m.name, "temperature": m.temperature, "report": report,
             "seconds": time.perf_counter() - start}
-
-
-@dataclass(frozen=True)
-class _Matched:
-    """What the role-agreement report reads of a pair (not its matrices)."""
-
-    source_id: str
-    target_id: str
-    hungarian: np.ndarray

@@ -109,10 +109,10 @@ def run(args) -> int:
             raise NotADirectoryError(f"--motions: {args.motions} is not a folder of .vmd files")
         paths.extend(str(p) for p in sorted(Path(args.motions).glob("*.vmd")))
     cmap = json.loads(open(args.category_map).read()) if args.category_map else None
-    s = ingest_assets(paths, args.out, args.jobs, args.timeout, cmap, args.export, not args.quiet,
-                      bvh_scale=args.bvh_scale, allow_external_uris=args.allow_external_uris, split=args.split,
-                      split_file=args.split_file, mmd_unit=args.mmd_unit, engine=engine_from_args(args),
-                      mesh_unit=args.mesh_unit, max_clip_frames=args.max_clip_frames)
+    s = ingest_assets(paths, args.out, not args.quiet, engine_from_args(args), jobs=args.jobs, timeout=args.timeout,
+                      category_map=cmap, export=args.export, bvh_scale=args.bvh_scale,
+                      allow_external_uris=args.allow_external_uris, split=args.split, split_file=args.split_file,
+                      mmd_unit=args.mmd_unit, mesh_unit=args.mesh_unit, max_clip_frames=args.max_clip_frames)
     print(summarize_statuses([x for x in s["statuses"] if x.status != "skipped"]))
     for w in s["warnings"]:
         print(f"warning: {w}")

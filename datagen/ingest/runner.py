@@ -1,15 +1,8 @@
-"""Ingest assets through Blender child processes into a dataset, additively.
-
-Each asset is imported by a Blender child (:mod:`.blender_pool`; one process ingests many assets,
-with a factory reset between them and a fresh process after a crash or a timeout). Its result is
-cached as ``DATASET/.ingest/<key>.npz`` + ``.json`` where the key holds the file's content hash
-and the options (:mod:`.identity`), so a re-run skips assets already done and a changed file is
-ingested again. A crash, a timeout, an unreadable file or clip, or a glTF URI outside the asset's
-folder becomes a status row (split ``ingest``) with the reason, and the other assets go on; the
-files a failed job wrote are deleted, never used.
-
-Ingest is additive: the ``characters``/``motions``/``status`` tables keep what earlier runs put
-in the dataset, and this run's assets replace only their own rows (by character ID).
+"""Ingest assets into a dataset, additively: Blender children (:mod:`.blender_pool`) for glTF, FBX,
+BVH, OBJ and .blend, :mod:`datagen.mmd` for MMD files. Each child result is cached in
+``DATASET/.ingest`` under a key of content hash and options (:mod:`.identity`), so a re-run skips
+assets already done; every failure is a status row (split ``ingest``). This run's assets replace
+only their own rows (by character ID).
 """
 from __future__ import annotations
 
@@ -40,6 +33,7 @@ from mimicbench.argtypes import MAX_JOBS
 from mimicbench.errors import UserError
 from mimicbench.kinematics import transforms_to_array
 from mimicbench.skinning import linear_blend_skinning
+from mimicbench.validation import expect, is_whole
 from schemas.character import CATEGORIES, CharacterRecord
 from schemas.finite import nonfinite_arrays
 from schemas.manifest import MANIFEST
@@ -54,9 +48,17 @@ DEFAULT_BVH_SCALE = "auto"  # metres per BVH unit from the rest skeleton (datage
 PLAUSIBLE_EXTENT_M = (0.05, 30.0)  # a meshed character's largest rest extent outside this: warn (--mesh-unit)
 
 
+def _positive(x) -> bool:
+    """A finite number > 0 (not a bool)."""
+    return not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x) and x > 0
+
+
 @dataclass
 class IngestOptions:
-    """What ``datagen ingest`` may be asked (the stage's params); :meth:`check` says what is allowed."""
+    """What ``datagen ingest`` may be asked (the stage's params; ``--help`` says each); :meth:`check`
+    says what is allowed. ``mmd_unit``: metres per MMD unit; ``mesh_unit``: metres per unit of the
+    scene Blender imports (every length times it; a rest extent outside :data:`PLAUSIBLE_EXTENT_M`
+    warns); ``split_file``: JSON split -> character IDs; ``assets_per_process``: before a fresh Blender."""
 
     jobs: int = not_a_param(1)
     timeout: float = 300.0
@@ -71,41 +73,31 @@ class IngestOptions:
     mesh_unit: float = 1.0
     max_clip_frames: int = MAX_CLIP_FRAMES
 
+    def __post_init__(self):
+        self.export, self.category_map = tuple(self.export), dict(self.category_map or {})
+
     def check(self) -> None:
         """Raise ValueError naming the option and the allowed range."""
-        if not isinstance(self.jobs, int) or not 1 <= self.jobs <= MAX_JOBS:
-            raise ValueError(f"--jobs: expected a whole number of Blender processes from 1 to {MAX_JOBS}, got {self.jobs!r}")
-        if not self.timeout > 0:
-            raise ValueError(f"--timeout: expected seconds per asset greater than 0, got {self.timeout!r}")
-        if self.bvh_scale != "auto" and not (isinstance(self.bvh_scale, (int, float)) and self.bvh_scale > 0):
-            raise ValueError(f"--bvh-scale: expected 'auto' or metres per BVH unit greater than 0 (0.01 for "
-                             f"centimetres), "
-                             f"got {self.bvh_scale!r}")
-        if isinstance(self.mmd_unit, bool) or not isinstance(self.mmd_unit, (int, float)) \
-                or not math.isfinite(self.mmd_unit) or not self.mmd_unit > 0:
-            raise ValueError(f"--mmd-unit: expected metres per MMD unit, a finite number greater than 0 (MMD's usual "
-                             f"0.08), got {self.mmd_unit!r}")
-        if isinstance(self.mesh_unit, bool) or not isinstance(self.mesh_unit, (int, float)) \
-                or not math.isfinite(self.mesh_unit) or not self.mesh_unit > 0:
-            raise ValueError(f"--mesh-unit: expected metres per unit of the imported scene, a finite number greater "
-                             f"than 0 (1: glTF's metres; 0.01 for a file authored in centimetres), got {self.mesh_unit!r}")
-        if isinstance(self.max_clip_frames, bool) or not isinstance(self.max_clip_frames, int) \
-                or self.max_clip_frames < 1:
-            raise ValueError(f"--max-clip-frames: expected a whole number of frames of at least 1 (default "
-                             f"{MAX_CLIP_FRAMES}), got {self.max_clip_frames!r}")
-        if not isinstance(self.assets_per_process, int) or self.assets_per_process < 1:
-            raise ValueError(f"assets_per_process: expected at least 1, got {self.assets_per_process!r}")
+        expect(isinstance(self.jobs, int) and 1 <= self.jobs <= MAX_JOBS, "--jobs",
+                f"a whole number of Blender processes from 1 to {MAX_JOBS}", self.jobs)
+        expect(self.timeout > 0, "--timeout", "seconds per asset greater than 0", self.timeout)
+        expect(self.bvh_scale == "auto" or (isinstance(self.bvh_scale, (int, float)) and self.bvh_scale > 0),
+                "--bvh-scale", "'auto' or metres per BVH unit greater than 0 (0.01 for centimetres)", self.bvh_scale)
+        expect(_positive(self.mmd_unit), "--mmd-unit",
+                "metres per MMD unit, a finite number greater than 0 (MMD's usual 0.08)", self.mmd_unit)
+        expect(_positive(self.mesh_unit), "--mesh-unit", "metres per unit of the imported scene, a finite number "
+                "greater than 0 (1: glTF's metres; 0.01 for a file authored in centimetres)", self.mesh_unit)
+        expect(is_whole(self.max_clip_frames) and self.max_clip_frames >= 1, "--max-clip-frames",
+                f"a whole number of frames of at least 1 (default {MAX_CLIP_FRAMES})", self.max_clip_frames)
+        expect(isinstance(self.assets_per_process, int) and self.assets_per_process >= 1, "assets_per_process",
+                "at least 1", self.assets_per_process)
         unknown = [x for x in self.export if x not in EXPORT_FORMATS]
-        if unknown:
-            raise ValueError(f"--export: unknown format(s) {', '.join(map(repr, unknown))}; expected a comma-separated "
-                             f"list of {', '.join(EXPORT_FORMATS)}")
+        expect(not unknown, "--export", f"a comma-separated list of {', '.join(EXPORT_FORMATS)}", unknown)
         bad = {k: v for k, v in self.category_map.items() if v not in CATEGORIES}
-        if bad:
-            raise ValueError(f"--category-map: unknown categories {bad}; expected one of {', '.join(CATEGORIES)}")
-        if self.split is not None and self.split_file is not None:
-            raise ValueError("--split and --split-file: give one of them, not both")
-        if self.split is not None and self.split not in ("train", "val", "test"):
-            raise ValueError(f"--split: expected train, val or test, got {self.split!r}")
+        expect(not bad, "--category-map", f"categories of {', '.join(CATEGORIES)}", bad)
+        expect(self.split is None or self.split_file is None, "--split and --split-file", "one of them, not both",
+                self.split_file)
+        expect(self.split in (None, "train", "val", "test"), "--split", "train, val or test", self.split)
 
     def child_options(self, asset: Path) -> dict:
         """The options that change what a child writes for ``asset`` (part of its cache key); the
@@ -137,17 +129,10 @@ def category_from_map(asset: Path, category_map: dict | None) -> str | None:
     return None
 
 
-def category_for(asset: Path, category_map: dict | None) -> str:
-    """Category of an asset from the map alone (``unknown`` when it names none); see
-    :func:`records_from_cache` for inference."""
-    return category_from_map(asset, category_map) or "unknown"
-
-
 def reproduction_error(char: CharacterRecord, transforms: np.ndarray, scale: np.ndarray | None, frames: np.ndarray,
                        evaluated: np.ndarray) -> dict:
-    """Mean and max distance (percent of height) between the stored clip posed by LBS and the
-    mesh Blender evaluated from the file at ``frames`` (in a second import of the file,
-    each clip from the file's defaults, not the scene the clip was sampled in: :func:`datagen.ingest.blender_child._reproduce`)."""
+    """Mean and max distance (percent of height) between the stored clip posed by LBS and the mesh
+    Blender evaluated at ``frames`` in a second import of the file (:func:`.blender_child._reproduce`)."""
     if not len(char.vertices) or not char.height:
         return {}
     pred = linear_blend_skinning(char.vertices, char.keypoints, char.weights, transforms[frames],
@@ -173,10 +158,8 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
         d = _scaled_lengths(d, unit)
     verts = d["vertices"].astype(np.float32)
     k = len(meta["bone_names"])
-    if len(verts):
-        w = SparseWeights.from_dense(d["weights"])
-    else:
-        w = SparseWeights(np.zeros((0, 8), np.int32), np.zeros((0, 8), np.float32), k)
+    w = SparseWeights.from_dense(d["weights"]) if len(verts) else \
+        SparseWeights(np.zeros((0, 8), np.int32), np.zeros((0, 8), np.float32), k)
     height = float(np.ptp(verts[:, 1])) if len(verts) else None
     parents = d["parents"].astype(np.int32)
     mapped = category_from_map(asset, category_map)
@@ -188,13 +171,11 @@ def records_from_cache(asset: Path, cache: Path, key: str, character_id: str, sp
             "default_pose_bones": meta.get("default_pose_bones", 0), "cache_key": key}
     if meta.get("left_out_vertices"):  # unweighted vertices on no bone: not stored (FORMAT.md)
         info["left_out_vertices"] = meta["left_out_vertices"]
-    if asset.suffix.lower() != ".bvh":
-        info["metres_per_unit"] = unit
     if asset.suffix.lower() == ".bvh":
-        kp = d["keypoints"]
         info["bvh_scale"], unit_evidence = bvh_scale
-        info.update(unit_evidence)
-        info["skeleton_height_m"] = round(float(np.ptp(kp[:, 1])), 4)
+        info.update(unit_evidence, skeleton_height_m=round(float(np.ptp(d["keypoints"][:, 1])), 4))
+    else:
+        info["metres_per_unit"] = unit
     char = CharacterRecord(
         character_id=character_id, category=category, source=str(asset), split=split, vertices=verts,
         faces=d["faces"].astype(np.int32), keypoints=d["keypoints"].astype(np.float32), parents=parents,
@@ -230,12 +211,8 @@ def _scaled_lengths(arrays: dict, unit: float) -> dict:
 
 
 def check_output_folder(out_dir: Path) -> None:
-    """Refuse an output folder that holds files but no ``manifest.json``: its shards would be
-    left unlisted and a fresh manifest would claim the dataset holds only this run's rows.
-
-    Raises:
-        UserError: ``out_dir`` is a non-empty folder (besides the ingest cache) without a manifest.
-    """
+    """UserError for an ``out_dir`` holding files (besides the ingest cache) but no ``manifest.json``:
+    its shards would be left unlisted and a fresh manifest would claim only this run's rows."""
     if not out_dir.is_dir() or (out_dir / MANIFEST).is_file():
         return
     present = sorted(p.name for p in out_dir.iterdir() if p.name != CACHE)
@@ -258,11 +235,6 @@ def asset_of_row(row_asset: str, assets: set[str]) -> str | None:
     return None
 
 
-def _replace_status(statuses: list, asset: str, row: StatusRecord) -> list:
-    """``statuses`` with the rows of ``asset`` itself (not its clips) replaced by ``row``."""
-    return [s for s in statuses if s.asset != asset] + [row]
-
-
 def bvh_declared_frames(path: Path) -> int | None:
     """The ``Frames:`` count of a BVH file's MOTION section (None when the file has none)."""
     with open(path, "rb") as f:
@@ -276,41 +248,39 @@ def bvh_declared_frames(path: Path) -> int | None:
     return None
 
 
-def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, category_map: dict | None = None,
-                  export=(), progress: bool = True, bvh_scale: float = DEFAULT_BVH_SCALE,
-                  allow_external_uris: bool = False, split: str | None = None, split_file: str | None = None,
-                  assets_per_process: int = 50, mmd_unit: float = MMD_UNIT_METRES, engine=None,
-                  mesh_unit: float = 1.0, max_clip_frames: int = MAX_CLIP_FRAMES) -> dict:
-    """Ingest assets into ``out_dir`` (keeping what earlier runs put there); returns a summary.
+def _blender_problem(a: Path, opts: IngestOptions) -> str | None:
+    """Why the asset ``a`` is not handed to Blender (None: it is): missing, unsupported, a glTF
+    resource outside its folder (unless allowed), a malformed GLB, a BVH clip over the length bound."""
+    if not a.is_file():
+        return "file not found"
+    if a.suffix.lower() not in SUPPORTED:
+        return f"unsupported file type {a.suffix!r}; expected one of {', '.join(SUPPORTED)}"
+    try:
+        if a.suffix.lower() in (".gltf", ".glb"):
+            uris = external_uri_problems(a)  # also refuses a malformed GLB or JSON (one parser with the loader)
+            if uris and not opts.allow_external_uris:
+                return ("refused: " + "; ".join(uris) + " (resources outside the asset's folder are read only with "
+                        "--allow-external-uris)")
+        elif a.suffix.lower() == ".bvh" and (declared := bvh_declared_frames(a)) is not None:
+            check_clip_frames(declared, f"{a}: BVH 'Frames: {declared}'", opts.max_clip_frames)
+        opts.child_options(a)  # a BVH whose HIERARCHY cannot be read for --bvh-scale auto
+    except (ValueError, OSError) as exc:
+        return str(exc)
+    return None
+
+
+def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options) -> dict:
+    """Ingest ``paths`` into ``out_dir`` (keeping what earlier runs put there); return a summary.
 
     Args:
         paths: asset files (.glb, .gltf, .fbx, .bvh, .obj, .blend through Blender; .pmx, .pmd, .vmd
-            through :mod:`datagen.mmd` without it) or folders, walked for asset files
-            (:mod:`.asset_paths`; ``out_dir`` is never walked into).
-        out_dir: dataset folder.
-        jobs: Blender processes at once (at least 1).
-        timeout: seconds per asset before its process is killed (> 0).
-        category_map: glob or file stem -> category; assets it does not name get an inferred one.
-        export: formats of ``("obj", "bvh")`` to also write ``out_dir/export/<stem>.obj`` and ``<stem>/<clip>.bvh``.
-        bvh_scale: metres per BVH unit (0.01: the file is in centimetres).
-        allow_external_uris: let glTF buffers and images point outside the asset's folder.
-        split: put every asset of this run in this split (``train``, ``val`` or ``test``).
-        split_file: JSON split name -> list of character IDs (IDs it lacks get the hashed split).
-        assets_per_process: assets one Blender process ingests before a fresh one starts.
-        mmd_unit: metres per MMD unit for .pmx/.pmd/.vmd (default 0.08), recorded in each MMD
-            character's ``meta.mmd.metres_per_unit``.
-        mesh_unit: metres per unit of the scene Blender imports from .glb/.gltf/.fbx/.obj/.blend
-            (default 1: glTF is in metres and Blender converts FBX units); every length is
-            multiplied by it, recorded in ``meta.ingest.metres_per_unit``. A character whose largest
-            rest extent falls outside :data:`PLAUSIBLE_EXTENT_M` gets a warning that names it.
-        engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task of 1 CPU and
-            3 GiB with its worker's own Blender process (:mod:`datagen.ingest.engine_task`); None
-            or a local engine keeps ``jobs`` Blender processes here. The output is the same.
-        max_clip_frames: the most frames a clip may have (:mod:`.clip_length`), checked for every
-            format before a clip is sampled; a longer clip is a failed status row.
+            through :mod:`datagen.mmd`) or folders, walked for them (:mod:`.asset_paths`; never ``out_dir``).
+        engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task with its worker's
+            own Blender (:mod:`.engine_task`); None or a local engine: ``jobs`` Blender processes here.
+        options: the fields of :class:`IngestOptions`.
 
-    A character or clip with a NaN or infinite value (vertex, joint, transform, stretch) is not
-    stored: the asset (mesh or joints) or the clip (``<asset>#<clip>``) gets a failed status row.
+    A character or clip with a NaN or infinite value is not stored: the asset or the clip
+    (``<asset>#<clip>``) gets a failed status row.
 
     Raises:
         ValueError: an option out of range (the message says what is allowed).
@@ -318,10 +288,13 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
     """
     from datagen.splits import load_split_file
 
-    opts = IngestOptions(jobs, timeout, bvh_scale, allow_external_uris, tuple(export), split, split_file,
-                         assets_per_process, dict(category_map or {}), mmd_unit, mesh_unit, max_clip_frames)
+    opts = IngestOptions(**options)
     opts.check()
-    split_map = load_split_file(split_file) if split_file else {}
+    split_map = load_split_file(opts.split_file) if opts.split_file else {}
+
+    def split_for(cid: str) -> str:
+        return opts.split or split_map.get(cid) or split_of(cid)
+
     start = time.perf_counter()
     out_dir = Path(out_dir)
     check_output_folder(out_dir)
@@ -339,35 +312,11 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         for f in empty_folders]
     jobs_todo, plan = [], {}
     for a in assets:
-        problem = None
-        if not a.is_file():
-            problem = "file not found"
-        elif a.suffix.lower() not in SUPPORTED:
-            problem = f"unsupported file type {a.suffix!r}; expected one of {', '.join(SUPPORTED)}"
-        elif a.suffix.lower() in (".gltf", ".glb"):
-            try:
-                uris = external_uri_problems(a)  # also refuses a malformed GLB or JSON (one parser with the loader)
-            except (ValueError, OSError) as exc:
-                uris, problem = [], str(exc)
-            if uris and not allow_external_uris:
-                problem = ("refused: " + "; ".join(uris) + " (resources outside the asset's folder are read only with "
-                           "--allow-external-uris)")
-        elif a.suffix.lower() == ".bvh":
-            try:
-                declared = bvh_declared_frames(a)
-                if declared is not None:
-                    check_clip_frames(declared, f"{a}: BVH 'Frames: {declared}'", opts.max_clip_frames)
-            except (ValueError, OSError) as exc:
-                problem = str(exc)
+        problem = _blender_problem(a, opts)
         if problem:
             statuses.append(StatusRecord(str(a), "ingest", "failed", problem, 0.0))
             continue
-        try:
-            child_options = opts.child_options(a)
-        except (OSError, ValueError) as exc:  # a BVH whose HIERARCHY cannot be read for --bvh-scale auto
-            statuses.append(StatusRecord(str(a), "ingest", "failed", str(exc), 0.0))
-            continue
-        key = cache_key(a, file_sha256(a), child_options)
+        key = cache_key(a, file_sha256(a), opts.child_options(a))
         cid = character_id_for(a, taken)
         taken[cid] = str(a)
         plan[a] = (key, cid)
@@ -380,7 +329,7 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         from datagen.ingest.engine_task import TASK_RESOURCES, ingest_task
         from datagen.stage_runner import run_stage
 
-        items = [(str(a), str(cache / f"{plan[a][0]}.npz"), opts.child_options(a), timeout, assets_per_process)
+        items = [(str(a), str(cache / f"{plan[a][0]}.npz"), opts.child_options(a), opts.timeout, opts.assets_per_process)
                  for a in jobs_todo]
         returned, task_rows = run_stage(items, ingest_task, "ingest", name_of=lambda it: it[0], progress=progress,
                                         engine=engine, resources=TASK_RESOURCES)
@@ -388,59 +337,46 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
         statuses += [by_asset.get(t.asset, t) for t in task_rows]  # a task whose worker died for good: its row
         jobs_todo = []
     workers: Queue = Queue()
-    for _ in range(min(jobs, max(1, len(jobs_todo)))):
-        workers.put(blender_pool.BlenderWorker(blender_pool.CHILD_MODULE, assets_per_process))
+    for _ in range(min(opts.jobs, max(1, len(jobs_todo)))):
+        workers.put(blender_pool.BlenderWorker(blender_pool.CHILD_MODULE, opts.assets_per_process))
 
     def job(a: Path) -> StatusRecord:
         w = workers.get()
         try:
-            return run_job(w, a, cache / f"{plan[a][0]}.npz", opts.child_options(a), timeout)
+            return run_job(w, a, cache / f"{plan[a][0]}.npz", opts.child_options(a), opts.timeout)
         finally:
             workers.put(w)
 
-    bar = tqdm(total=len(jobs_todo), desc="ingest", unit="asset", disable=not progress)
     try:
-        with ThreadPoolExecutor(max_workers=jobs) as pool:
-            for status in pool.map(job, jobs_todo):
-                statuses.append(status)
-                bar.update(1)
+        with ThreadPoolExecutor(max_workers=opts.jobs) as pool:
+            statuses += tqdm(pool.map(job, jobs_todo), total=len(jobs_todo), desc="ingest", unit="asset",
+                             disable=not progress)
     finally:
-        bar.close()
         while not workers.empty():
             workers.get().stop()
     chars, motions = [], []
     for a, (key, cid) in plan.items():
         if status_of(cache / f"{key}.json") != "ok":
             continue
-        sp = split or split_map.get(cid) or split_of(cid)
-        c, m = records_from_cache(a, cache, key, cid, sp, category_map,
-                                 opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None, mesh_unit)
+        c, m = records_from_cache(a, cache, key, cid, split_for(cid), opts.category_map,
+                                  opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None, opts.mesh_unit)
         bad = nonfinite_arrays(c, ("vertices", "keypoints", "weight_values"))
         if bad:
-            statuses = _replace_status(statuses, str(a), StatusRecord(
-                str(a), "ingest", "failed", f"non-finite values (NaN or inf) in {', '.join(bad)}: not stored", 0.0))
+            statuses = [s for s in statuses if s.asset != str(a)] + [StatusRecord(  # the asset's own rows
+                str(a), "ingest", "failed", f"non-finite values (NaN or inf) in {', '.join(bad)}: not stored", 0.0)]
             continue
         for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
             statuses.append(StatusRecord(f"{a}#{e['name']}", "ingest", "failed", f"clip {e['name']!r}: {e['reason']}", 0.0))
-        kept = []
-        for rec in m:
-            bad = nonfinite_arrays(rec, ("transforms", "scale"))
-            if bad:
-                statuses.append(StatusRecord(f"{a}#{rec.name}", "ingest", "failed",
-                                             f"clip {rec.name!r}: non-finite values (NaN or inf) in {', '.join(bad)}: "
-                                             f"not stored", 0.0))
-            else:
-                kept.append(rec)
         chars.append(c)
-        motions.extend(kept)
-    mmd = ingest_mmd(mmd_assets, lambda a: category_for(a, category_map), scale=float(opts.mmd_unit),
-                     progress=progress and bool(mmd_assets), run=run, taken=taken,
-                     max_frames=opts.max_clip_frames)
-    for c in mmd.characters:
-        c.split = split or split_map.get(c.character_id) or c.split
-    mmd_split = {c.character_id: c.split for c in mmd.characters}
-    for m in mmd.motions:
-        m.split = mmd_split.get(m.character_id, m.split)
+        for rec in m:
+            if bad := nonfinite_arrays(rec, ("transforms", "scale")):
+                statuses.append(StatusRecord(f"{a}#{rec.name}", "ingest", "failed", f"clip {rec.name!r}: non-finite "
+                                             f"values (NaN or inf) in {', '.join(bad)}: not stored", 0.0))
+            else:
+                motions.append(rec)
+    mmd = ingest_mmd(mmd_assets, lambda a: category_from_map(a, opts.category_map) or "unknown",
+                     scale=float(opts.mmd_unit), progress=progress and bool(mmd_assets), run=run, taken=taken,
+                     max_frames=opts.max_clip_frames, split_for=split_for)
     chars, motions, statuses = chars + mmd.characters, motions + mmd.motions, statuses + mmd.statuses
     warnings = []
     for c in chars:
@@ -462,19 +398,18 @@ def ingest_assets(paths, out_dir, jobs: int = 1, timeout: float = 300.0, categor
                 | set(empty_folders))
     statuses = [s for s in old_status if asset_of_row(s.asset, this_run) is None] + statuses
     run.begin()  # until every table below is written
-    old_splits = {c.split for c in old_chars}
-    for sp in sorted({c.split for c in chars} | old_splits):
-        run.write("characters", [c for c in chars if c.split == sp], sp)
-        run.write("motions", [m for m in motions if m.split == sp], sp)
+    splits = {c.split for c in chars} | {c.split for c in old_chars}
+    run.write_splits("characters", chars, splits)
+    run.write_splits("motions", motions, splits)
     run.write_status(statuses, config=None)
     from datagen.ingest.card import write_card
 
     write_card(out_dir, chars, motions, run.config)
     run.finish()
-    if export:
+    if opts.export:
         from datagen.ingest.export import export_dataset
 
-        export_dataset(out_dir, chars, motions, export)
+        export_dataset(out_dir, chars, motions, opts.export)
     run_status = [s for s in statuses if asset_of_row(s.asset, this_run) is not None]
     is_clip = [asset_of_row(s.asset, this_run) != s.asset for s in run_status]
     return {"assets": len(assets) + len(mmd_assets), "ingested": sum(s.status == "ok" for s in run_status), "skipped": skipped,

@@ -1,12 +1,7 @@
-"""The ``datagen ingest`` path for MMD files: no Blender, the bounded readers of this package.
-
-A .pmx/.pmd file becomes a character (``assets/<stem>``, or ``assets/<stem>-<path hash>`` when
-another source file already holds that ID: :func:`datagen.ingest.identity.character_id_for`) with its rigid bodies and joints
-(tables ``rigid_bodies`` and ``joints``). Motions: a .vmd beside a model named ``<stem>.vmd`` or
-``<stem>_<clip>.vmd`` plays on that model, and so does a .vmd given on the command line with such
-a name; any other .vmd given on the command line (or found in ``--motions DIR``) plays on every
-model of the run. A malformed
-file becomes a ``failed`` status row naming the file and the problem; the other files go on.
+"""The ``datagen ingest`` path for MMD files, without Blender: a .pmx/.pmd model becomes a character
+(``assets/<stem>``, :func:`datagen.ingest.identity.character_id_for`) with its rigid bodies and
+joints; which .vmd files play on which model: :func:`motions_for`. A malformed file is a failed
+status row naming it; the other files go on.
 """
 from __future__ import annotations
 
@@ -20,6 +15,7 @@ from datagen.mmd import MODEL_SUFFIXES, MOTION_SUFFIXES, read_model
 from datagen.mmd.frame import MMD_UNIT_METRES
 from datagen.mmd.records import character_from_mmd
 from datagen.splits import split_of
+from schemas.shards import splits_of
 from schemas.status import StatusRecord
 
 
@@ -51,9 +47,9 @@ def clip_name(model: Path, motion: Path) -> str | None:
 
 
 def motions_for(model: Path, models: list[Path], given: list[Path]) -> list[tuple[Path, str]]:
-    """(.vmd path, clip name) pairs that play on ``model`` (see the module docstring): the .vmd
-    files beside it or ``given`` whose names tie them to it, and the ``given`` ones that no model
-    of ``models`` claims by name."""
+    """(.vmd path, clip name) pairs that play on ``model``: the .vmd files beside it or ``given``
+    whose names tie them to it (:func:`clip_name`), and the ``given`` ones (the command line,
+    ``--motions DIR``) that no model of ``models`` claims by name: those play on every model."""
     out: dict[Path, str] = {}
     beside = sorted(p for p in model.parent.glob("*") if p.suffix.lower() in MOTION_SUFFIXES)
     for p in beside + list(given):
@@ -67,7 +63,7 @@ def motions_for(model: Path, models: list[Path], given: list[Path]) -> list[tupl
 
 
 def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progress: bool = False,
-               run=None, taken: dict | None = None, max_frames: int | None = None) -> MMDIngest:
+               run=None, taken: dict | None = None, max_frames: int | None = None, split_for=split_of) -> MMDIngest:
     """Read MMD models and their motions into records.
 
     Args:
@@ -81,11 +77,11 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
             formats); updated with the IDs given here, so no two sources share an ID.
         max_frames: the most frames a motion may have (default
             :data:`datagen.ingest.clip_length.MAX_CLIP_FRAMES`); a longer one is a failed row.
+        split_for: character ID -> split (default the hashed split).
     """
-    from datagen.ingest.identity import character_id_for
-
     from tqdm.auto import tqdm
 
+    from datagen.ingest.identity import character_id_for
     from datagen.mmd.motion import motion_from_vmd
     from datagen.mmd.physics import physics_records
     from datagen.mmd.vmd import read_vmd
@@ -93,15 +89,15 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
     out = MMDIngest()
     models = [Path(p) for p in paths if Path(p).suffix.lower() in MODEL_SUFFIXES]
     given = [Path(p) for p in paths if Path(p).suffix.lower() in MOTION_SUFFIXES]
+    taken = {} if taken is None else taken
     for path in tqdm(models, desc="ingest mmd", unit="model", disable=not progress):
         start = time.perf_counter()
-        taken = {} if taken is None else taken
         cid = character_id_for(path, taken)
         taken[cid] = str(path)
         try:
             model = read_model(path)
             category = category_for(path) if category_for else "unknown"
-            char = character_from_mmd(model, cid, str(path), split_of(cid), category, scale)
+            char = character_from_mmd(model, cid, str(path), split_for(cid), category, scale)
             new_index = np.empty(len(model.bones), np.int64)
             new_index[char.meta["mmd"]["file_bone_index"]] = np.arange(len(model.bones))
             bodies, joints = physics_records(model, cid, new_index, scale)
@@ -140,8 +136,6 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
 def _write_physics(run, out: MMDIngest) -> None:
     """Write this run's rigid bodies and joints, keeping the rows of characters that earlier runs
     ingested into the same dataset (ingest merges characters across runs)."""
-    from schemas.shards import splits_of
-
     split = {c.character_id: c.split for c in out.characters}
     for table, rows in (("rigid_bodies", out.rigid_bodies), ("joints", out.joints)):
         earlier = splits_of(run.out_dir, table, allow_incomplete=True) if run.manifest() is not None else []

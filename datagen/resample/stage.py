@@ -1,18 +1,11 @@
 """The resample stage over a dataset: ``mimicbench datagen resample IN OUT`` (resume: FORMAT.md,
-"Stages and resume"; finished characters go to part splits ``part_00000``... as they come).
-
-Memory stays bounded however many characters there are: input characters are read a row group
-(8 characters) at a time and resampled ``BATCH`` at a time, the frames each is measured on are
-spilled to a temporary folder, finished characters go to part shards as they come, and the final
-shards are streamed (:class:`schemas.shard_stream.ShardStream`) from the parts, a row group at a
-time. What grows with the count is only a list of character IDs.
+"Stages and resume"). Input characters are read a row group at a time and resampled ``BATCH`` at a
+time; finished ones go to part splits ``part_00000``... as they come, streamed into the final shards.
 """
 from __future__ import annotations
 
 import dataclasses
 import functools
-import pickle
-import tempfile
 import time
 from dataclasses import dataclass
 from functools import partial
@@ -23,10 +16,10 @@ import numpy as np
 from datagen.resample.character import resample_character
 from datagen.resample import MAX_FACES, MIN_FACES, RESAMPLE_VERSION
 from mimicbench.engines import Engine, TaskResources
-from datagen.stage_runner import Stage, StageRun, copy_table, run_stage, summarize_statuses
+from mimicbench.validation import expect, is_whole
+from datagen.stage_runner import Stage, StageRun, run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch
-from schemas.manifest import load_manifest_for_write
 from schemas.shard_stream import checked_parquet_file, iter_records, iter_row_groups, read_row_group
 from schemas.shards import readable_entries, remove_split, splits_of
 from schemas.status import StatusRecord
@@ -55,15 +48,6 @@ def _one(item, faces, backend):
 
 STAGE = Stage("resample", ResampleParams, inputs=("characters", "motions"), item=_one,
               outputs=("characters", "status"), copies=("motions", "pairs"))
-
-
-def _check_arguments(faces: int, backend: str, jobs: int, flush_every: int) -> None:
-    if isinstance(faces, bool) or not isinstance(faces, (int, np.integer)) or not MIN_FACES <= faces <= MAX_FACES:
-        raise ValueError(f"faces: expected an integer from {MIN_FACES} to {MAX_FACES}, got {faces!r}")
-    if backend not in BACKENDS:
-        raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
-    if jobs < 1 or flush_every < 1:
-        raise ValueError(f"jobs, flush_every: expected >= 1, got {jobs}, {flush_every}")
 
 
 def _reusable_rows(run: StageRun) -> tuple[dict, list[str]]:
@@ -121,32 +105,24 @@ def _row_reader(out_dir: Path, keep: int = 4):
     return read
 
 
-class _FrameSpill:
-    """Each character's sampled motions (:func:`_sampled`) in a temporary folder, one file a
-    character, so they are read once from the motions table and held one batch at a time."""
+def _sampled_motions(in_dir: Path) -> dict[str, list]:
+    """``{character_id: [motion cut to its 3 measured frames]}`` (:func:`_sampled`): 3 (K, 7) frames a clip."""
+    out: dict[str, list] = {}
+    for m in iter_records(in_dir, "motions"):  # one shard in memory
+        out.setdefault(m.character_id, []).append(_sampled(m))
+    return out
 
-    def __init__(self, folder: Path):
-        self.folder = folder
-        self.files: dict[str, Path] = {}
 
-    def fill(self, in_dir: Path) -> None:
-        per_character: dict[str, list] = {}
-        for m in iter_records(in_dir, "motions"):  # one shard in memory
-            per_character.setdefault(m.character_id, []).append(_sampled(m))
-            if sum(len(v) for v in per_character.values()) >= 4096:
-                self._write(per_character)
-        self._write(per_character)
-
-    def _write(self, per_character: dict) -> None:
-        for cid, motions in per_character.items():
-            path = self.files.setdefault(cid, self.folder / f"{len(self.files):08d}.pkl")
-            old = pickle.loads(path.read_bytes()) if path.exists() else []
-            path.write_bytes(pickle.dumps(old + motions, protocol=pickle.HIGHEST_PROTOCOL))
-        per_character.clear()
-
-    def motions(self, cid: str) -> list:
-        path = self.files.get(cid)
-        return pickle.loads(path.read_bytes()) if path is not None else []
+def _batches(in_dir: Path, done: dict):
+    """The meshed characters of ``in_dir`` not in ``done``, :data:`BATCH` or more at a time (a row group read at a time)."""
+    batch = []
+    for _, _, group in iter_row_groups(in_dir, "characters"):
+        batch += [r for r in group if len(r.faces) > 0 and r.character_id not in done]
+        if len(batch) >= BATCH:
+            yield batch
+            batch = []
+    if batch:
+        yield batch
 
 
 def _sampled(m):
@@ -181,7 +157,10 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
-    _check_arguments(faces, backend, jobs, flush_every)
+    expect(is_whole(faces) and MIN_FACES <= faces <= MAX_FACES, "faces", f"an integer from {MIN_FACES} to {MAX_FACES}",
+           faces)
+    expect(backend in BACKENDS, "backend", f"one of {BACKENDS}", backend)
+    expect(jobs >= 1 and flush_every >= 1, "jobs, flush_every", ">= 1", (jobs, flush_every))
     order, meshless = [], {}  # (character ID, split) in input order; skeleton-only records (copied as they are)
     for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
         for r in group:
@@ -191,27 +170,14 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     if not order:
         raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
     run = StageRun(STAGE, ResampleParams(faces=int(faces), backend=backend), out_dir, in_dir, info={"source": str(in_dir)})
-    spill = tempfile.TemporaryDirectory(prefix="mimicbench-resample-frames-")  # the system's temporary folder
-    try:
-        frames = _FrameSpill(Path(spill.name))
-        if "motions" in run.config["fingerprint"]["inputs"]:
-            frames.fill(in_dir)  # a damaged motions shard stops the stage here, before OUT is touched
-        return _resample(run, jobs, progress, flush_every, flush_seconds, engine, order, meshless, frames, start)
-    finally:
-        spill.cleanup()
-
-
-def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine, order, meshless, frames,
-              start) -> dict:
-    """:func:`resample_dataset` once the input is read and the sampled frames are spilled."""
-    in_dir, out_dir = run.in_dir, run.out_dir
+    # a damaged motions shard stops the stage here, before OUT is touched
+    frames = _sampled_motions(in_dir) if "motions" in run.config["fingerprint"]["inputs"] else {}
     done, notes = _reusable_rows(run)
     run.begin()
 
     where = dict(done)  # character ID -> (shard entry, row group) of its resampled row
-    parts = sorted({s["split"] for s in load_manifest_for_write(out_dir)["tables"].get("characters", {})
-                    .get("shards", []) if s["split"].startswith(PART)})
-    next_part = [int(parts[-1][len(PART):]) + 1 if parts else 0]
+    parts = [s for s in splits_of(out_dir, "characters", allow_incomplete=True) if s.startswith(PART)]
+    next_part = [max((int(p[len(PART):]) for p in parts), default=-1) + 1]
     buffer: list = []
     last_flush = [time.monotonic()]
     group_rows, shard_rows = ROW_GROUP_SIZE["characters"], rows_per_shard("characters", STAGE.name)
@@ -234,30 +200,14 @@ def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine,
     statuses: list[StatusRecord] = []
     todo = sum(has_mesh and cid not in done for cid, _, has_mesh in order)
     fn = partial(STAGE.item, faces=run.params.faces, backend=run.params.backend)
-    batch: list = []
-    batches = 0
-
-    def run_batch() -> None:
-        nonlocal batches
-        items = [(r, frames.motions(r.character_id)) for r in batch]
-        batches += 1
-        _, st = run_stage(items, fn, "resample" if todo <= len(batch) else
-                          f"resample {min(batches * BATCH, todo)}/{todo}",
-                          name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress,
-                          on_done=on_done, engine=engine, resources=TASK_RESOURCES, keep_results=False)
-        statuses.extend(st)
-        batch.clear()
-
-    for _, _, group in iter_row_groups(in_dir, "characters"):
-        batch.extend(r for r in group if len(r.faces) > 0 and r.character_id not in done)
-        if len(batch) >= BATCH:
-            run_batch()
-    if batch:
-        run_batch()
+    for n, batch in enumerate(_batches(in_dir, done), 1):
+        label = "resample" if todo <= len(batch) else f"resample {min(n * BATCH, todo)}/{todo}"
+        statuses += run_stage([(r, frames.get(r.character_id, [])) for r in batch], fn, label,
+                              name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress, on_done=on_done,
+                              engine=engine, resources=TASK_RESOURCES, keep_results=False)[1]
     flush()
-    meshed = [cid for cid, _, has_mesh in order if has_mesh]
-    if meshed and not any(cid in where for cid in meshed):
-        raise run.abandon(statuses, "character")
+    if any(has_mesh for *_, has_mesh in order) and not any(has_mesh and cid in where for cid, _, has_mesh in order):
+        raise run.abandon(statuses, "character")  # every meshed character failed
 
     read, quality, count = _row_reader(out_dir), [], 0
     splits = splits_of(in_dir, "characters")
@@ -279,17 +229,13 @@ def _resample(run: StageRun, jobs, progress, flush_every, flush_seconds, engine,
             remove_split(out_dir, "characters", split)
     skipped = [StatusRecord(cid, "resample", "skipped", "already resampled", 0.0) for cid in done]
     run.write_status(statuses + skipped)
-    for table in STAGE.copies:
-        copy_table(in_dir, out_dir, table)
+    run.copy_inputs()
     run.finish(configs=["characters"])
     q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
-    summary = {
-        "characters": count, "resampled": sum(s.status == "ok" for s in statuses), "already_done": len(done),
-        "failed": sum(s.status == "failed" for s in statuses),
-        "hausdorff_pct_mean": float(np.mean(q[:, 0])) if len(q) else None,
-        "transfer_error_pct_mean": float(np.mean(q[:, 1])) if len(q) else None,
-        "seconds": time.perf_counter() - start, "statuses": statuses, "notes": notes,
-    }
     if progress:
         print(summarize_statuses(statuses))
-    return summary
+    return {"characters": count, "resampled": sum(s.status == "ok" for s in statuses), "already_done": len(done),
+            "failed": sum(s.status == "failed" for s in statuses),
+            "hausdorff_pct_mean": float(np.mean(q[:, 0])) if len(q) else None,
+            "transfer_error_pct_mean": float(np.mean(q[:, 1])) if len(q) else None,
+            "seconds": time.perf_counter() - start, "statuses": statuses, "notes": notes}

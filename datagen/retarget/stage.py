@@ -30,12 +30,10 @@ STAGE = Stage("retarget", RetargetParams, inputs=("characters", "motions"), item
 
 def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", targets: str = "*",
                       progress: bool = True) -> dict:
-    """Retarget the clips of ``motions_dir`` (characters matching the glob ``sources``) onto the
-    characters of ``characters_dir`` matching ``targets`` that have at least 8 humanoid bone roles.
-
-    Writes ``out_dir``: the target characters, the retargeted clips (``<target>/<source>/<clip>``),
-    ``status`` (stage ``retarget``, one row per pair) and ``retarget_report.json`` (mapped and
-    unmapped bones per pair). Returns a summary."""
+    """Retarget the clips of ``motions_dir``'s characters matching the glob ``sources`` onto those of
+    ``characters_dir`` matching ``targets`` with at least :data:`MIN_ROLES` humanoid bone roles, into
+    ``out_dir``: the targets, the clips (``<target>/<source>/<clip>``), a status row per pair and
+    ``retarget_report.json`` (mapped and unmapped bones per pair). Returns a summary."""
     from tqdm.auto import tqdm
 
     start = time.perf_counter()
@@ -67,9 +65,8 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
                                      f"{len(report['target_unmapped'])} target bones at rest", time.perf_counter() - t0))
     run.begin()
     chars = list(used.values())
-    for split in sorted({c.split for c in chars}):
-        run.write("characters", [c for c in chars if c.split == split], split)
-        run.write("motions", [r for r in out_motions if r.split == split], split)
+    run.write_splits("characters", chars)
+    run.write_splits("motions", out_motions)
     run.write_status(statuses)
     (run.out_dir / "retarget_report.json").write_text(json.dumps(reports, ensure_ascii=False, indent=1))
     run.finish()

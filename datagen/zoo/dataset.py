@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from mimicbench.engines import Engine
+from mimicbench.validation import expect, is_whole
 from datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
 from datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
 from datagen.zoo.clips import CLIP_SETS
@@ -66,47 +67,29 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     """Generate a procedural zoo into ``out_dir``.
 
     Writes ``characters/`` and ``motions/`` shards (one set per split; an empty split gets an
-    empty shard so a rebuild replaces older data), a ``status`` table (split ``zoo``, one row a
-    character; seconds are left 0 so the data is byte-identical for a seed), ``manifest.json``
-    with the build config and its fingerprint, ``CARD.md``, and with ``export`` the .obj/.bvh files
-    (marks, refusal of another stage's dataset: FORMAT.md, "Stages and resume").
-
-    Characters are built by ``engine`` (default: the local engine with ``jobs`` processes; the
-    bytes do not depend on it) and streamed into the shards in plan order as they finish, so
-    memory holds a few hundred clips, never the whole motions table (a PokeAnimDB-size zoo has
-    4.5 million frames).
-
-    A zoo in which every character failed writes nothing (:class:`DatasetError` says why).
+    empty shard so a rebuild replaces older data), a ``status`` table (split ``zoo``, seconds 0 so
+    the bytes depend only on the arguments), the manifest, ``CARD.md`` and the ``export`` files.
+    Characters are built by ``engine`` (default: the local engine with ``jobs`` processes) and
+    streamed into the shards in plan order, so memory holds a few hundred clips. A zoo in which
+    every character failed writes nothing (:class:`DatasetError` says why).
 
     Args:
-        motions: total clips, spread evenly over the characters (instead of ``clips_per_character``
-            each; PokeAnimDB's 28,809 over 975 characters is 29 or 30 each).
-        frames_per_clip: frames of every clip at 30 fps (PokeAnimDB's 4.47M frames over 28,809
-            clips is about 155).
-        clip_set: which clips (``datagen.zoo.clips.CLIP_SETS``): ``default``, or ``dynamic`` (humanoids
-            and apparel characters spin, stop, jump and turn first: motions where apparel lags and
-            swings). Recorded in the config only when not ``default``, so default zoos keep their bytes.
+        motions: total clips, spread evenly over the characters (instead of ``clips_per_character`` each).
+        frames_per_clip: frames of every clip at 30 fps.
+        clip_set: which clips (``datagen.zoo.clips.CLIP_SETS``); in the config only when not ``default``.
 
     Returns:
         A summary dict: ``characters``, ``motions``, ``frames``, ``failed``, ``by_category``,
-        ``splits``, ``h2h_family``, ``joints`` (min, mean, max), ``faces`` (min, mean, max),
-        ``seconds``, ``out``.
+        ``splits``, ``h2h_family``, ``joints`` and ``faces`` (min, mean, max), ``seconds``, ``out``.
     """
     start = time.perf_counter()
     export = tuple(export or ())
-    bad = [e for e in export if e not in EXPORT_FORMATS]
-    if bad:
-        raise ValueError(f"export: unknown format(s) {bad}; expected some of {EXPORT_FORMATS}")
-    if clips_per_character < 1:
-        raise ValueError(f"clips_per_character: expected >= 1, got {clips_per_character}")
-    if isinstance(frames_per_clip, bool) or not isinstance(frames_per_clip, (int, np.integer)) \
-            or not RAMP_FRAMES < frames_per_clip <= MAX_FRAMES:
-        raise ValueError(f"frames_per_clip: expected an integer from {RAMP_FRAMES + 1} to {MAX_FRAMES}, "
-                         f"got {frames_per_clip!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed: expected an integer >= 0, got {seed!r}")
-    if clip_set not in CLIP_SETS:
-        raise ValueError(f"clip_set: expected one of {list(CLIP_SETS)}, got {clip_set!r}")
+    expect(all(e in EXPORT_FORMATS for e in export), "export", f"some of {EXPORT_FORMATS}", export)
+    expect(clips_per_character >= 1, "clips_per_character", ">= 1", clips_per_character)
+    expect(is_whole(frames_per_clip) and RAMP_FRAMES < frames_per_clip <= MAX_FRAMES, "frames_per_clip",
+           f"an integer from {RAMP_FRAMES + 1} to {MAX_FRAMES}", frames_per_clip)
+    expect(is_whole(seed) and seed >= 0, "seed", "an integer >= 0", seed)
+    expect(clip_set in CLIP_SETS, "clip_set", f"one of {list(CLIP_SETS)}", clip_set)
     out = Path(out_dir)
     specs = plan_zoo(num_characters, seed, categories)
     if not specs:
@@ -145,18 +128,15 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     stats = zoo_stats_from_summaries(characters, clips)
     atomic_write_bytes(out / "CARD.md", render_card(stats, run.config, split_counts, family).encode())
     failed = [s for s in statuses if s.status != "ok"]
-    joints = np.array([c["joints"] for c in characters])
-    faces = np.array([c["faces"] for c in characters])
-    return {
-        "out": str(out), "characters": len(characters), "motions": len(clips),
-        "frames": int(sum(f for _, f in clips)), "failed": len(failed),
-        "failures": [f"{s.asset}: {s.reason}" for s in failed],
-        "by_category": {k: v["characters"] for k, v in stats.items() if k != "all"},
-        "splits": split_counts, "h2h_family": family,
-        "joints": [int(joints.min()), float(joints.mean()), int(joints.max())],
-        "faces": [int(faces.min()), float(faces.mean()), int(faces.max())],
-        "seconds": time.perf_counter() - start,
-    }
+
+    def spread(key: str) -> list:  # min, mean, max over the characters
+        v = np.array([c[key] for c in characters])
+        return [int(v.min()), float(v.mean()), int(v.max())]
+
+    return {"out": str(out), "characters": len(characters), "motions": len(clips),
+            "frames": int(sum(f for _, f in clips)), "failed": len(failed), "failures": [f"{s.asset}: {s.reason}" for s in failed],
+            "by_category": {k: v["characters"] for k, v in stats.items() if k != "all"}, "splits": split_counts,
+            "h2h_family": family, "joints": spread("joints"), "faces": spread("faces"), "seconds": time.perf_counter() - start}
 
 
 def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int, clip_set: str = "default"):
