@@ -79,7 +79,9 @@ def test_a_few_steps_lower_each_loss(apparel_data, run, stage):
     batch = next(iter(st.batches(cfg, ctx, np.random.default_rng(0))))
     batch = {k: torch.as_tensor(v) if isinstance(v, np.ndarray) else v for k, v in batch.items()}
     first = {k: float(v.detach()) for k, v in st.loss(module, batch, ctx).items()}
-    last = after_steps(st, module, batch, ctx)
+    # f_d's from-rest rollout (the whole clip) moves slowly off its zero-displacement start: a smaller
+    # step, more of them (at lr 3e-3 its loss rose over 12 steps on this clip)
+    last = after_steps(st, module, batch, ctx, **({"lr": 1e-3, "steps": 40} if stage == "apparel" else {}))
     assert last["total"] < first["total"], (first, last)
     # the term that dominates each stage's total drops too (the body's total starts on the geodesic
     # prior's near-right weights, where the smoothness term leads, so it is judged by its total)
@@ -308,7 +310,7 @@ def test_window_starts_of_version_6_still_train(apparel_data, run):
     batch = _tensors(next(iter(st.batches(cfg, ctx, np.random.default_rng(0)))))
     assert batch["history"].shape[1] == 3 and batch["truth"].shape[1] == cfg["window"]
     first = {k: float(v.detach()) for k, v in st.loss(module, batch, ctx).items()}
-    last = after_steps(st, module, batch, ctx)
+    last = after_steps(st, module, batch, ctx, lr=1e-3, steps=40)
     assert last["vertex"] < first["vertex"], (first, last)
     with pytest.raises(ValueError, match="apparel_start"):
         next(iter(st.batches({**cfg, "apparel_start": "middle"}, ctx, np.random.default_rng(0))))
