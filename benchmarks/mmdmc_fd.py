@@ -209,7 +209,7 @@ def _context(dataset: Path, config: dict):
 def _windows(dataset: Path, config: dict, n: int, rest_start: float, seed: int) -> list[dict]:
     from mimicbench.training.registry import trainable
 
-    cfg = {**config, "rest_start": rest_start, "batch_size": 1,
+    cfg = {**config, "apparel_start": "window", "rest_start": rest_start, "batch_size": 1,  # version 6's windows
            "apparel": {**config.get("apparel", {}), "batches_per_epoch": n}}
     ctx = _context(dataset, cfg)
     st = trainable("mmdmc").stage("apparel")

@@ -120,21 +120,29 @@ class ApparelDynamics(nn.Module):
         return s1 + u + d, d
 
     def rollout(self, history: torch.Tensor, body: torch.Tensor, rest: torch.Tensor, joints: torch.Tensor,
-                neighbours: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+                neighbours: torch.Tensor, truncate: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
         """Predicted states (B, T, A, 3) and displacements (B, T, A, 3) of frames t0..t0+T-1.
 
         Args:
-            history: (B, 3, A, 3) states of frames t0-3..t0-1 (ground truth in training; the body's
-                state at inference).
+            history: (B, 3, A, 3) states of frames t0-3..t0-1 (ground truth in training, or the body's
+                state at rest: :func:`baselines.mmdmc.pipeline.rest_start`).
             body: (B, T+1, A, 3) body states of frames t0-1..t0+T-1.
             joints: (B, T+3, J, 3) posed body joints of frames t0-3..t0+T-1.
+            truncate: truncated backpropagation through time: at every ``truncate``-th step the states
+                it reads are detached, so the values are unchanged and a frame's loss reaches back only
+                to the last such step (fewer than ``truncate`` steps). 0: no truncation.
         """
         t = body.shape[1] - 1
         if joints.shape[1] != t + HISTORY:
             raise ValueError(f"joints: expected {t + HISTORY} frames for a {t}-frame rollout, got {joints.shape[1]}")
-        states, disps = list(history.unbind(1)), []
+        if truncate < 0:
+            raise ValueError(f"truncate: expected >= 0 steps (0: none), got {truncate}")
+        recent, states, disps = list(history.unbind(1)), [], []  # recent: what the next step reads
         for i in range(t):
-            x, d = self.step(torch.stack(states[-HISTORY:], 1), body[:, i:i + 2], rest, joints[:, i:i + 4], neighbours)
+            if truncate and i and i % truncate == 0:
+                recent = [s.detach() for s in recent]
+            x, d = self.step(torch.stack(recent[-HISTORY:], 1), body[:, i:i + 2], rest, joints[:, i:i + 4], neighbours)
+            recent = recent[-(HISTORY - 1):] + [x]
             states.append(x)
             disps.append(d)
-        return torch.stack(states[HISTORY:], 1), torch.stack(disps, 1)
+        return torch.stack(states, 1), torch.stack(disps, 1)

@@ -35,7 +35,15 @@ COMMON = {
     "body_prior": "bone",    # ours: f_s's prior on its scores, "bone" (-B / tau, models up to v5) or "piece" (the
                              # piece prior alone where a mesh piece wraps a bone, at inference; piece_prior.py)
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
-    "rest_start": 0.5,       # ours: share of apparel windows started at rest on the body, as at inference
+    "apparel_start": "clip",  # ours: f_d's training rollouts, "clip" (from rest on the body at the clip's first
+                              # frame, as the simulation and a request start, through the burn-in; methods v7) or
+                              # "window" (`window` frames after K ground-truth states, a share `rest_start` of them
+                              # restarted at rest at the window, inside the clip; up to v6); training.py
+    "burn_in": 90,           # "clip": most frames before a scored window (the apparel protocol's BURN_IN)
+    "scored_window": 16,     # "clip": frames of a scored window (the apparel protocol's WINDOW)
+    "bptt": 3,               # "clip": truncated backpropagation every that many rollout steps (0: none; full
+                             # backpropagation through a from-rest rollout did not learn a toy lag, tests)
+    "rest_start": 0.5,       # "window" only: share of the windows restarted at rest on the body at the window
 }
 
 SMALL = {**COMMON, "lr": 1e-3, "weight_decay": 1e-4, "points": 1024, "batch_size": 4, "batches_per_epoch": 40,

@@ -4,8 +4,10 @@ body motion, f_d's rollout on the apparel vertices, f_j's refinement.
 The rollout starts where a request starts: nothing is known of the apparel before it, so the
 K = 3 history states are the body state of the request's first frame (the apparel at rest on the
 body, not moving). The apparel protocol's requests (cases version 2) start at the clip's first
-frame, where the simulation started from rest too, or 90 frames before the scored window. Per-character results (mask, weights, EdgeConv neighbours) are cached on
-the :class:`~baselines.mmdmc.data.Prepared` character.
+frame, where the simulation started from rest too, or 90 frames before the scored window; the
+apparel stage's training rollouts (``apparel_start="clip"``) start the same way through the same
+function (:func:`rollout_from_rest`). Per-character results (mask, weights, EdgeConv neighbours)
+are cached on the :class:`~baselines.mmdmc.data.Prepared` character.
 """
 from __future__ import annotations
 
@@ -147,19 +149,51 @@ def apparel_layout(prep: Prepared, mask: np.ndarray, knn: int) -> tuple[np.ndarr
     return prep.cache[key]
 
 
+def rest_start(body: torch.Tensor, joints: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The inputs of a rollout started at rest on the body at its first frame (how every request
+    starts): nothing is known of the apparel before it, so the K = 3 history states are the first
+    body state, not moving, and the frames before it repeat its body state and joints.
+
+    Args:
+        body: (B, F, A, 3) body states of the apparel vertices, frames 0..F-1 (unit-height frame).
+        joints: (B, F, J, 3) posed body joints, frames 0..F-1.
+
+    Returns:
+        ``history`` (B, 3, A, 3), ``body`` (B, F+1, A, 3) of frames -1..F-1 and ``joints`` (B, F+3, J, 3)
+        of frames -3..F-1, as :meth:`~baselines.mmdmc.apparel.ApparelDynamics.rollout` reads them.
+    """
+    history = body[:, :1].expand(-1, HISTORY, -1, -1)
+    body_seq = torch.cat([body[:, :1], body], 1)
+    joint_seq = torch.cat([joints[:, :1].expand(-1, HISTORY, -1, -1), joints], 1)
+    return history, body_seq, joint_seq
+
+
+def rollout_from_rest(dyn: torch.nn.Module, body: torch.Tensor, rest: torch.Tensor, joints: torch.Tensor,
+                      neighbours: torch.Tensor, truncate: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    """f_d rolled out from rest on the body at frame 0 (:func:`rest_start`): states and displacements,
+    each (B, F, A, 3), unit-height frame. Inference (:func:`rollout_from_body`) and the apparel stage's
+    from-rest rollouts (``apparel_start="clip"``, :mod:`baselines.mmdmc.training`) both call this, so
+    training rolls out exactly as a request is answered.
+
+    Args:
+        body: (B, F, A, 3) body states of the apparel vertices; rest: (B, A, 3) their rest positions;
+        joints: (B, F, J, 3) posed body joints; neighbours: (A, k) EdgeConv neighbours.
+        truncate: truncated backpropagation every that many steps (0: none; values unchanged).
+    """
+    history, body_seq, joint_seq = rest_start(body, joints)
+    return dyn.rollout(history, body_seq, rest, joint_seq, neighbours, truncate)
+
+
 @torch.no_grad()
 def rollout_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, joints: torch.Tensor,
                       idx: np.ndarray, neighbours: np.ndarray) -> torch.Tensor:
     """Apparel states (F, A, 3) over a window whose body states are (F, N, 3) and posed body joints
-    (F, Kb, 3) (unit-height frame), started from the first frame's body state at rest."""
+    (F, Kb, 3) (unit-height frame), started from the first frame's body state at rest
+    (:func:`rollout_from_rest`)."""
     dev = body.device
-    ib = torch.as_tensor(idx, device=dev)
-    sb = body[:, ib]  # (F, A, 3)
-    history = sb[:1].expand(HISTORY, -1, -1)[None]
-    body_seq = torch.cat([sb[:1], sb], 0)[None]  # frames -1..F-1
-    joint_seq = torch.cat([joints[:1].expand(HISTORY, -1, -1), joints], 0)[None]  # frames -3..F-1
+    sb = body[:, torch.as_tensor(idx, device=dev)]  # (F, A, 3)
     rest = torch.as_tensor(prep.rest_norm[idx], device=dev)[None]
-    states, _ = dyn.rollout(history, body_seq, rest, joint_seq, torch.as_tensor(neighbours, device=dev))
+    states, _ = rollout_from_rest(dyn, sb[None], rest, joints[None], torch.as_tensor(neighbours, device=dev))
     return states[0]
 
 

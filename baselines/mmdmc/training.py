@@ -17,19 +17,28 @@ end to end on their outputs):
   read every kinematic clip, so they can train on a zoo that was never simulated (more
   characters than the simulated set); the default reads the simulated pairs, as the shipped
   model did.
-- ``apparel`` (needs seg, body): f_d rolled out over windows of T frames from K = 3 ground-truth
-  states (Eq. 11), on the apparel vertices f_c finds, from f_s's body states; L1 vertex, edge
-  length (Eq. 14-15) and an L2 regulariser on the displacements. A share ``rest_start`` of the
-  windows (ours; the paper starts every window from ground truth) starts as inference does, from
-  the body state at rest (no apparel history is known when a request starts), so f_d learns to
-  roll out from there too. With ``apparel_skinning="attachment"`` the apparel vertices (f_c's mask,
+- ``apparel`` (needs seg, body): f_d rolled out on the apparel vertices f_c finds, from f_s's body
+  states; L1 vertex, edge length (Eq. 14-15) and an L2 regulariser on the displacements. With
+  ``apparel_start="clip"`` (the default, methods version 7) every rollout starts as the simulation
+  and a request of the apparel protocol do: at rest on the body at the clip's first frame (K = 3
+  history states of the body at rest, :func:`baselines.mmdmc.pipeline.rest_start`), rolled out
+  through the burn-in to the window's end (at most ``burn_in`` + ``scored_window`` frames; a longer
+  clip rolls out from a random frame, scored only on its last ``scored_window`` frames, as a request
+  that starts a full burn-in before its window is) by the same function inference calls
+  (:func:`baselines.mmdmc.pipeline.rollout_from_rest`), with truncated backpropagation every ``bptt``
+  steps (0: none). With ``apparel_start="window"`` (methods up to version 6) a rollout is a window of
+  ``window`` frames after K ground-truth states (Eq. 11, the paper's), a share ``rest_start`` of
+  them restarted at rest on the body at the window, inside the clip: where the simulated apparel
+  already lags the body, a target the rest-started rollout's inputs cannot reach.
+  With ``apparel_skinning="attachment"`` the apparel vertices (f_c's mask,
   voted per mesh piece with ``mask_by_piece``) start from the body bone their chain hangs from
   (:mod:`baselines.mmdmc.chain_attachment`), the body target's own rule, rather than f_s's
   weights; ``weight_smoothing`` (edge hops) and ``weight_smoothing_radius`` (a distance) smooth
   f_s's weights along the mesh (:mod:`baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
   model's settings) and read at inference from the stages' checkpoints.
-- ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference; L1 vertex,
-  edge length, L2 on the corrections.
+- ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference (with
+  ``apparel_start="clip"`` f_d rolls out from the window's request start, its burn-in, as a
+  request does); L1 vertex, edge length, L2 on the corrections.
 
 Each batch is built from the training dataset (``mimicbench datagen apparel`` output) with the
 epoch's generator; a vertex subsample (``points``) stands in for the whole mesh in ``seg`` and
@@ -53,7 +62,7 @@ from baselines.mmdmc.config import CONFIGS
 from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
 from baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
 from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, mesh_weights,
-                                      rollout_from_body, to_unit)
+                                      rollout_from_body, rollout_from_rest, to_unit)
 from baselines.mmdmc.refine import JointRefiner
 from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
@@ -272,45 +281,134 @@ def _windows(data: TrainingData, first: int, length: int) -> list[tuple[int, int
     return [(i, t0) for i, clip in enumerate(data.clips) for t0 in range(first, clip.frames - length + 1)]
 
 
+APPAREL_STARTS = ("clip", "window")
+
+
+def apparel_start(config: dict) -> str:
+    """The config's ``apparel_start`` (absent in configs up to methods version 6: ``"window"``)."""
+    mode = config.get("apparel_start", "window")
+    if mode not in APPAREL_STARTS:
+        raise ValueError(f"apparel_start: expected one of {APPAREL_STARTS}, got {mode!r}")
+    return mode
+
+
+def rollout_span(frames: int, burn_in: int, window: int) -> tuple[list[int], int]:
+    """From-rest rollouts of a clip of ``frames`` frames (``apparel_start="clip"``): their first frames
+    and their length L = min(frames, burn_in + window). A request of the apparel protocol starts at the
+    clip's first frame (where the simulation started from rest) or ``burn_in`` frames before its
+    window, so a clip up to L frames long is one rollout from frame 0, a longer one any of
+    frames 0..frames-L."""
+    length = min(frames, burn_in + window)
+    return list(range(frames - length + 1)), length
+
+
+def scored_frames(start: int, length: int, window: int) -> np.ndarray:
+    """(L,) bool frames of a from-rest rollout that the apparel protocol scores in some request that
+    starts where it does: every frame of one started at the clip's first frame; the last ``window``
+    of one started later (a request starts later than frame 0 only a full burn-in before its window)."""
+    out = np.ones(length, bool)
+    if start > 0:
+        out[: length - window] = False
+    return out
+
+
+def _apparel_character(c: Prepared, context: StageContext, config: dict, r: np.random.Generator):
+    """f_c's mask of ``c``, the drawn apparel vertices (A,), their EdgeConv neighbours (A, k), their
+    mesh edges as neighbour pairs and the weights (N, Kb) their body states are skinned with; None
+    when f_c finds no apparel."""
+    mask = _predicted_mask(c, context, config)
+    if not mask.any():
+        return None
+    idx = _pick_components(c, mask, config["apparel_points"], r)
+    nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
+                              config["knn"])
+    w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
+                     config.get("weight_smoothing", 0), config.get("weight_smoothing_radius", 0.0)).cpu()
+    edges = np.stack([np.repeat(np.arange(len(idx)), nb.shape[1] - 1), nb[:, 1:].reshape(-1)], 1)
+    return idx, nb, w, edges
+
+
+def _apparel_body(c: Prepared, idx: np.ndarray, w: torch.Tensor, kin: np.ndarray) -> np.ndarray:
+    """(F, A, 3) unit-height body states of the apparel vertices ``idx`` for transforms (F, K, 7)."""
+    return to_unit(c, skin(torch.as_tensor(c.rest[idx]), torch.as_tensor(c.keypoints[c.body]), w[idx],
+                           torch.as_tensor(kin[:, c.body]))).numpy()
+
+
 def batches_apparel(config: dict, context: StageContext, rng: np.random.Generator):
+    """One rollout a step (apparel vertex counts differ between characters). ``apparel_start="clip"``:
+    a from-rest rollout (:func:`rollout_span`) with the frames a request would score
+    (:func:`scored_frames`); ``"window"``: a window of ``window`` frames after K ground-truth states, a
+    share ``rest_start`` of them restarted at rest on the body at the window (version 6's)."""
+    if apparel_start(config) == "clip":
+        yield from _batches_apparel_clip(config, context, rng)
+        return
     data = training_data(config, context)
     t = config["window"]
     windows = _windows(data, HISTORY, t)
     if not windows:
         raise ValueError(f"no clip has the {HISTORY + t} frames an apparel window needs (window={t})")
     for batch in _draws(config, context, rng, len(windows), "apparel"):
-        for pick, seed in batch:  # one window a step: apparel vertex counts differ between characters
+        for pick, seed in batch:
             ci, t0 = windows[pick]
             clip = data.clips[ci]
             c = data.characters[clip.character_id]
-            mask = _predicted_mask(c, context, config)
-            if not mask.any():
-                continue
             r = np.random.default_rng(seed)
-            idx = _pick_components(c, mask, config["apparel_points"], r)
-            nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
-                                      config["knn"])
-            w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
-                             config.get("weight_smoothing", 0), config.get("weight_smoothing_radius", 0.0)).cpu()
+            found = _apparel_character(c, context, config, r)
+            if found is None:
+                continue
+            idx, nb, w, edges = found
             frames = slice(t0 - HISTORY, t0 + t)
             kin = clip.kinematic[frames]
-            s = to_unit(c, skin(torch.as_tensor(c.rest[idx]), torch.as_tensor(c.keypoints[c.body]), w[idx],
-                                torch.as_tensor(kin[:, c.body]))).numpy()  # frames t0-3..t0+T-1
+            s = _apparel_body(c, idx, w, kin)  # frames t0-3..t0+T-1
             truth = c.norm(posed(c, clip.simulated[frames], idx))
             history, body, joints = truth[:HISTORY], s[HISTORY - 1:], c.norm(kin[:, c.body, 4:])
-            if r.random() < config["rest_start"]:  # started as at inference: at rest on the body, not moving
+            if r.random() < config["rest_start"]:  # at rest on the body at the window, not moving
                 history = np.repeat(s[HISTORY:HISTORY + 1], HISTORY, 0)
                 body = np.concatenate([s[HISTORY:HISTORY + 1], s[HISTORY:]])
                 joints = np.concatenate([np.repeat(joints[HISTORY:HISTORY + 1], HISTORY, 0), joints[HISTORY:]])
             yield {"history": history[None], "body": body[None], "rest": c.rest_norm[idx][None],
-                   "joints": joints[None], "neighbours": nb, "truth": truth[None, HISTORY:],
-                   "edges": np.stack([np.repeat(np.arange(len(idx)), nb.shape[1] - 1), nb[:, 1:].reshape(-1)], 1)}
+                   "joints": joints[None], "neighbours": nb, "truth": truth[None, HISTORY:], "edges": edges}
+
+
+def _batches_apparel_clip(config: dict, context: StageContext, rng: np.random.Generator):
+    data = training_data(config, context)
+    window = config["scored_window"]
+    spans = [(i, t0, rollout_span(clip.frames, config["burn_in"], window)[1]) for i, clip in enumerate(data.clips)
+             for t0 in rollout_span(clip.frames, config["burn_in"], window)[0]]
+    for batch in _draws(config, context, rng, len(spans), "apparel"):
+        for pick, seed in batch:
+            ci, t0, length = spans[pick]
+            clip = data.clips[ci]
+            c = data.characters[clip.character_id]
+            found = _apparel_character(c, context, config, np.random.default_rng(seed))
+            if found is None:
+                continue
+            idx, nb, w, edges = found
+            kin = clip.kinematic[t0:t0 + length]
+            yield {"body": _apparel_body(c, idx, w, kin)[None], "joints": c.norm(kin[:, c.body, 4:])[None],
+                   "rest": c.rest_norm[idx][None], "neighbours": nb, "edges": edges,
+                   "truth": c.norm(posed(c, clip.simulated[t0:t0 + length], idx))[None],
+                   "scored": scored_frames(t0, length, window)}
+
+
+def apparel_states(module, batch, config: dict) -> tuple[torch.Tensor, torch.Tensor]:
+    """f_d's states and displacements (B, T, A, 3) for an apparel batch: from rest at its first frame
+    through :func:`baselines.mmdmc.pipeline.rollout_from_rest` (inference's own path) when the batch
+    has no ``history``, else from the batch's K history states."""
+    if "history" in batch:
+        return module.rollout(batch["history"], batch["body"], batch["rest"], batch["joints"], batch["neighbours"])
+    return rollout_from_rest(module, batch["body"], batch["rest"], batch["joints"], batch["neighbours"],
+                             int(config.get("bptt", 0)))
 
 
 def loss_apparel(module, batch, context) -> dict:
-    states, disp = module.rollout(batch["history"], batch["body"], batch["rest"], batch["joints"], batch["neighbours"])
-    return weighted_total({"vertex": vertex_l1(states, batch["truth"]),
-                           "edge": edge_length(states, batch["truth"], batch["edges"]),
+    states, disp = apparel_states(module, batch, context.config)
+    truth = batch["truth"]
+    if "scored" in batch:  # only the frames a request scores
+        on = torch.as_tensor(batch["scored"], dtype=torch.bool)
+        states, disp, truth = states[:, on], disp[:, on], truth[:, on]
+    return weighted_total({"vertex": vertex_l1(states, truth),
+                           "edge": edge_length(states, truth, batch["edges"]),
                            "reg": l2_regulariser(disp)}, context.config)
 
 
@@ -329,7 +427,9 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
             ci, t0 = windows[pick]
             clip = data.clips[ci]
             c = data.characters[clip.character_id]
-            kin = clip.kinematic[t0:t0 + t]
+            # f_d rolls out from where a request of this window starts ("clip": its burn-in) to the window's end
+            q = max(0, t0 - config["burn_in"]) if apparel_start(config) == "clip" else t0
+            kin = clip.kinematic[q:t0 + t]
             prob = apparel_probability(context.frozen["seg"], c, config.get("mask_by_piece", False))
             mask = prob > config["threshold"]
             w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
@@ -341,6 +441,7 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
                 joints = to_unit(c, torch.as_tensor(kin[:, c.body, 4:], device=s.device))
                 y[:, torch.as_tensor(idx, device=s.device)] = rollout_from_body(context.frozen["apparel"], c, s,
                                                                                 joints, idx, nb)
+            s, y, kin = s[t0 - q:], y[t0 - q:], kin[t0 - q:]
             yield {"body": s.cpu().numpy(), "combined": y.cpu().numpy(), "prob": np.tile(prob, (t, 1)),
                    "rest": c.rest_norm[None], "truth": c.norm(posed(c, clip.simulated[t0:t0 + t])), "edges": c.edges}
 
