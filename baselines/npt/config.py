@@ -6,14 +6,16 @@ example (the max-pool encoder and the per-point decoder accept any count; 0: eve
 ``pose_mix`` and ``residual`` the decoder's options (:mod:`baselines.npt.model`; absent in version 1's
 config, whose decoder had neither); ``knn`` neighbours standing in for mesh edges in the edge term on that subsample;
 ``w_edge`` the edge term's weight (the paper's 0.0005); ``self_share`` the share of examples that are
-self-transfers of any character (ours, see training.py); ``batches_per_epoch`` steps an
+self-transfers of any character (ours, see training.py); ``cycle_batch`` cross-category cycle examples
+added to each step (ours, version 4: :mod:`baselines.npt.cycle`; 0 off, as in the paper), ``w_cycle`` and
+``w_cycle_edge`` the weights of its cycle MSE and of its forward leg's edge term; ``batches_per_epoch`` steps an
 epoch; ``split`` the characters trained on.
 """
 from __future__ import annotations
 
-COMMON = {"knn": 6, "w_edge": 0.0005, "self_share": 0.5, "split": "all"}
+COMMON = {"knn": 6, "w_edge": 0.0005, "self_share": 0.5, "split": "all", "cycle_batch": 0, "w_cycle": 1.0, "w_cycle_edge": 0.01}
 
-SMALL = {**COMMON, "widths": [32, 64, 256], "pose_mix": True, "pose_cond": True, "residual": True, "points": 512,
+SMALL = {**COMMON, "widths": [32, 64, 256], "pose_mix": True, "pose_cond": True, "residual": True, "cycle_batch": 2, "points": 512,
          "batch_size": 4, "batches_per_epoch": 60, "epochs": 20, "lr": 1e-3, "weight_decay": 0.0, "grad_clip": 1.0}
 
 PAPER = {**COMMON, "widths": [64, 128, 1024], "pose_mix": True, "residual": False, "points": 0, "batch_size": 8, "batches_per_epoch": 500,
