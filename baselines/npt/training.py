@@ -6,8 +6,8 @@ posed by the h2h ground truth of that pose), plus a share ``self_share`` of self
 character of the dataset, of every category (ours: the paper trains on SMPL pairs; a zoo's
 same-skeleton pairs are all humanoids, and a self-transfer is supervised too); both
 meshes are seen as :mod:`baselines.npt.placement` centres them, on ``points`` vertices drawn per
-mesh. The loss is :func:`baselines.npt.losses.npt_loss`; with ``cycle_batch`` > 0 (version 4's
-``small``) each step also draws that many cross-category cycle examples, whose terms
+mesh. The loss is :func:`baselines.npt.losses.npt_loss`; with ``cycle_batch`` > 0 (the
+``small_cycle`` preset) each step also draws that many cross-category cycle examples, whose terms
 :func:`baselines.npt.cycle.add_cycle` adds. CGT trains on the very same batches
 (:func:`pair_batches`, :func:`loss_pairs`).
 """
