@@ -2,7 +2,9 @@
 
 One stage, ``cgt``, on NPT's batches (:func:`baselines.npt.training.pair_batches`: same-skeleton pairs
 and self-transfers, centred as :mod:`baselines.npt.placement` says) with NPT's loss; attention runs
-over at most ``cap`` points of each example's posed source (:func:`capped_rows`), as at inference.
+over at most ``cap`` points of each example's posed source (:func:`capped_rows`), as at inference; the
+cross-category cycle term (``cycle_batch`` > 0, :mod:`baselines.npt.cycle`) calls the model through
+:func:`capped_answer`.
 """
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import torch
 from baselines.cgt.config import CONFIGS
 from baselines.cgt.model import Cgt
 from baselines.cgt.sampling import farthest_points
+from baselines.npt.cycle import add_cycle
 from baselines.npt.losses import npt_loss
 from baselines.npt.training import pair_batches
 from mimicbench.training.registry import make_trainable
@@ -37,13 +40,29 @@ def batches_cgt(config: dict, context: StageContext, rng: np.random.Generator):
         yield batch
 
 
+def capped_answer(module, cap: int):
+    """The model call of :func:`baselines.npt.cycle.cycle_terms` for ``module``: each example of the batch
+    attends over ``cap`` farthest points of its own posed source (drawn from it, detached), as at inference."""
+
+    def answer(pose: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
+        preds = []
+        for b in range(pose.shape[0]):
+            rows = capped_rows(pose[b].detach().cpu().numpy(), identity[b].detach().cpu().numpy(), cap)
+            rows = {k: torch.as_tensor(v, device=pose.device) for k, v in rows.items()}
+            preds.append(module(pose[b:b + 1], identity[b:b + 1], **rows))
+        return torch.cat(preds)
+
+    return answer
+
+
 def loss_cgt(module, batch, context) -> dict:
     device = batch["pose"].device
     preds = []
     for b, rows in enumerate(batch["capped"]):
         rows = {k: torch.as_tensor(v, device=device) for k, v in rows.items()}
         preds.append(module(batch["pose"][b:b + 1], batch["identity"][b:b + 1], **rows))
-    return npt_loss(torch.cat(preds), batch["truth"], batch["edges"], float(context.config["w_edge"]))
+    terms = npt_loss(torch.cat(preds), batch["truth"], batch["edges"], float(context.config["w_edge"]))
+    return add_cycle(terms, capped_answer(module, int(context.config["cap"])), batch, context.config)
 
 
 STAGES = [TrainStage("cgt", build_cgt, batches_cgt, loss_cgt)]

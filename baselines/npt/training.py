@@ -6,7 +6,9 @@ posed by the h2h ground truth of that pose), plus a share ``self_share`` of self
 character of the dataset, of every category (ours: the paper trains on SMPL pairs; a zoo's
 same-skeleton pairs are all humanoids, and a self-transfer is supervised too); both
 meshes are seen as :mod:`baselines.npt.placement` centres them, on ``points`` vertices drawn per
-mesh. The loss is :func:`baselines.npt.losses.npt_loss`. CGT trains on the very same batches
+mesh. The loss is :func:`baselines.npt.losses.npt_loss`; with ``cycle_batch`` > 0 (the
+``small_cycle`` preset) each step also draws that many cross-category cycle examples, whose terms
+:func:`baselines.npt.cycle.add_cycle` adds. CGT trains on the very same batches
 (:func:`pair_batches`, :func:`loss_pairs`).
 """
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from baselines.npt.config import CONFIGS
+from baselines.npt.cycle import add_cycle, cross_category_pairs, cycle_batch
 from baselines.npt.losses import npt_loss
 from baselines.npt.model import NeuralPoseTransfer
 from baselines.npt.placement import centred
@@ -47,21 +50,26 @@ def pair_batches(config: dict, context: StageContext, rng: np.random.Generator):
     selfs = rng.random(n) < config["self_share"]
     self_picks = rng.integers(0, len(pool.ids), size=n)
     seeds = rng.integers(0, 2**31 - 1, size=n)
+    cycle = int(config.get("cycle_batch", 0)) > 0
+    if cycle:  # drawn only when on, so a config without the term repeats version 3's batches
+        cycle_pairs, cycle_rng = cross_category_pairs(pool), np.random.default_rng(int(rng.integers(2**31 - 1)))
     for idx in rank_batches(n, config["batch_size"], rng, context.rank, context.world_size):
         items = []
         for i in idx:
             s, t = (pool.ids[int(self_picks[i])],) * 2 if selfs[i] else pool.pairs[int(picks[i])]
             items.append(pair_item(pool, s, t, config, np.random.default_rng(int(seeds[i]))))
+        extra = cycle_batch(pool, cycle_pairs, config, cycle_rng) if cycle else {}
         if config["points"] <= 0:  # whole meshes differ in vertex count: one example a step
-            for it in items:
-                yield {k: v[None] for k, v in it.items()}
+            for j, it in enumerate(items):
+                yield {**{k: v[None] for k, v in it.items()}, **(extra if j == 0 else {})}
         else:
-            yield {k: np.stack([it[k] for it in items]) for k in items[0]}
+            yield {**{k: np.stack([it[k] for it in items]) for k in items[0]}, **extra}
 
 
 def loss_pairs(module, batch, context) -> dict:
     pred = module(batch["pose"], batch["identity"])
-    return npt_loss(pred, batch["truth"], batch["edges"], float(context.config["w_edge"]))
+    terms = npt_loss(pred, batch["truth"], batch["edges"], float(context.config["w_edge"]))
+    return add_cycle(terms, module, batch, context.config)
 
 
 STAGES = [TrainStage("npt", build_npt, pair_batches, loss_pairs)]
