@@ -271,7 +271,7 @@ def _tensors(batch: dict) -> dict:
 
 
 def test_apparel_rollouts_start_at_rest_at_the_clips_first_frame_as_a_request_does(apparel_data, run):
-    """apparel_start="clip" (the default): a batch is the whole clip (45 frames, within the burn-in),
+    """apparel_start="clip": a batch is the whole clip (45 frames, within the burn-in),
     every frame scored, its truth the simulated clip posed with the dataset's weights, and f_d's
     rollout on it is the rollout `predict` answers a request of that clip with (the full pipeline)."""
     from baselines.mmdmc.data import TrainingData, posed
@@ -279,8 +279,7 @@ def test_apparel_rollouts_start_at_rest_at_the_clips_first_frame_as_a_request_do
     from baselines.mmdmc.pipeline import apparel_probability, predict
     from baselines.mmdmc.training import apparel_states
 
-    cfg = {**tiny_config(), "apparel_points": 0}  # every apparel vertex, as at inference
-    assert cfg["apparel_start"] == "clip"
+    cfg = {**tiny_config(), "apparel_points": 0, "apparel_start": "clip"}  # every apparel vertex, as at inference
     ctx = context(apparel_data, run, "apparel", cfg)
     batch = next(iter(trainable("mmdmc").stage("apparel").batches(cfg, ctx, np.random.default_rng(0))))
     data = TrainingData.load(apparel_data)

@@ -35,10 +35,10 @@ COMMON = {
     "body_prior": "bone",    # ours: f_s's prior on its scores, "bone" (-B / tau, models up to v5) or "piece" (the
                              # piece prior alone where a mesh piece wraps a bone, at inference; piece_prior.py)
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
-    "apparel_start": "clip",  # ours: f_d's training rollouts, "clip" (from rest on the body at the clip's first
-                              # frame, as the simulation and a request start, through the burn-in; methods v7) or
+    "apparel_start": "window",  # ours: f_d's training rollouts, "clip" (from rest on the body at the clip's first
+                              # frame, as the simulation and a request start, through the burn-in; opt-in, measured worse) or
                               # "window" (`window` frames after K ground-truth states, a share `rest_start` of them
-                              # restarted at rest at the window, inside the clip; up to v6); training.py
+                              # restarted at rest at the window, inside the clip; the default, shipped v6); training.py
     "burn_in": 90,           # "clip": most frames before a scored window (the apparel protocol's BURN_IN)
     "scored_window": 16,     # "clip": frames of a scored window (the apparel protocol's WINDOW)
     "bptt": 3,               # "clip": truncated backpropagation every that many rollout steps (0: none; full

@@ -19,14 +19,14 @@ end to end on their outputs):
   model did.
 - ``apparel`` (needs seg, body): f_d rolled out on the apparel vertices f_c finds, from f_s's body
   states; L1 vertex, edge length (Eq. 14-15) and an L2 regulariser on the displacements. With
-  ``apparel_start="clip"`` (the default, methods version 7) every rollout starts as the simulation
+  ``apparel_start="clip"`` (opt-in; measured no better than zero displacement, README) every rollout starts as the simulation
   and a request of the apparel protocol do: at rest on the body at the clip's first frame (K = 3
   history states of the body at rest, :func:`baselines.mmdmc.pipeline.rest_start`), rolled out
   through the burn-in to the window's end (at most ``burn_in`` + ``scored_window`` frames; a longer
   clip rolls out from a random frame, scored only on its last ``scored_window`` frames, as a request
   that starts a full burn-in before its window is) by the same function inference calls
   (:func:`baselines.mmdmc.pipeline.rollout_from_rest`), with truncated backpropagation every ``bptt``
-  steps (0: none). With ``apparel_start="window"`` (methods up to version 6) a rollout is a window of
+  steps (0: none). With ``apparel_start="window"`` (the default; the shipped version 6) a rollout is a window of
   ``window`` frames after K ground-truth states (Eq. 11, the paper's), a share ``rest_start`` of
   them restarted at rest on the body at the window, inside the clip: where the simulated apparel
   already lags the body, a target the rest-started rollout's inputs cannot reach.
