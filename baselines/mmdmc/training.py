@@ -161,12 +161,17 @@ def build_body(config: dict, context: StageContext | None = None) -> torch.nn.Mo
 BODY_EDGE_LOSSES = ("knn", "mesh_stretch")
 
 
+def config_choice(config: dict, key: str, choices: tuple[str, ...], default: str) -> str:
+    """``config[key]`` (``default`` where an older config lacks it), which must be one of ``choices``."""
+    mode = config.get(key, default)
+    if mode not in choices:
+        raise ValueError(f"{key}: expected one of {choices}, got {mode!r}")
+    return mode
+
+
 def body_edge_loss(config: dict) -> str:
     """The config's ``body_edge_loss`` (absent in configs up to v5: "knn")."""
-    mode = config.get("body_edge_loss", "knn")
-    if mode not in BODY_EDGE_LOSSES:
-        raise ValueError(f"body_edge_loss: expected one of {BODY_EDGE_LOSSES}, got {mode!r}")
-    return mode
+    return config_choice(config, "body_edge_loss", BODY_EDGE_LOSSES, "knn")
 
 
 def _mesh_edge_subsample(n: int, edges: np.ndarray, points: int, r: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -286,10 +291,7 @@ APPAREL_STARTS = ("clip", "window")
 
 def apparel_start(config: dict) -> str:
     """The config's ``apparel_start`` (absent in configs up to methods version 6: ``"window"``)."""
-    mode = config.get("apparel_start", "window")
-    if mode not in APPAREL_STARTS:
-        raise ValueError(f"apparel_start: expected one of {APPAREL_STARTS}, got {mode!r}")
-    return mode
+    return config_choice(config, "apparel_start", APPAREL_STARTS, "window")
 
 
 def rollout_span(frames: int, burn_in: int, window: int) -> tuple[list[int], int]:
