@@ -10,6 +10,7 @@ from benchmark.protocols import available_protocols, get_protocol, register_prot
 from benchmark.protocols.base import BenchmarkProtocol, Outcome
 from benchmark.registry import register
 from benchmark.results import method_dir, read_result_records
+from baselines.name_copy import NameCopy
 from benchmark.scoring import score_pose
 from schemas.case import CaseRecord
 from tests.family_fixtures import add_family
@@ -106,6 +107,6 @@ def test_same_skeleton_copy_with_translated_bones_scores_zero(small_zoo, tmp_pat
         assert abs(r.els - 1) < 1e-4
     assert all(rows[c.case_id].status == "not_supported" for c in cases["cct"])
     # name_copy reads translations off the posed vertices too: near exact on the clip that moves bones
-    copied = {r.case_id: r for r in read_result_records(method_dir(tmp_path / "res", "name_copy", "3"))}
+    copied = {r.case_id: r for r in read_result_records(method_dir(tmp_path / "res", "name_copy", NameCopy.metadata.version))}
     ik = [copied[c.case_id].pmd for c in ours if c.motion_id.endswith("-ik")]
     assert ik and max(ik) < 1.0, ik
