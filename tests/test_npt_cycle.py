@@ -38,19 +38,19 @@ def test_cycle_is_zero_for_an_exact_transfer_on_a_self_pair_and_the_edge_term_is
     edges = edges[((rest[edges[:, 0]] - rest[edges[:, 1]]) ** 2).sum(1) > 0]  # seam duplicates have no length
     t = {k: torch.as_tensor(v, dtype=torch.float64)[None] for k, v in (("rest", rest), ("posed", posed))}
     # on a self pair (B = A, the same rows) the exact transfer answers the posed source itself
-    exact = cycle_terms(lambda pose, identity: pose, t["posed"], t["rest"], t["rest"], t["posed"], torch.as_tensor(edges))
+    exact = cycle_terms(lambda pose, identity: pose, t["posed"], t["rest"], t["rest"], torch.as_tensor(edges))
     assert float(exact["cycle"]) < 1e-12
     assert float(exact["cycle_edge"]) == pytest.approx(naive_edge_ratio(posed, rest, edges), rel=1e-9)
     assert float(exact["cycle_edge"]) > 1e-3  # a real pose stretches some neighbour pairs
     # the rest mesh answered (a method that ignores the pose): the cycle is the MSE of rest to posed
-    still = cycle_terms(lambda pose, identity: identity, t["posed"], t["rest"], t["rest"], t["posed"], torch.as_tensor(edges))
+    still = cycle_terms(lambda pose, identity: identity, t["posed"], t["rest"], t["rest"], torch.as_tensor(edges))
     assert float(still["cycle"]) == pytest.approx(float(((rest.astype(np.float64) - posed) ** 2).mean()), rel=1e-9)
     assert float(still["cycle_edge"]) == 0.0
     # a rigid rotation of the rest mesh keeps every edge: the edge term is zero
     c, s = np.cos(0.7), np.sin(0.7)
     turned = rest.astype(np.float64) @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]).T
     rigid = cycle_terms(lambda pose, identity: pose, torch.as_tensor(turned)[None], t["rest"], t["rest"],
-                        torch.as_tensor(turned)[None], torch.as_tensor(edges))
+                        torch.as_tensor(edges))
     assert float(rigid["cycle_edge"]) < 1e-9
 
 
@@ -62,7 +62,7 @@ def test_the_return_leg_sees_the_forward_answer_recentred_at_its_box_centre():
         return identity + 5.0  # a forward answer far from the centre
 
     pose, mid, back = torch.rand(2, 30, 3), torch.rand(2, 20, 3), torch.rand(2, 30, 3)
-    cycle_terms(answer, pose, mid, back, pose, torch.zeros(0, 2, dtype=torch.long))
+    cycle_terms(answer, pose, mid, back, torch.zeros(0, 2, dtype=torch.long))
     for b in range(2):
         x = seen[1][b].numpy()
         np.testing.assert_allclose((x.min(0) + x.max(0)) / 2, 0.0, atol=1e-6)
@@ -95,7 +95,6 @@ def test_cycle_examples_keep_the_rows_of_a_in_step_and_a_dataset_without_pairs_i
     cfg = {"points": 128, "knn": 4, "cycle_batch": 3}
     b = cycle_batch(pool, cross_category_pairs(pool), cfg, np.random.default_rng(1))
     assert b["cycle_pose"].shape == (3, 128, 3) and b["cycle_edges"].shape == (3, 128 * 4, 2)
-    np.testing.assert_array_equal(b["cycle_pose"], b["cycle_truth"])
     # one example: A's rest and posed points are A's vertices at the same rows, B's points B's rest vertices
     a, bb = cross_category_pairs(pool)[0]
     one = cycle_item(pool, a, bb, cfg, np.random.default_rng(5))

@@ -40,28 +40,30 @@ def batches_cgt(config: dict, context: StageContext, rng: np.random.Generator):
         yield batch
 
 
+def answer_with_rows(module, pose: torch.Tensor, identity: torch.Tensor, capped: list[dict]) -> torch.Tensor:
+    """``module``'s answers (B, Nt, 3) for posed sources (B, Ns, 3) and identities (B, Nt, 3), example b
+    attending over the rows ``capped[b]`` (:func:`capped_rows`)."""
+    preds = []
+    for b, rows in enumerate(capped):
+        rows = {k: torch.as_tensor(v, device=pose.device) for k, v in rows.items()}
+        preds.append(module(pose[b:b + 1], identity[b:b + 1], **rows))
+    return torch.cat(preds)
+
+
 def capped_answer(module, cap: int):
     """The model call of :func:`baselines.npt.cycle.cycle_terms` for ``module``: each example of the batch
     attends over ``cap`` farthest points of its own posed source (drawn from it, detached), as at inference."""
 
     def answer(pose: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
-        preds = []
-        for b in range(pose.shape[0]):
-            rows = capped_rows(pose[b].detach().cpu().numpy(), identity[b].detach().cpu().numpy(), cap)
-            rows = {k: torch.as_tensor(v, device=pose.device) for k, v in rows.items()}
-            preds.append(module(pose[b:b + 1], identity[b:b + 1], **rows))
-        return torch.cat(preds)
+        capped = [capped_rows(p.detach().cpu().numpy(), i.detach().cpu().numpy(), cap) for p, i in zip(pose, identity)]
+        return answer_with_rows(module, pose, identity, capped)
 
     return answer
 
 
 def loss_cgt(module, batch, context) -> dict:
-    device = batch["pose"].device
-    preds = []
-    for b, rows in enumerate(batch["capped"]):
-        rows = {k: torch.as_tensor(v, device=device) for k, v in rows.items()}
-        preds.append(module(batch["pose"][b:b + 1], batch["identity"][b:b + 1], **rows))
-    terms = npt_loss(torch.cat(preds), batch["truth"], batch["edges"], float(context.config["w_edge"]))
+    pred = answer_with_rows(module, batch["pose"], batch["identity"], batch["capped"])
+    terms = npt_loss(pred, batch["truth"], batch["edges"], float(context.config["w_edge"]))
     return add_cycle(terms, capped_answer(module, int(context.config["cap"])), batch, context.config)
 
 

@@ -375,8 +375,8 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
 def _batches_apparel_clip(config: dict, context: StageContext, rng: np.random.Generator):
     data = training_data(config, context)
     window = config["scored_window"]
-    spans = [(i, t0, rollout_span(clip.frames, config["burn_in"], window)[1]) for i, clip in enumerate(data.clips)
-             for t0 in rollout_span(clip.frames, config["burn_in"], window)[0]]
+    spans = [(i, t0, length) for i, clip in enumerate(data.clips)
+             for starts, length in [rollout_span(clip.frames, config["burn_in"], window)] for t0 in starts]
     for batch in _draws(config, context, rng, len(spans), "apparel"):
         for pick, seed in batch:
             ci, t0, length = spans[pick]

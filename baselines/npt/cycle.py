@@ -48,9 +48,8 @@ def box_centred(points: torch.Tensor) -> torch.Tensor:
 
 def cycle_item(pool: PosePool, a: str, b: str, config: dict, rng: np.random.Generator) -> dict:
     """One cycle example's arrays, centred unit-size frames: ``cycle_pose`` (Pa, 3) A posed,
-    ``cycle_mid`` (Pb, 3) B rest, ``cycle_back`` (Pa, 3) A rest at the same rows as ``cycle_pose``,
-    ``cycle_truth`` (Pa, 3) = ``cycle_pose`` (A posed, the cycle's target), ``cycle_edges`` (Pb*k, 2)
-    k-NN pairs of ``cycle_mid``."""
+    ``cycle_mid`` (Pb, 3) B rest, ``cycle_back`` (Pa, 3) A rest at the same rows as ``cycle_pose``
+    (which is also the cycle's target), ``cycle_edges`` (Pb*k, 2) k-NN pairs of ``cycle_mid``."""
     a_rest = np.asarray(pool.records[a].vertices, np.float32)
     b_rest = np.asarray(pool.records[b].vertices, np.float32)
     a_posed = pool.posed(a, pool.draw_pose(a, rng))
@@ -58,7 +57,7 @@ def cycle_item(pool: PosePool, a: str, b: str, config: dict, rng: np.random.Gene
     rb = subsample(len(b_rest), config["points"], rng)
     pose = centred(a_posed, a_rest)[ra]
     mid = centred(b_rest, b_rest)[rb]
-    return {"cycle_pose": pose, "cycle_mid": mid, "cycle_back": centred(a_rest, a_rest)[ra], "cycle_truth": pose,
+    return {"cycle_pose": pose, "cycle_mid": mid, "cycle_back": centred(a_rest, a_rest)[ra],
             "cycle_edges": knn_pairs(mid, config["knn"])}
 
 
@@ -76,21 +75,21 @@ def cycle_batch(pool: PosePool, pairs: list[tuple[str, str]], config: dict, rng:
     return {k: np.stack([it[k] for it in items]) for k in items[0]}
 
 
-def cycle_terms(answer: Answer, pose: torch.Tensor, mid: torch.Tensor, back: torch.Tensor, truth: torch.Tensor,
+def cycle_terms(answer: Answer, pose: torch.Tensor, mid: torch.Tensor, back: torch.Tensor,
                 edges: torch.Tensor) -> dict:
     """``{"cycle", "cycle_edge", "forward"}`` of one cycle batch.
 
     Args:
         answer: the model call (:data:`Answer`).
-        pose: (B, Na, 3) A posed; mid: (B, Nb, 3) B rest; back: (B, Na, 3) A rest;
-        truth: (B, Na, 3) A posed (the cycle's target); edges: (B, E, 2) or (E, 2) pairs of ``mid``'s rows.
+        pose: (B, Na, 3) A posed (also the cycle's target); mid: (B, Nb, 3) B rest; back: (B, Na, 3) A
+            rest at ``pose``'s rows; edges: (B, E, 2) or (E, 2) pairs of ``mid``'s rows.
     Returns:
-        ``cycle`` the MSE of A'' against ``truth``, ``cycle_edge`` the edge term of B' against ``mid``
+        ``cycle`` the MSE of A'' against ``pose``, ``cycle_edge`` the edge term of B' against ``mid``
         (scalars), ``forward`` B' (B, Nb, 3).
     """
     forward = answer(pose, mid)
     back_answer = answer(box_centred(forward), back)
-    return {"cycle": vertex_mse(back_answer, truth), "cycle_edge": edge_ratio(forward, mid, edges), "forward": forward}
+    return {"cycle": vertex_mse(back_answer, pose), "cycle_edge": edge_ratio(forward, mid, edges), "forward": forward}
 
 
 def add_cycle(terms: dict, answer: Answer, batch: dict, config: dict) -> dict:
@@ -98,7 +97,7 @@ def add_cycle(terms: dict, answer: Answer, batch: dict, config: dict) -> dict:
     ``w_cycle`` and ``w_cycle_edge`` into ``total``; ``terms`` unchanged when the batch has none."""
     if "cycle_pose" not in batch:
         return terms
-    keys = ("cycle_pose", "cycle_mid", "cycle_back", "cycle_truth", "cycle_edges")
+    keys = ("cycle_pose", "cycle_mid", "cycle_back", "cycle_edges")
     parts = [batch[k] for k in keys]
     if isinstance(parts[0], (list, tuple)):  # whole meshes: one example a call (the trainer moves no lists)
         device = batch["pose"].device
