@@ -125,3 +125,23 @@ def test_a_few_steps_lower_the_cycle_term_and_the_term_is_off_without_cycle_batc
     st, module, batch, ctx = first_batch(stage, small_zoo, tiny(stage))  # small: no cycle keys, no term
     assert not any(k.startswith("cycle") for k in batch)
     assert "cycle" not in st.loss(module, batch, ctx)
+
+
+def test_a_detached_forward_leg_gets_no_gradient_from_the_cycle():
+    """answer(p, i) = i + a p, one shared scalar a: with the forward answer F = mid + a pose detached,
+    dcycle/da is the return leg's alone, 2/n sum (back + a c(F) - pose) c(F) with c the box centring
+    (hand formula, float64); without detaching, the forward leg adds its part and the two differ."""
+    rng = np.random.default_rng(3)
+    pose, mid, back = (rng.normal(size=(2, 25, 3)) for _ in range(3))
+    grads = {}
+    for detach in (True, False):
+        a = torch.tensor(0.7, dtype=torch.float64, requires_grad=True)
+        terms = cycle_terms(lambda p, i: i + a * p, torch.as_tensor(pose), torch.as_tensor(mid), torch.as_tensor(back),
+                            torch.zeros(0, 2, dtype=torch.long), detach_forward=detach)
+        terms["cycle"].backward()
+        grads[detach] = float(a.grad)
+    f = mid + 0.7 * pose
+    c = f - (f.max(1, keepdims=True) + f.min(1, keepdims=True)) / 2
+    hand = 2.0 / pose.size * float(((back + 0.7 * c - pose) * c).sum())
+    assert grads[True] == pytest.approx(hand, rel=1e-9)
+    assert abs(grads[False] - grads[True]) > 1e-3 * abs(hand)

@@ -10,14 +10,15 @@ config, whose decoder had neither); ``knn`` neighbours standing in for mesh edge
 self-transfers of any character (ours, see training.py); ``cycle_batch`` cross-category cycle examples
 added to each step (ours, :mod:`baselines.npt.cycle`; absent or 0: off, as in the paper, in ``small`` and
 in ``paper``), ``w_cycle`` and ``w_cycle_edge`` the weights of its cycle MSE and of its forward leg's edge
-term (``small_cycle`` only); ``batches_per_epoch`` steps an
+term, ``cycle_detach`` whether the return leg reads the forward answer without a gradient into it
+(``small_cycle`` only; off there); ``batches_per_epoch`` steps an
 epoch; ``split`` the characters trained on.
 """
 from __future__ import annotations
 
 COMMON = {"knn": 6, "w_edge": 0.0005, "self_share": 0.5, "split": "all"}
 
-CYCLE = {"cycle_batch": 2, "w_cycle": 1.0, "w_cycle_edge": 0.01}
+CYCLE = {"cycle_batch": 2, "w_cycle": 1.0, "w_cycle_edge": 0.01, "cycle_detach": False}
 """The cross-category cycle term's keys as the ``small_cycle`` presets of npt and cgt set them."""
 
 SMALL = {**COMMON, "widths": [32, 64, 256], "pose_mix": True, "pose_cond": True, "residual": True, "points": 512,

@@ -76,19 +76,21 @@ def cycle_batch(pool: PosePool, pairs: list[tuple[str, str]], config: dict, rng:
 
 
 def cycle_terms(answer: Answer, pose: torch.Tensor, mid: torch.Tensor, back: torch.Tensor,
-                edges: torch.Tensor) -> dict:
+                edges: torch.Tensor, detach_forward: bool = False) -> dict:
     """``{"cycle", "cycle_edge", "forward"}`` of one cycle batch.
 
     Args:
         answer: the model call (:data:`Answer`).
         pose: (B, Na, 3) A posed (also the cycle's target); mid: (B, Nb, 3) B rest; back: (B, Na, 3) A
             rest at ``pose``'s rows; edges: (B, E, 2) or (E, 2) pairs of ``mid``'s rows.
+        detach_forward: the return leg reads B' without a gradient into it, so the cycle trains only the
+            return leg (B' -> A) and cannot teach the forward leg to hide A's pose in B'.
     Returns:
         ``cycle`` the MSE of A'' against ``pose``, ``cycle_edge`` the edge term of B' against ``mid``
         (scalars), ``forward`` B' (B, Nb, 3).
     """
     forward = answer(pose, mid)
-    back_answer = answer(box_centred(forward), back)
+    back_answer = answer(box_centred(forward.detach() if detach_forward else forward), back)
     return {"cycle": vertex_mse(back_answer, pose), "cycle_edge": edge_ratio(forward, mid, edges), "forward": forward}
 
 
@@ -98,12 +100,14 @@ def add_cycle(terms: dict, answer: Answer, batch: dict, config: dict) -> dict:
     if "cycle_pose" not in batch:
         return terms
     keys = ("cycle_pose", "cycle_mid", "cycle_back", "cycle_edges")
+    detach = bool(config.get("cycle_detach", False))
     parts = [batch[k] for k in keys]
     if isinstance(parts[0], (list, tuple)):  # whole meshes: one example a call (the trainer moves no lists)
         device = batch["pose"].device
-        outs = [cycle_terms(answer, *(torch.as_tensor(x, device=device) for x in one)) for one in zip(*parts)]
+        outs = [cycle_terms(answer, *(torch.as_tensor(x, device=device) for x in one), detach_forward=detach)
+                for one in zip(*parts)]
         cyc = {k: sum(o[k] for o in outs) / len(outs) for k in ("cycle", "cycle_edge")}
     else:
-        cyc = cycle_terms(answer, *parts)
+        cyc = cycle_terms(answer, *parts, detach_forward=detach)
     total = terms["total"] + float(config["w_cycle"]) * cyc["cycle"] + float(config["w_cycle_edge"]) * cyc["cycle_edge"]
     return {**terms, "total": total, "cycle": cyc["cycle"], "cycle_edge": cyc["cycle_edge"]}
