@@ -1,5 +1,6 @@
 """Config presets of CGT: ``small`` (trains on 2 CPU cores in minutes; the shipped checkpoint),
-``small_cycle`` (plus NPT's cycle term, tried, not shipped) and ``paper`` (wider features, dense attention over every point, for GPUs).
+``small_cycle`` (plus NPT's cycle term, tried, not shipped), ``large`` and
+``large_cycle`` (256 wide, dense attention over the 512 drawn pose points, 2,500 steps: one GPU in minutes) and ``paper`` (wider features, dense attention over every point, for GPUs).
 
 Keys as NPT's (:mod:`baselines.npt.config`, the same batches and cycle term) plus ``blocks`` and ``heads`` of the
 cross-attention, ``residual`` (NPT's), and ``cap``: the most points of the posed source each target point
@@ -20,4 +21,9 @@ PAPER = {**COMMON, "widths": [64, 128, 512], "heads": 8, "cap": 0, "residual": F
 
 SMALL_CYCLE = {**SMALL, **CYCLE}
 
-CONFIGS = {"small": SMALL, "small_cycle": SMALL_CYCLE, "paper": PAPER}
+LARGE = {**SMALL, "widths": [64, 128, 256], "heads": 8, "cap": 0, "batch_size": 8, "batches_per_epoch": 250,
+         "epochs": 10, "lr": 5e-4}
+
+LARGE_CYCLE = {**LARGE, **CYCLE, "cycle_batch": 4}
+
+CONFIGS = {"small": SMALL, "small_cycle": SMALL_CYCLE, "large": LARGE, "large_cycle": LARGE_CYCLE, "paper": PAPER}

@@ -28,7 +28,7 @@ CITATION = ("Jiashun Wang, Chao Wen, Yanwei Fu, Haitao Lin, Tianyun Zou, Xiangya
 class Npt(CheckpointedMethod):
     """Neural Pose Transfer with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="npt", version="3", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="npt", version="4", licence="MIT", needs_training=True, citation=CITATION,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="Neural Pose Transfer (SPAdaIN decoder, max-pool pose code), "
                                           "re-implemented from the paper, trained on the zoo")
