@@ -29,7 +29,10 @@ class LinkSpec:
     metres relative to ``head`` at rest: the points of the link's convex collision shape (the
     hull of the vertices the bone owns), or None for the capsule. The capsule always gives the
     link's inertia, its axial moment raised to ``axial_share`` of its transverse one
-    (:func:`datagen.apparel.urdf.capsule_inertia`; 0: the capsule's own).
+    (:func:`datagen.apparel.urdf.capsule_inertia`; 0: the capsule's own). ``contact_frequency``
+    rad/s: above 0 the link's contacts are a critically damped spring of that natural frequency
+    on its own mass (Bullet's contact stiffness m w^2 N/m and damping 2 m w N s/m,
+    :meth:`datagen.apparel.world.ApparelWorld._set_dynamics`); 0: Bullet's rigid contact.
     """
 
     bone: int
@@ -43,6 +46,7 @@ class LinkSpec:
     friction: float = 0.3
     hull: np.ndarray | None = None
     axial_share: float = 0.0
+    contact_frequency: float = 0.0
 
 
 @dataclass(frozen=True)

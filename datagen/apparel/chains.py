@@ -98,12 +98,13 @@ def build_chains(keypoints: np.ndarray, parents: np.ndarray, bone_names: list[st
         index = {b: i for i, b in enumerate(bones)}
         link_parents = [index.get(int(parents[b]), -1) for b in bones]
         links = []
-        for b in bones:
+        for b, parent in zip(bones, link_parents):
             axis, length, spread, hull = _link_geometry(b, bones, parents, keypoints, vertices, owner, height)
             links.append(LinkSpec(bone=b, head=keypoints[b].copy(), axis=axis, length=length,
                                   radius=spread * cp.radius_scale, mass=cp.link_mass,
                                   linear_damping=cp.linear_damping, angular_damping=cp.angular_damping,
-                                  friction=cp.friction, hull=hull, axial_share=cp.axial_inertia))
+                                  friction=cp.friction, hull=hull, axial_share=cp.axial_inertia,
+                                  contact_frequency=cp.root_contact_frequency if parent < 0 else 0.0))
         heads = [link.head for link in links]
         centres = [link.head + 0.5 * link.length * link.axis for link in links]
         masses = [link.mass for link in links]

@@ -37,8 +37,13 @@ class ChainParams:
     vertices span no volume, else the link collides as their convex hull). axial_inertia: a
     link's moment of inertia about its bone as a share of the one across it (at least the
     capsule's own m r^2 / 2; 0 keeps the capsule's, :func:`datagen.apparel.urdf.capsule_inertia`;
-    skirt strips keep it). friction: contact friction. collide_body: links collide with the body
-    pieces; collide_chains: links collide with other chains that also ask for it.
+    skirt strips took 0 up to simulation version 9). friction: contact friction. collide_body: links
+    collide with the body pieces; collide_chains: links collide with other chains that also ask
+    for it. root_contact_frequency: rad/s, above 0 a root link's contacts are a critically damped
+    spring of that natural frequency on the link's mass instead of Bullet's rigid contact
+    (:class:`~datagen.apparel.chain_spec.LinkSpec` ``contact_frequency``): a skirt strip's root
+    hangs at the hip where a thigh, placed anew every step, starts each step centimetres inside
+    it, and a rigid contact throws the strip out within one step.
     """
 
     link_mass: float = 0.05
@@ -54,6 +59,7 @@ class ChainParams:
     collide_body: bool = True
     collide_chains: bool = False
     axial_inertia: float = 1.0
+    root_contact_frequency: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -89,7 +95,7 @@ DEFAULT_KINDS: dict[str, ChainParams] = {
     "hair": ChainParams(link_mass=0.02, stiffness=0.015, damping=0.3, strength=1.2, swing_limit=0.8),
     "ponytail": ChainParams(link_mass=0.03, stiffness=0.015, damping=0.3, strength=1.2, swing_limit=0.8),
     "skirt": ChainParams(link_mass=0.05, stiffness=0.03, damping=0.4, strength=2.0, swing_limit=0.7,
-                         twist_limit=0.1, radius_scale=1.5, axial_inertia=0.0),
+                         twist_limit=0.1, radius_scale=1.5, root_contact_frequency=150.0),
     "cape": ChainParams(link_mass=0.08, stiffness=0.02, damping=0.3, strength=1.5, swing_limit=0.9),
     "coat_tail": ChainParams(link_mass=0.06, stiffness=0.025, damping=0.35, strength=1.8, swing_limit=0.8),
 }
@@ -99,7 +105,7 @@ _RANGES = {  # field: (low, high, low_open)
     "strength": (0.0, None, False), "linear_damping": (0.0, 1.0, False), "angular_damping": (0.0, 1.0, False),
     "swing_limit": (0.0, math.pi, True), "twist_limit": (0.0, math.pi, True), "radius_scale": (0.0, None, True),
     "friction": (0.0, None, False), "axial_inertia": (0.0, 1.0, False), "gravity": (0.0, None, False),
-    "max_speed": (0.0, None, True), "piece_mass": (0.0, None, False),
+    "max_speed": (0.0, None, True), "root_contact_frequency": (0.0, None, False), "piece_mass": (0.0, None, False),
     "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True), "contact_erp": (0.0, 1.0, True),
     "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True),
 }

@@ -17,14 +17,18 @@ from datagen.apparel.world import ApparelWorld
 from schemas.character import CharacterRecord
 from schemas.motion import SIM_SUFFIX, MotionRecord
 
-SIM_VERSION = "9"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
+SIM_VERSION = "10"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
 # projected every step, constraint ERP 0.8; 6: springs as implicit torques from numpy instead of
 # Bullet's joint motors; 7: springs solved per tree of links (a merged multibody's chains
 # apart), which rounds differently; 8: the per-step joint arithmetic compiled (joint_kernel),
 # its sums in a fixed order (numpy's einsum summed in SIMD lanes), which rounds differently;
 # 9: a link's axial inertia as large as its transverse one but for skirt strips (contacts no
-# longer spin thin hair links past the twist limit and into the body, issue 33)
+# longer spin thin hair links past the twist limit and into the body, issue 33); 10: skirt
+# strips' root links touch the body through a critically damped contact spring of 150 rad/s
+# (a thigh, placed anew each step, started it up to 55 mm inside a rigid root contact, which threw
+# the strip out in one step: tips at +-5-10 m/s alternating step by step), and skirt strips take
+# axial inertia 1 like the other kinds (their 0.1 rad twist limit, projected, spun them otherwise)
 
 
 @dataclass

@@ -266,6 +266,10 @@ class ApparelWorld:
         for j, (link, joint) in enumerate(zip(chain.links, chain.joints)):
             pb.changeDynamics(body, j, linearDamping=link.linear_damping, angularDamping=link.angular_damping,
                               lateralFriction=link.friction, physicsClientId=cid)
+            if link.contact_frequency > 0:  # a critically damped contact spring (LinkSpec.contact_frequency)
+                w = float(link.contact_frequency)
+                pb.changeDynamics(body, j, contactStiffness=link.mass * w * w, contactDamping=2.0 * link.mass * w,
+                                  physicsClientId=cid)
             pb.setCollisionFilterGroupMask(body, j, chain.collision_group, chain.collision_mask, physicsClientId=cid)
             pb.setJointMotorControlMultiDof(body, j, pb.POSITION_CONTROL, targetPosition=[0.0, 0.0, 0.0, 1.0],
                                             targetVelocity=[0.0, 0.0, 0.0], positionGain=0.0, velocityGain=0.0,
