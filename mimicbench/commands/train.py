@@ -35,7 +35,8 @@ def register(subparsers) -> None:
                    help="stage to train (mimicat: shape, prior, corr, transfer, transfer_no_prior; mmdmc: seg, body, "
                    "apparel, refine; npt, cgt, sfpt: one stage of their own name), or 'all' in order (default)")
     p.add_argument("--config", default="small",
-                   help="config preset: small (2 CPU cores, minutes) or paper (6 layers, 8 heads, width 256)")
+                   help="config preset: small (2 CPU cores, minutes) or paper (the paper's sizes, for GPUs); npt and cgt "
+                        "also small_cycle, large (one GPU, minutes; npt's shipped weights) and large_cycle")
     p.add_argument("--device", default="cpu", choices=("cpu", "cuda"), help="where to train (default cpu)")
     p.add_argument("--epochs", type=int, default=None,
                    help="total epochs per stage (default: the preset's per-stage value)")
