@@ -413,15 +413,21 @@ def test_joint_kernel_rotation_vectors_and_limit_count_match_scipy_and_a_naive_l
     assert rotation_vectors(states.copy(), np.full(joints, 10.0), swing, twist, got) == 0
 
 
-def _strip_pressed_by_a_box(axial_share: float, fps: float = 30.0, frames: int = 60):
-    """A flat strip of 4 links (8 cm wide, 1 cm thick, in the XY plane, twist limit 0.2 rad)
-    hanging from bone 0, and a box (bone 1, 12 x 36 x 4 cm) turned 0.4 rad about Y in front of it,
-    moved 3 cm along -Z at 0.3 m/s from frame 10, then held: its near edge meets one edge of the
-    strip first, so the contact turns the strip about its bone and keeps pressing it past its
-    0.2 rad twist limit toward the box's 0.4 rad.
+STRIP = np.array([[x, y, z] for x in (-0.04, 0.04) for y in (0.0, -0.08) for z in (-0.005, 0.005)])
+"""A strip link's hull corners (8, 3), metres: 8 cm wide, 1 cm thick, in a link's frame (from its
+head, the bone along -Y)."""
 
-    Returns the simulated clip (F, 6, 7), 8 substeps a frame, and the strip's hull corners (8, 3)
-    in a link's frame (from its head, the bone along -Y)."""
+
+def _strip_and_box(box_head, box_half, speed: float, kind: str, mass: float, joint: tuple, fps: float = 30.0,
+                   frames: int = 60, box_turn: float = 0.0, axial_share: float = 1.0,
+                   root_contact_frequency: float = 0.0) -> np.ndarray:
+    """A strip of 4 links (:data:`STRIP` hulls, 8 cm long, ``mass`` kg each, joints
+    ``JointSpec(*joint)``, apparel kind ``kind``) hanging from bone 0 at 1 m, and a box (bone 1, half
+    extents ``box_half`` (3,) m, its centre ``box_head`` (3,) m, turned ``box_turn`` rad about Y),
+    moved 3 cm along -Z at ``speed`` m/s from frame 10, then held. The root link's contacts are a
+    spring of ``root_contact_frequency`` rad/s (0: Bullet's rigid contact).
+
+    Returns the simulated clip (F, 6, 7), 8 substeps a frame at ``fps``."""
     from datagen.apparel.body_shapes import body_pieces
     from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
     from datagen.apparel.params import SimParams
@@ -429,21 +435,37 @@ def _strip_pressed_by_a_box(axial_share: float, fps: float = 30.0, frames: int =
     from mimicbench.kinematics import rest_transforms
 
     heads = np.array([[0.0, 1.0 - 0.08 * i, 0.0] for i in range(4)])
-    box_head = np.array([0.0, 0.84, 0.06])
+    box_head = np.asarray(box_head, np.float64)
     keypoints = np.concatenate([[[0.0, 1.0, 0.0]], [box_head], heads])
-    corners = np.array([[x, y, z] for x in (-0.06, 0.06) for y in (-0.18, 0.18) for z in (-0.02, 0.02)])
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * np.asarray(box_half)
     pieces = body_pieces(corners + box_head, keypoints, np.ones(8, int), np.array([False, True] + [False] * 4))
-    strip = np.array([[x, y, z] for x in (-0.04, 0.04) for y in (0.0, -0.08) for z in (-0.005, 0.005)])
-    links = tuple(LinkSpec(2 + i, heads[i], np.array([0.0, -1.0, 0.0]), 0.08, 0.01, 0.02, hull=strip,
-                           axial_share=axial_share) for i in range(4))
-    joints = tuple(JointSpec(0.8, 0.2, 0.02, 0.3, 0.05) for _ in range(4))
-    chain = ChainSpec("strip", "hair", 0, links, (-1, 0, 1, 2), joints)
+    links = tuple(LinkSpec(2 + i, heads[i], np.array([0.0, -1.0, 0.0]), 0.08, 0.01, mass, hull=STRIP,
+                           axial_share=axial_share, contact_frequency=root_contact_frequency if i == 0 else 0.0)
+                  for i in range(4))
+    chain = ChainSpec("strip", kind, 0, links, (-1, 0, 1, 2), tuple(JointSpec(*joint) for _ in range(4)))
     clip = np.repeat(rest_transforms(keypoints).astype(np.float64)[None], frames, axis=0)
-    clip[:, 1, 6] -= np.clip((np.arange(frames) - 10) / fps * 0.3, 0.0, 0.03)
-    clip[:, 1, :4] = [np.cos(0.2), 0.0, np.sin(0.2), 0.0]  # 0.4 rad about Y
+    clip[:, 1, 6] -= np.clip((np.arange(frames) - 10) / fps * speed, 0.0, 0.03)
+    if box_turn:
+        clip[:, 1, :4] = [np.cos(box_turn / 2), 0.0, np.sin(box_turn / 2), 0.0]
     with ApparelWorld(keypoints, pieces, [chain], SimParams(), 1.0 / (fps * 8)) as world:
-        sim = simulate_clip(world, clip, 8, 0)
-    return sim, strip
+        return simulate_clip(world, clip, 8, 0)
+
+
+def _strip_accelerations(sim: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The strip links' rotations (F, 4, 3, 3) of a clip (F, 6, 7) of :func:`_strip_and_box`, and the
+    accelerations (F-2, 4, 8) m/s^2 of their hull corners at frames 1..F-2 (second differences)."""
+    rot = np.array([[_hand_rotation(qf) for qf in frame] for frame in sim[:, 2:, :4].astype(np.float64)])
+    corners = np.einsum("flab,pb->flpa", rot, STRIP) + sim[:, 2:, None, 4:].astype(np.float64)
+    return rot, np.linalg.norm(corners[2:] - 2 * corners[1:-1] + corners[:-2], axis=-1) * fps ** 2
+
+
+def _strip_pressed_by_a_box(axial_share: float, fps: float = 30.0) -> np.ndarray:
+    """A flat strip (twist limit 0.2 rad, 0.02 kg links) and a box 12 x 36 x 4 cm turned 0.4 rad
+    about Y in front of it, moved at 0.3 m/s: its near edge meets one edge of the strip first, so
+    the contact turns the strip about its bone and keeps pressing it past its 0.2 rad twist limit
+    toward the box's 0.4 rad. Returns the clip (F, 6, 7)."""
+    return _strip_and_box([0.0, 0.84, 0.06], [0.06, 0.18, 0.02], 0.3, "hair", 0.02, (0.8, 0.2, 0.02, 0.3, 0.05),
+                          fps, box_turn=0.4, axial_share=axial_share)
 
 
 def test_twist_limit_holds_under_a_contact_pressing_against_it_without_jitter():
@@ -456,11 +478,8 @@ def test_twist_limit_holds_under_a_contact_pressing_against_it_without_jitter():
     fps = 30.0
     peaks = {}
     for share in (1.0, 0.0):
-        sim, strip = _strip_pressed_by_a_box(share, fps)
-        q = sim[:, 2:, :4].astype(np.float64)  # (F, 4, 4) links' rest-relative rotations (w, x, y, z)
-        rot = np.array([[_hand_rotation(qf) for qf in frame] for frame in q])  # (F, 4, 3, 3)
-        corners = np.einsum("flab,pb->flpa", rot, strip) + sim[:, 2:, None, 4:].astype(np.float64)
-        accel = np.linalg.norm(corners[2:] - 2 * corners[1:-1] + corners[:-2], axis=-1) * fps ** 2  # frames 1..F-2
+        sim = _strip_pressed_by_a_box(share, fps)
+        rot, accel = _strip_accelerations(sim, fps)  # (F, 4, 3, 3) links' rotations; frames 1..F-2
         peaks[share] = accel[13 + 15 - 1:].max()  # from frame 28 on
         if share == 1.0:
             # joint i's rotation is R_parent^T R_i (every link's rest frame points down -Y), its
@@ -531,39 +550,16 @@ def test_body_pieces_with_mass_are_carried_at_the_limbs_speed(piece_mass):
     np.testing.assert_allclose(speed, [0.5 if piece_mass else 0.0, 0.0, 0.0], atol=0.02)
 
 
-def _root_struck_by_a_box(contact_frequency: float, fps: float = 30.0, frames: int = 60):
-    """A skirt-like strip of 4 links (8 cm wide, 1 cm thick, 0.05 kg each, twist limit 0.1 rad)
-    hanging from bone 0, and a box (bone 1, 12 x 6 x 4 cm) in front of its root link, 5 mm away,
-    moved 3 cm along -Z (through where the root link hangs) at 0.5 m/s from frame 10, then held:
-    a thigh swinging into a skirt's top. The root link's contacts are a spring of natural
-    frequency ``contact_frequency`` rad/s (0: Bullet's rigid contact).
+def _root_struck_by_a_box(contact_frequency: float, fps: float = 30.0):
+    """A skirt-like strip (0.05 kg links, twist limit 0.1 rad) and a box 12 x 6 x 4 cm in front of its
+    root link, 5 mm away, moved through where the root link hangs at 0.5 m/s: a thigh swinging into
+    a skirt's top. The root link's contacts are a spring of ``contact_frequency`` rad/s (0: rigid).
 
     Returns the largest acceleration (m/s^2) of the strip's hull corners over the clip and from
-    frame 31 on (the box held still since frame 16), from 8 substeps a frame at ``fps``."""
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
-    from datagen.apparel.params import SimParams
-    from datagen.apparel.simulate import simulate_clip
-    from mimicbench.kinematics import rest_transforms
-
-    heads = np.array([[0.0, 1.0 - 0.08 * i, 0.0] for i in range(4)])
-    box_head = np.array([0.0, 0.96, 0.03])
-    keypoints = np.concatenate([[[0.0, 1.0, 0.0]], [box_head], heads])
-    corners = np.array([[x, y, z] for x in (-0.06, 0.06) for y in (-0.03, 0.03) for z in (-0.02, 0.02)])
-    pieces = body_pieces(corners + box_head, keypoints, np.ones(8, int), np.array([False, True] + [False] * 4))
-    strip = np.array([[x, y, z] for x in (-0.04, 0.04) for y in (0.0, -0.08) for z in (-0.005, 0.005)])
-    links = tuple(LinkSpec(2 + i, heads[i], np.array([0.0, -1.0, 0.0]), 0.08, 0.01, 0.05, hull=strip,
-                           axial_share=1.0, contact_frequency=contact_frequency if i == 0 else 0.0)
-                  for i in range(4))
-    joints = tuple(JointSpec(0.7, 0.1, 0.03, 0.4, 0.2) for _ in range(4))
-    chain = ChainSpec("strip", "skirt", 0, links, (-1, 0, 1, 2), joints)
-    clip = np.repeat(rest_transforms(keypoints).astype(np.float64)[None], frames, axis=0)
-    clip[:, 1, 6] -= np.clip((np.arange(frames) - 10) / fps * 0.5, 0.0, 0.03)
-    with ApparelWorld(keypoints, pieces, [chain], SimParams(), 1.0 / (fps * 8)) as world:
-        sim = simulate_clip(world, clip, 8, 0)
-    rot = np.array([[_hand_rotation(qf) for qf in frame] for frame in sim[:, 2:, :4].astype(np.float64)])
-    points = np.einsum("flab,pb->flpa", rot, strip) + sim[:, 2:, None, 4:].astype(np.float64)
-    accel = np.linalg.norm(points[2:] - 2 * points[1:-1] + points[:-2], axis=-1) * fps ** 2  # frames 1..F-2
+    frame 31 on (the box held still since frame 16)."""
+    sim = _strip_and_box([0.0, 0.96, 0.03], [0.06, 0.03, 0.02], 0.5, "skirt", 0.05, (0.7, 0.1, 0.03, 0.4, 0.2), fps,
+                         root_contact_frequency=contact_frequency)
+    accel = _strip_accelerations(sim, fps)[1]
     return accel.max(), accel[30:].max()
 
 
