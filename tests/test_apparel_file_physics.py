@@ -255,11 +255,65 @@ def test_the_file_world_runs_through_the_one_clip_loop():
     clip = np.repeat(rest_transforms(keypoints)[None], 20, axis=0).astype(np.float32)
     with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08, apparel=np.array([False, True]),
                    max_speed=25.0) as world:
-        out = simulate_clip(world, clip, 8, 0)
+        out = simulate_clip(world, clip, 8, 0).transforms
     np.testing.assert_array_equal(out[:, 0], clip[:, 0])
     arm = np.linalg.norm(out[:, 1, 4:] - PIVOT, axis=1)
     np.testing.assert_allclose(arm, ARM, atol=2e-3)
     assert out[0, 1, 5] > PIVOT[1] - 0.1 and out[:, 1, 5].min() < PIVOT[1] - 0.45  # swung through the bottom
     with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08, max_speed=1.0) as world:
         with pytest.raises(SimulationExploded, match=r"a link reached .* m/s at frame \d+ \(bound 1 m/s\)"):
-            simulate_clip(world, clip, 8, 0)
+            simulate_clip(world, clip, 8, 0, max_resettles=0)  # no re-settles: the first escape fails the clip
+
+
+def test_a_struck_file_chain_is_resettled_at_rest_on_its_anchor():
+    # the pendulum released from horizontal while bone 0 (the pivot's) turns about Y at 0.6 rad/s;
+    # after frame 12 the bob is struck to 40 m/s (bound 25): it is put back at rest, horizontal on
+    # the turned pivot (its bone at the pivot plus the turned rest arm, turned as bone 0 is), and
+    # swings down again; the frames before are those of the clip simulated without the strike
+    from datagen.apparel.simulate import SimulationExploded, simulate_clip
+
+    bodies, joints = _pendulum(_joint(0, 1, *FREE))
+    keypoints = np.array([PIVOT, PIVOT + [ARM, 0, 0]])
+    clip = np.repeat(rest_transforms(keypoints)[None], 30, axis=0).astype(np.float64)
+    angles = np.arange(30) * 0.02
+    clip[:, :, :4] = np.stack([np.cos(angles / 2), 0 * angles, np.sin(angles / 2), 0 * angles], axis=1)[:, None]
+    clip[:, 1, 4:] = PIVOT + ARM * np.stack([np.cos(angles), 0 * angles, -np.sin(angles)], axis=1)
+
+    class Struck:  # the world, its bob's multibody given base velocity 40 m/s along X after frame ``n``
+        def __init__(self, world, n):
+            self.world, self.n, self.seen, self.counts = world, n, 0, []
+
+        def __getattr__(self, name):
+            return getattr(self.world, name)
+
+        def follow(self, poses, per_frame):
+            for f in self.world.follow(poses, per_frame):
+                if self.seen == self.n:
+                    mb = self.world.chains[0][2]
+                    self.world.pb.resetBaseVelocity(mb, [40.0, 0.0, 0.0], physicsClientId=self.world.client)
+                self.seen += 1
+                yield f
+
+        def resettle(self, pose):
+            self.counts.append(self.world.resettle(pose))
+            return self.counts[-1]
+
+    def run(n, max_resettles=5):
+        with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08,
+                       apparel=np.array([False, True])) as world:
+            struck = Struck(world, n)
+            return simulate_clip(struck, clip, 8, 0, max_resettles), struck.counts
+
+    n = 12
+    (plain, _), (struck, counts) = run(-1), run(n)
+    assert plain.resettled_frames == [] and struck.resettled_frames == [n] and counts == [1]
+    assert struck.transforms[:n].tobytes() == plain.transforms[:n].tobytes()
+    a = angles[n]
+    np.testing.assert_allclose(struck.transforms[n, 1, 4:], PIVOT + ARM * np.array([np.cos(a), 0.0, -np.sin(a)]),
+                               atol=1e-5)
+    q = struck.transforms[n, 1, :4] * np.sign(struck.transforms[n, 1, 0])
+    np.testing.assert_allclose(q, [np.cos(a / 2), 0.0, np.sin(a / 2), 0.0], atol=1e-5)
+    assert plain.transforms[n, 1, 5] < PIVOT[1] - 0.1  # unstruck, the bob had swung down
+    assert struck.transforms[n + 5, 1, 5] < PIVOT[1] - 0.02  # struck, it swings down again from rest
+    with pytest.raises(SimulationExploded, match=r"^a link reached \d+\.\d m/s at frame 12 \(bound 25 m/s\)$"):
+        run(n, 0)

@@ -448,7 +448,7 @@ def _strip_and_box(box_head, box_half, speed: float, kind: str, mass: float, joi
     if box_turn:
         clip[:, 1, :4] = [np.cos(box_turn / 2), 0.0, np.sin(box_turn / 2), 0.0]
     with ApparelWorld(keypoints, pieces, [chain], SimParams(), 1.0 / (fps * 8)) as world:
-        return simulate_clip(world, clip, 8, 0)
+        return simulate_clip(world, clip, 8, 0).transforms
 
 
 def _strip_accelerations(sim: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
@@ -579,3 +579,133 @@ def test_a_box_striking_a_strips_root_link_through_a_soft_contact_does_not_throw
     assert held < 9.8, held
     rigid_peak, rigid_held = _root_struck_by_a_box(0.0)
     assert rigid_peak > 2 * w * 0.5 and rigid_held > 9.8, (rigid_peak, rigid_held)  # the scene shows the throw
+
+
+class _Kicked:
+    """A world (delegated to) whose chain multibody ``body`` is struck after each clip frame of
+    ``frames`` (counted from the first simulated frame): its base gets the linear velocity ``kick``
+    (3,) m/s just before the frame is read. ``resettle`` calls' counts are kept in :attr:`counts`."""
+
+    def __init__(self, world, body: int, frames, kick):
+        self.world, self.body, self.frames, self.kick = world, body, set(frames), list(kick)
+        self.seen, self.counts = 0, []
+
+    def __getattr__(self, name):
+        return getattr(self.world, name)
+
+    def follow(self, poses, per_frame):
+        for f in self.world.follow(poses, per_frame):
+            if self.seen in self.frames:
+                self.world.pb.resetBaseVelocity(self.body, linearVelocity=self.kick, physicsClientId=self.world.client)
+            self.seen += 1
+            yield f
+
+    def resettle(self, pose):
+        self.counts.append(self.world.resettle(pose))
+        return self.counts[-1]
+
+
+TWO_STRIP_ANCHORS = np.array([[0.0, 1.0, 0.0], [0.5, 1.0, 0.0]])  # bones 0 and 1: the body
+
+
+def _two_strips(kicks=(), kick=(40.0, 0.0, 0.0), max_resettles: int = 5, frames: int = 40, relax: int = 0):
+    """Two 4-link strips (:data:`STRIP` hulls, 8 cm links, 0.03 kg), one hanging from each of the
+    body bones 0 and 1 (:data:`TWO_STRIP_ANCHORS`); no body pieces. The body turns about Y through
+    bone 0 at 3 rad/s for 10 frames at 30 fps, then holds (strip A, on bone 0 and bones 2-5, hangs on
+    the axis; strip B, on bone 1 and bones 6-9, swings). Strip B is struck at ``kicks`` (frames counted from the first simulated one: relaxation frames first) with base
+    velocity ``kick`` m/s.
+
+    Returns (keypoints (10, 3), clip (F, 10, 7), the simulated clip, the kicked world's resettle counts)."""
+    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+    from datagen.apparel.params import SimParams
+    from datagen.apparel.simulate import simulate_clip
+    from tests.apparel_toys import turn_about_y
+
+    chains, heads = [], []
+    for a, anchor in enumerate(TWO_STRIP_ANCHORS):
+        strip = np.array([anchor + [0.0, -0.08 * i, 0.0] for i in range(4)])
+        heads.append(strip)
+        links = tuple(LinkSpec(2 + 4 * a + i, strip[i], np.array([0.0, -1.0, 0.0]), 0.08, 0.01, 0.03, hull=STRIP,
+                               axial_share=1.0) for i in range(4))
+        chains.append(ChainSpec(f"strip{a}", "hair", a, links, (-1, 0, 1, 2),
+                                tuple(JointSpec(0.8, 0.2, 0.02, 0.3, 0.05) for _ in range(4))))
+    keypoints = np.concatenate([TWO_STRIP_ANCHORS, *heads])
+    clip = turn_about_y(np.minimum(np.arange(frames), 10) * 0.1, keypoints).astype(np.float64)
+    with ApparelWorld(keypoints, [], chains, SimParams(), 1.0 / 240) as world:
+        assert [c.spec.anchor_bone for c in world.chains] == [0, 1]  # two multibodies
+        kicked = _Kicked(world, world.chains[1].body, kicks, kick)
+        return keypoints, clip, simulate_clip(kicked, clip, 8, relax, max_resettles), kicked.counts
+
+
+def test_a_struck_chain_is_resettled_at_rest_on_its_anchor_and_the_clip_goes_on():
+    n = 12  # strip B swings behind its turned bone
+    keypoints, clip, plain, _ = _two_strips()
+    assert plain.resettled_frames == []
+    _, _, struck, counts = _two_strips([n])
+    assert struck.resettled_frames == [n] and counts == [1]  # one chain, strip B
+    a, b = slice(2, 6), slice(6, 10)
+    assert struck.transforms[:n].tobytes() == plain.transforms[:n].tobytes()
+    assert struck.transforms[n, a].tobytes() == plain.transforms[n, a].tobytes()  # strip A untouched
+    assert struck.transforms[:, a].tobytes() == plain.transforms[:, a].tobytes()  # then too (its springs kept)
+    assert np.abs(plain.transforms[n:, a] - plain.transforms[n, a]).max() > 0.01  # while it moves
+    assert np.isfinite(struck.transforms).all()
+    # strip B at rest on bone 1: each bone turned as bone 1 is (about Y), heads carried rigidly with it
+    q = clip[n, 1, :4]
+    expected_heads = (keypoints[b] - keypoints[1]) @ _hand_rotation(q).T + clip[n, 1, 4:]
+    np.testing.assert_allclose(struck.transforms[n, b, 4:], expected_heads, atol=1e-6)
+    sign = np.sign(struck.transforms[n, b, :1] * q[0])  # q and -q: one rotation
+    np.testing.assert_allclose(struck.transforms[n, b, :4] * sign, np.broadcast_to(q, (4, 4)), atol=1e-6)
+    assert np.abs(plain.transforms[n, b, 4:] - expected_heads).max() > 0.01  # unstruck, it had swung off rest
+    assert np.abs(struck.transforms[n + 1:, b] - plain.transforms[n + 1:, b]).max() > 1e-3
+
+
+def test_more_escapes_than_max_resettles_fail_the_clip():
+    _, _, struck, counts = _two_strips([5, 12, 20], max_resettles=3)
+    assert struck.resettled_frames == [5, 12, 20] and counts == [1, 1, 1]
+    with pytest.raises(SimulationExploded, match=r"^a link reached \d+\.\d m/s at frame 20 \(bound 25 m/s\) "
+                                                 r"after 2 re-settles \(max_resettles 2\)$"):
+        _two_strips([5, 12, 20], max_resettles=2)
+    # 0: as at simulation version 10, the first escape fails the clip, with version 10's message
+    with pytest.raises(SimulationExploded, match=r"^a link reached \d+\.\d m/s at frame 5 \(bound 25 m/s\)$"):
+        _two_strips([5, 12, 20], max_resettles=0)
+
+
+def test_relaxation_frames_are_resettled_as_negative_frames():
+    # 6 relaxation frames then the clip: struck at the fourth relaxation frame (index 3) and at clip frame 2
+    _, _, struck, _ = _two_strips([3, 8], relax=6)
+    assert struck.resettled_frames == [-3, 2]
+    with pytest.raises(SimulationExploded, match=r"at relaxation frame 4 of 6 \(bound 25 m/s\)$"):
+        _two_strips([3, 8], relax=6, max_resettles=0)
+
+
+def test_a_nan_state_is_resettled_like_an_escape():
+    # chose: a chain whose state is not finite is put back at rest like a fast one (the NaN is
+    # read before any step sees it, so the next steps are finite)
+    n = 12
+    keypoints, clip, plain, _ = _two_strips()
+    _, _, struck, counts = _two_strips([n], kick=(np.nan, 0.0, 0.0))
+    assert struck.resettled_frames == [n] and counts == [1]
+    assert np.isfinite(struck.transforms).all()
+    assert struck.transforms[:n].tobytes() == plain.transforms[:n].tobytes()
+    np.testing.assert_allclose(struck.transforms[n, 6:10, 4:],
+                               (keypoints[6:10] - keypoints[1]) @ _hand_rotation(clip[n, 1, :4]).T + clip[n, 1, 4:],
+                               atol=1e-6)
+    with pytest.raises(SimulationExploded, match=r"^NaN in the simulation at frame 12$"):
+        _two_strips([n], kick=(np.nan, 0.0, 0.0), max_resettles=0)
+
+
+def test_a_state_still_bad_right_after_resettling_fails_the_clip():
+    from datagen.apparel.simulate import simulate_clip
+
+    class Unfixed(_Kicked):  # its re-settle puts nothing back
+        def resettle(self, pose):
+            return 0
+
+    rec = make_character()
+    params = ApparelParams()
+    physics = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, params)
+    clip = make_motion(rec, np.zeros(20)).transforms
+    with ApparelWorld(rec.keypoints, physics.pieces, physics.chains, params.simulation, 1 / 240) as world:
+        with pytest.raises(SimulationExploded, match=r"^a link reached \d+\.\d m/s at frame 7 \(bound 25 m/s\) right "
+                                                     r"after re-settling its chains after 0 re-settles"):
+            simulate_clip(Unfixed(world, world.chains[0].body, [7], [40.0, 0, 0]), clip, 8, 0)

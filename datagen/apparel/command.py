@@ -23,8 +23,10 @@ def register(subparsers) -> None:
         "with limits, a spring toward the rest pose, damping, and its "
         "root carried by a constraint moved every step. Each clip first relaxes: --relax-frames frames blending "
         "from rest into the first pose, simulated and dropped. Per-clip quality (apparel inside the body, edge "
-        "stretch, jitter, secondary motion in % of height) goes in the character's meta['apparel']; a clip "
-        "whose simulation explodes gets a 'failed' status row and keeps its kinematic clip. Deterministic; a "
+        "stretch, jitter, secondary motion in % of height) goes in the character's meta['apparel']; chains "
+        "that escape the speed bound are put back at rest on their anchors (re-settled, up to "
+        "simulation.max_resettles frames a clip, counted in the quality), and a clip whose simulation still "
+        "explodes gets a 'failed' status row and keeps its kinematic clip. Deterministic; a "
         "re-run into the same OUT_DATASET resumes. The exit status is 0 while at most --max-failed of the clips "
         "failed (each failure a status row: a dataset build of thousands of clips is not stopped by a few) and 1 "
         "above it. Examples:\n"
@@ -33,7 +35,9 @@ def register(subparsers) -> None:
         "--params FILE overrides parameters per apparel kind (skirt, hair, ponytail, cape, coat_tail, default):\n"
         '  {"simulation": {"max_speed": 25}, "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.6}}}\n'
         "fields: link_mass, stiffness, damping, strength, linear_damping, angular_damping, swing_limit, "
-        "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency (datagen/apparel/params.py).",
+        "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency; "
+        "simulation: gravity, max_speed, solver_iterations, anchor_force, contact_erp, max_joint_velocity, "
+        "constraint_erp, piece_mass, max_resettles (datagen/apparel/params.py).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("in_dataset")
     p.add_argument("out_dataset")
@@ -73,7 +77,8 @@ def run(args) -> int:
     def fmt(x, digits=3):
         return "n/a" if x is None else round(x, digits)
 
-    print(f"{s['simulated']} clips simulated, {s['reused']} reused, {s['failed']} failed on {s['characters']} "
+    print(f"{s['simulated']} clips simulated, {s['reused']} reused, {s['failed']} failed, {s['resettled']} "
+          f"re-settled on {s['characters']} "
           f"characters with apparel in {s['seconds']:.1f} s; apparel inside the body {fmt(s['inside_pct_mean'])} % "
           f"(new {fmt(s['new_inside_pct_mean'])} %), secondary motion {fmt(s['secondary_motion_pct_mean'])} % of "
           f"height, max edge stretch {fmt(s['max_edge_stretch'])} -> {args.out_dataset}")

@@ -24,7 +24,7 @@ from schemas.joint import JointRecord
 from schemas.rigid_body import RigidBodyRecord
 
 FILE_GRAVITY = 9.8  # m/s^2
-FILE_PHYSICS_VERSION = "1"
+FILE_PHYSICS_VERSION = "2"  # 2: escaped chains re-settled (simulation version 11)
 ANCHOR_ACCEL = 500.0  # m/s^2: the anchor constraint's force limit per kilogram of anchor
 
 
@@ -170,6 +170,30 @@ class FileWorld:
                                                     physicsClientId=self.client)
         self.set_body_pose(pose)
 
+    def resettle(self, pose: np.ndarray) -> int:
+        """Put each chain with a body faster than :attr:`max_speed` or a non-finite state back at rest on
+        its anchor at body pose ``pose`` (K, 7): the base placed rigidly with its static body
+        (:meth:`place_at`), every joint at its rest rotation (the motors' target), every velocity
+        zero. Returns the number of chains put back."""
+        pb, cid = self.pb, self.client
+        positions, rotations = self.static_poses(np.asarray(pose, np.float64))
+        count = 0
+        for (plan, build, mb, _), k in zip(self.chains, self._anchor_rows):
+            states = pb.getLinkStates(mb, list(range(len(plan.links))), computeLinkVelocity=1,
+                                      computeForwardKinematics=1, physicsClientId=cid)
+            numbers = np.array([s[0] + s[1] + s[6] for s in states], np.float64).reshape(-1, 10)
+            if np.isfinite(numbers).all() and not (np.linalg.norm(numbers[:, 7:], axis=1) > self.max_speed).any():
+                continue
+            pb.resetBasePositionAndOrientation(mb, positions[k].tolist(), rotations[k, [1, 2, 3, 0]].tolist(),
+                                               physicsClientId=cid)
+            pb.resetBaseVelocity(mb, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=cid)
+            for li in range(len(plan.links)):
+                if not build.fixed[li]:
+                    pb.resetJointStateMultiDof(mb, li, build.rest_q[li], targetVelocity=[0.0, 0.0, 0.0],
+                                               physicsClientId=cid)
+            count += 1
+        return count
+
     def step(self) -> None:
         self.pb.stepSimulation(physicsClientId=self.client)
 
@@ -236,15 +260,15 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     character's own bodies and joints, as a new motion ``<clip>@sim``, and its quality
     (:mod:`datagen.apparel.quality`, plus ``physics: "file"`` and the scene's counts).
 
-    ``sim``: :class:`~datagen.apparel.params.SimParams` (solver iterations, speed bound; gravity
-    is :data:`FILE_GRAVITY`).
+    ``sim``: :class:`~datagen.apparel.params.SimParams` (solver iterations, speed bound,
+    re-settles; gravity is :data:`FILE_GRAVITY`).
     """
     steps = substeps_for(physics_fps, motion.fps)
     unit = float(((record.meta or {}).get("mmd") or {}).get("metres_per_unit", 0.08))
     apparel_bones = np.asarray(apparel_bones, bool)
     with FileWorld(bodies, joints, record.keypoints, record.parents, 1.0 / (motion.fps * steps),
                    sim.solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed) as world:
-        simulated = simulate_clip(world, motion.transforms, steps, relax)
+        simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles)
         plan = world.plan
     pieces = body_pieces(record.vertices, record.keypoints, dominant_bone(record.weights, record.num_joints),
                          ~apparel_bones)

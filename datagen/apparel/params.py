@@ -3,7 +3,8 @@
 The override file (``--params FILE``) holds any subset of::
 
     {"simulation": {"gravity": 9.8, "max_speed": 25.0, "solver_iterations": 30, "anchor_force": 2000.0,
-                    "contact_erp": 0.5, "max_joint_velocity": 30.0, "constraint_erp": 0.8, "piece_mass": 0.0},
+                    "contact_erp": 0.5, "max_joint_velocity": 30.0, "constraint_erp": 0.8, "piece_mass": 0.0,
+                    "max_resettles": 5},
      "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.8}, "default": {"link_mass": 0.1}}}
 
 A kind is the apparel kind of a chain (``skirt``, ``hair``, ``cape``, ``coat_tail``,
@@ -78,7 +79,10 @@ class SimParams:
     share of a joint constraint's error Bullet removes each step (0..1): each chain's anchor
     follows its moved constraint only through it, and at Bullet's 0.2 an anchor trailed a body bone turning 23.6 rad/s by 0.2 rad.
     ``piece_mass`` (kg): 0 places the body pieces at their bones' poses; above 0 they are bodies of that
-    mass carried there by constraints, so contacts see a limb's speed (slower; see the README)."""
+    mass carried there by constraints, so contacts see a limb's speed (slower; see the README).
+    ``max_resettles`` (an integer >= 0): frames of a clip at which chains that escaped the speed
+    bound (or went NaN) may be put back at rest on their anchors before the clip fails
+    (:mod:`datagen.apparel.simulate`); 0 fails the clip at its first escape (simulation version 10)."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -88,6 +92,7 @@ class SimParams:
     max_joint_velocity: float = 30.0
     constraint_erp: float = 0.8
     piece_mass: float = 0.0
+    max_resettles: int = 5
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -107,7 +112,7 @@ _RANGES = {  # field: (low, high, low_open)
     "friction": (0.0, None, False), "axial_inertia": (0.0, 1.0, False), "gravity": (0.0, None, False),
     "max_speed": (0.0, None, True), "root_contact_frequency": (0.0, None, False), "piece_mass": (0.0, None, False),
     "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True), "contact_erp": (0.0, 1.0, True),
-    "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True),
+    "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True), "max_resettles": (0, None, False),
 }
 
 
@@ -144,6 +149,8 @@ def _checked(cls, base, values: dict, where: str):
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise UserError(f"{where}.{key}: expected a finite number, got {value!r}")
             lo, hi, low_open = _RANGES[key]
+            if kind == "int" and value != int(value):
+                raise UserError(f"{where}.{key}: expected a whole number, got {value!r}")
             if (lo is not None and (value <= lo if low_open else value < lo)) or (hi is not None and value > hi):
                 rng = f"{'>' if low_open else '>='} {lo:g}" + (f" and <= {hi:g}" if hi is not None else "")
                 raise UserError(f"{where}.{key}: expected a number {rng}, got {value!r}")

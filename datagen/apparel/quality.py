@@ -15,6 +15,11 @@ posed by linear blend skinning with the stored transforms:
   vertex and frame (one struck vertex moves the max, not the p99).
 - ``secondary_motion_pct`` (mean over frames) and ``secondary_motion_max_pct`` (worst frame):
   mean distance of apparel vertices from their kinematic positions, percent of height.
+
+Beside these, :func:`datagen.apparel.setup.simulated_record` records the simulation's counts and
+``resettles`` (frames at which chains that escaped the speed bound were put back at rest on
+their anchors, :mod:`datagen.apparel.simulate`) and ``resettled_frames`` (those frames' clip
+indices; relaxation frames negative, -1 the last).
 """
 from __future__ import annotations
 

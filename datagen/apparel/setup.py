@@ -12,12 +12,12 @@ from datagen.apparel.chains import build_chains
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.quality import clip_quality
 from datagen.apparel.selection import dominant_bone
-from datagen.apparel.simulate import simulate_clip
+from datagen.apparel.simulate import SimulatedClip, simulate_clip
 from datagen.apparel.world import ApparelWorld
 from schemas.character import CharacterRecord
 from schemas.motion import SIM_SUFFIX, MotionRecord
 
-SIM_VERSION = "10"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
+SIM_VERSION = "11"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
 # 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
 # projected every step, constraint ERP 0.8; 6: springs as implicit torques from numpy instead of
 # Bullet's joint motors; 7: springs solved per tree of links (a merged multibody's chains
@@ -28,7 +28,10 @@ SIM_VERSION = "10"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the 
 # strips' root links touch the body through a critically damped contact spring of 150 rad/s
 # (a thigh, placed anew each step, started it up to 55 mm inside a rigid root contact, which threw
 # the strip out in one step: tips at +-5-10 m/s alternating step by step), and skirt strips take
-# axial inertia 1 like the other kinds (their 0.1 rad twist limit, projected, spun them otherwise)
+# axial inertia 1 like the other kinds (their 0.1 rad twist limit, projected, spun them otherwise);
+# 11: chains that escape the speed bound are re-settled at rest on their anchors, up to
+# SimParams.max_resettles frames a clip, instead of failing the clip (clips without an escape: the
+# same bytes as 10); the quality gains resettles and resettled_frames
 
 
 @dataclass
@@ -70,28 +73,32 @@ def simulate_motion(record: CharacterRecord, physics: CharacterPhysics, motion: 
     (:mod:`datagen.apparel.world_cache`); None builds one for this clip.
 
     Raises:
-        datagen.apparel.simulate.SimulationExploded: the simulation blew up.
+        datagen.apparel.simulate.SimulationExploded: the simulation blew up (past
+            ``params.simulation.max_resettles`` re-settles).
     """
-    steps = substeps_for(physics_fps, motion.fps)
+    steps, limit = substeps_for(physics_fps, motion.fps), params.simulation.max_resettles
     if world is None:
         with ApparelWorld(record.keypoints, physics.pieces, physics.chains, params.simulation,
                           physics_step(physics_fps, motion.fps)) as world:
-            simulated = simulate_clip(world, motion.transforms, steps, relax)
+            simulated = simulate_clip(world, motion.transforms, steps, relax, limit)
     else:
-        simulated = simulate_clip(world, motion.transforms, steps, relax)
+        simulated = simulate_clip(world, motion.transforms, steps, relax, limit)
     return simulated_record(record, physics, motion, simulated, f"apparel:pybullet@{SIM_VERSION}", {
         "substeps": steps, "relax_frames": int(relax), "links": sum(len(c.links) for c in physics.chains),
         "chains": len(physics.chains)})
 
 
-def simulated_record(record: CharacterRecord, physics: CharacterPhysics, motion: MotionRecord, simulated: np.ndarray,
+def simulated_record(record: CharacterRecord, physics: CharacterPhysics, motion: MotionRecord, clip: SimulatedClip,
                      source: str, counts: dict) -> tuple[MotionRecord, dict]:
-    """``simulated`` (F, K, 7), the clip of ``motion`` from the physics ``source``, as the motion
-    ``<clip>@sim`` and its quality (:func:`~datagen.apparel.quality.clip_quality`, then ``counts``)."""
+    """``clip`` (its transforms (F, K, 7)), the clip of ``motion`` from the physics ``source``, as the
+    motion ``<clip>@sim`` and its quality (:func:`~datagen.apparel.quality.clip_quality`, then
+    ``counts``, then ``resettles`` and ``resettled_frames``)."""
     height = float(record.height or np.ptp(np.asarray(record.vertices)[:, 1]))
+    simulated = clip.transforms
     quality = clip_quality(record.vertices, record.faces, record.keypoints, record.weights, physics.apparel_vertices,
                            physics.pieces, simulated, motion.transforms, motion.fps, height)
     quality.update(counts)
+    quality.update(resettles=len(clip.resettled_frames), resettled_frames=[int(f) for f in clip.resettled_frames])
     sim = MotionRecord(motion_id=motion.motion_id + SIM_SUFFIX, character_id=motion.character_id,
                        name=motion.name + SIM_SUFFIX, split=motion.split, fps=motion.fps, num_frames=motion.num_frames,
                        num_joints=motion.num_joints, transforms=simulated, source=f"{source} from {motion.motion_id}")

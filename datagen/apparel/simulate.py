@@ -6,13 +6,22 @@ One loop for every world (:class:`PhysicsWorld`: the zoo's kinematic chains,
 physics steps; within a frame the body pose is interpolated (slerp, lerp) from the previous
 frame. The relaxation frames (:mod:`datagen.apparel.relax`) run first and are dropped. After each
 frame the world's simulated parts are read and checked; the world turns them into bones at the end.
+
+Re-settling: when after a frame some chain has a link faster than the world's speed bound (or a
+non-finite state), the world puts only those chains back at rest on their anchors at the frame's
+body pose (:meth:`PhysicsWorld.resettle`), the state is read again and the clip goes on; each such
+frame is one re-settle. Past ``max_resettles`` re-settles, or when the state is still bad right
+after one, the clip raises :class:`SimulationExploded`. A clip without an escape runs exactly as
+without re-settling.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Iterator, Protocol
 
 import numpy as np
 
+from datagen.apparel.params import SimParams
 from datagen.apparel.relax import relax_frames, substep_poses
 from mimicbench.kinematics import rest_transforms
 
@@ -42,23 +51,52 @@ class PhysicsWorld(Protocol):
     def read(self) -> tuple[tuple[np.ndarray, ...], float]:
         """The simulated parts' state now (arrays, checked for NaN) and the fastest link's speed (m/s)."""
 
+    def resettle(self, pose: np.ndarray) -> int:
+        """Put each chain with a link faster than ``max_speed`` or a non-finite state back at rest on its
+        anchor at body pose ``pose`` (K, 7) (rest joint angles, every velocity zero); the count of chains."""
+
     def clip_out(self, transforms: np.ndarray, states: list[tuple[np.ndarray, ...]]) -> np.ndarray:
         """(F, K, 7) float32: the kinematic clip ``transforms`` with the bones of ``states`` (one a frame) replaced."""
 
 
-def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, relax: int) -> np.ndarray:
+@dataclass
+class SimulatedClip:
+    """A clip simulated by :func:`simulate_clip`: its transforms and the frames where chains were re-settled."""
+
+    transforms: np.ndarray  # (F, K, 7) float32
+    resettled_frames: list[int]  # clip frame indices, ascending; relaxation frames negative (-1 the last)
+
+
+def _sound(state: tuple[np.ndarray, ...], speed: float, bound: float) -> bool:
+    """Whether a read state is finite and its fastest link (m/s) within ``bound`` (m/s)."""
+    return all(np.isfinite(a).all() for a in state) and np.isfinite(speed) and speed <= bound
+
+
+def _escape(state: tuple[np.ndarray, ...], speed: float, bound: float, where: str) -> str:
+    """What went wrong at ``where``: NaN in ``state`` or a link faster than ``bound`` (m/s)."""
+    if not (all(np.isfinite(a).all() for a in state) and np.isfinite(speed)):
+        return f"NaN in the simulation at {where}"
+    return f"a link reached {speed:.1f} m/s at {where} (bound {bound:g} m/s)"
+
+
+def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, relax: int,
+                  max_resettles: int = SimParams.max_resettles) -> SimulatedClip:
     """The clip with apparel bones simulated.
 
     Args:
         world: a new or reset world of the clip's character (at rest).
         transforms: (F, K, 7) kinematic clip. substeps: physics steps per clip frame (>= 1).
         relax: relaxation frames before frame 0 (simulated, dropped).
+        max_resettles: frames whose escaped chains may be re-settled (module docstring); 0 raises at
+            the first escape.
 
     Returns:
-        (F, K, 7) float32: body rows equal to ``transforms``, apparel rows from the simulation.
+        The clip (F, K, 7) float32 (body rows equal to ``transforms``, apparel rows from the
+        simulation) and the re-settled frames.
 
     Raises:
-        SimulationExploded: NaN in the world's state or a link faster than ``world.max_speed``.
+        SimulationExploded: NaN in the world's state or a link faster than ``world.max_speed``
+            after ``max_resettles`` re-settles, or right after a re-settle.
     """
     clip = np.asarray(transforms, np.float64)
     lead = relax_frames(world.keypoints, clip[0], relax)
@@ -67,7 +105,7 @@ def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, re
     if not len(lead):
         world.place_at(clip[0])
     world.start()
-    states, driven = [], world.driven_bones  # only bones the world reads
+    states, resettled, driven = [], [], world.driven_bones  # only bones the world reads
     for first in range(0, len(poses), CHUNK_FRAMES):
         chunk = poses[first:first + CHUNK_FRAMES, driven]
         steps = np.zeros((len(chunk) * substeps, len(world.keypoints), 7))
@@ -77,10 +115,16 @@ def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, re
             f += first
             where = f"relaxation frame {f + 1} of {len(lead)}" if f < len(lead) else f"frame {f - len(lead)}"
             state, speed = world.read()
-            if not (all(np.isfinite(a).all() for a in state) and np.isfinite(speed)):
-                raise SimulationExploded(f"NaN in the simulation at {where}")
-            if speed > world.max_speed:
-                raise SimulationExploded(f"a link reached {speed:.1f} m/s at {where} (bound {world.max_speed:g} m/s)")
+            if not _sound(state, speed, world.max_speed):
+                before = f" after {len(resettled)} re-settles (max_resettles {max_resettles})" if max_resettles else ""
+                if len(resettled) >= max_resettles:
+                    raise SimulationExploded(_escape(state, speed, world.max_speed, where) + before)
+                world.resettle(poses[f])
+                state, speed = world.read()
+                if not _sound(state, speed, world.max_speed):
+                    raise SimulationExploded(_escape(state, speed, world.max_speed, where)
+                                             + f" right after re-settling its chains{before}")
+                resettled.append(f - len(lead))
             if f >= len(lead):
                 states.append(state)
-    return world.clip_out(transforms, states)
+    return SimulatedClip(world.clip_out(transforms, states), resettled)

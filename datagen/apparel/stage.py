@@ -1,6 +1,7 @@
 """The apparel stage over a dataset: ``mimicbench datagen apparel IN OUT``. Beside every kinematic
 clip of a character with apparel bones goes a simulated ``<clip>@sim``, its quality in the
-character's ``meta['apparel']['clips']``; an exploding clip is a failed status row. Resume:
+character's ``meta['apparel']['clips']``; chains that escape are re-settled (``resettles`` in the quality,
+:mod:`datagen.apparel.simulate`) and a clip that still explodes is a failed status row. Resume:
 FORMAT.md, "Stages and resume". Correspondences (``pairs``) are not carried over.
 """
 from __future__ import annotations
@@ -114,7 +115,8 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
             ``jobs`` processes; the output does not depend on it).
 
     Returns:
-        Summary: characters, clips simulated, reused, failed, mean quality, seconds, statuses.
+        Summary: characters, clips simulated, reused, failed, resettled (clips of OUT with a
+        re-settled frame), mean quality, seconds, statuses.
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
@@ -161,11 +163,12 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     def mean(key):
         return float(np.mean([q[key] for q in qs])) if qs else None
 
+    resettled = sum(q["resettles"] > 0 for q in qs)
     if progress:
-        print(summarize_statuses(statuses))
+        print(summarize_statuses(statuses) + f", {resettled} re-settled (chains put back at rest after an escape)")
     return {"characters": sum(1 for b, _ in masks.values() if b.any()), "clips": len(kinematic),
             "simulated": sum(s.status == "ok" for s in statuses), "reused": reused,
-            "failed": sum(s.status == "failed" for s in statuses),
+            "failed": sum(s.status == "failed" for s in statuses), "resettled": resettled,
             "new_inside_pct_mean": mean("new_inside_pct"), "inside_pct_mean": mean("inside_pct"),
             "secondary_motion_pct_mean": mean("secondary_motion_pct"),
             "max_edge_stretch": max((q["max_edge_stretch"] for q in qs), default=None),

@@ -471,11 +471,45 @@ class ApparelWorld:
             pb.resetBasePositionAndOrientation(body, pose[piece.bone, 4:].tolist(), xyzw(pose[piece.bone, :4]),
                                                physicsClientId=cid)
         for c in self.chains:
-            if c.spec.anchor_bone < 0:
-                continue
-            q, t = pose[c.spec.anchor_bone, :4], pose[c.spec.anchor_bone, 4:]
-            pb.resetBasePositionAndOrientation(c.body, (t + quat_apply(q, c.anchor_offset)).tolist(), xyzw(q),
-                                               physicsClientId=cid)
+            if c.spec.anchor_bone >= 0:
+                pb.resetBasePositionAndOrientation(c.body, *self._anchor_placement(c, pose), physicsClientId=cid)
+
+    @staticmethod
+    def _anchor_placement(c: ChainBody, pose: np.ndarray) -> tuple[list[float], list[float]]:
+        """Where chain ``c``'s base (its root head) sits with its anchor bone at ``pose`` (K, 7): the
+        position (3,) m and the orientation (x, y, z, w); an unanchored chain's stays at rest."""
+        if c.spec.anchor_bone < 0:
+            return c.anchor_offset.tolist(), [0.0, 0.0, 0.0, 1.0]
+        q, t = pose[c.spec.anchor_bone, :4], pose[c.spec.anchor_bone, 4:]
+        return (t + quat_apply(q, c.anchor_offset)).tolist(), xyzw(q)
+
+    def resettle(self, pose: np.ndarray) -> int:
+        """Put each chain with a link faster than :attr:`max_speed` or a non-finite state back at rest
+        on its anchor at body pose ``pose`` (K, 7): the base placed rigidly with its anchor bone
+        (:meth:`place_at`), every joint at its rest angle, every velocity zero. The spring torques
+        set for the next step are taken back (their negatives added) and set again from the new
+        state (:meth:`_after_step`). Returns the number of chains put back (multibodies)."""
+        pb, cid = self.pb, self.client
+        escaped = []
+        for c, (body, links) in zip(self.chains, self._link_lists):
+            states = pb.getLinkStates(body, links, computeLinkVelocity=1, computeForwardKinematics=1,
+                                      physicsClientId=cid)
+            numbers = np.array([s[4] + s[5] + s[6] for s in states], np.float64).reshape(-1, 10)
+            speeds = np.linalg.norm(numbers[:, 7:], axis=1)
+            if not np.isfinite(numbers).all() or (speeds > self.max_speed).any():
+                escaped.append(c)
+        if not escaped:
+            return 0
+        for c in escaped:
+            pb.resetBasePositionAndOrientation(c.body, *self._anchor_placement(c, pose), physicsClientId=cid)
+            pb.resetBaseVelocity(c.body, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=cid)
+            for j in range(len(c.spec.joints)):
+                pb.resetJointStateMultiDof(c.body, j, targetValue=[0.0, 0.0, 0.0, 1.0], targetVelocity=[0.0, 0.0, 0.0],
+                                           physicsClientId=cid)
+        if self._pending is not None:
+            self._apply_torques(-self._pending)
+        self._after_step()
+        return len(escaped)
 
     def step(self) -> None:
         """One physics step without the limits and springs (Bullet's own dynamics only)."""
