@@ -296,12 +296,17 @@ def test_params_file_overrides_and_errors(tmp_path):
                              "simulation": {"max_speed": 9}}))
     p = load_params(f)
     assert p.for_kind("hair").stiffness == pytest.approx(0.5) and p.simulation.max_speed == pytest.approx(9.0)
+    assert p.simulation.max_resettles == 5  # the default
+    assert params_from_json({"simulation": {"max_resettles": 0}}).simulation.max_resettles == 0
+    assert params_from_json({"simulation": {"max_resettles": 3.0}}).simulation.max_resettles == 3
     assert p.for_kind("sleeve").link_mass == pytest.approx(0.2)  # unknown kinds use the overridden default
     assert p.for_kind("hair").link_mass == pytest.approx(ApparelParams().for_kind("hair").link_mass)
     for bad, msg in (({"kinds": {"hair": {"stiffnes": 1}}}, "unknown field 'stiffnes'"),
                      ({"kinds": {"hair": {"stiffness": 2}}}, "expected a number >= 0 and <= 1"),
                      ({"physics": {}}, "unknown section"),
-                     ({"kinds": {"hair": {"collide_body": 1}}}, "expected true or false")):
+                     ({"kinds": {"hair": {"collide_body": 1}}}, "expected true or false"),
+                     ({"simulation": {"max_resettles": -1}}, r"max_resettles: expected a number >= 0, got -1"),
+                     ({"simulation": {"max_resettles": 2.5}}, r"max_resettles: expected a whole number, got 2.5")):
         f.write_text(json.dumps(bad))
         with pytest.raises(UserError, match=msg):
             load_params(f)

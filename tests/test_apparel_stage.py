@@ -78,9 +78,31 @@ def test_exploding_parameters_become_status_rows(toy_dataset, tmp_path):
     rows = [r for r in read_records(out, "status", "apparel") if r.status == "failed"]
     assert {r.asset for r in rows} == {"toy/a/turn", "toy/a/still"}
     assert all("SimulationExploded" in r.reason and "m/s" in r.reason for r in rows)
+    assert all("after 5 re-settles (max_resettles 5)" in r.reason for r in rows)  # the default limit
     names = sorted(m.motion_id for m in read_records(out, "motions"))
     assert names == ["toy/a/still", "toy/a/turn", "toy/b/still", "toy/b/turn"]  # kinematic clips kept
     assert validate_dataset(out) == []
+
+
+def test_a_clip_whose_chain_escapes_is_resettled_and_kept(toy_dataset, tmp_path):
+    # a 2 m/s speed bound: the turn swings the chain past it a few times, each time re-settled (the
+    # frames in the clip's quality); the still clip never reaches it and gives the bytes of a run
+    # at the default bound
+    plain, low = tmp_path / "plain", tmp_path / "low"
+    simulate_dataset(toy_dataset, plain, relax=6, progress=False)
+    params = params_from_json({"simulation": {"max_speed": 2.0, "max_resettles": 50}})
+    s = simulate_dataset(toy_dataset, low, relax=6, params=params, progress=False)
+    assert s["simulated"] == 2 and s["failed"] == 0 and s["resettled"] == 1
+    clips = read_records(low, "characters")[0].meta["apparel"]["clips"]
+    turn, still = clips["turn"], clips["still"]
+    assert 0 < turn["resettles"] <= 50 and turn["resettles"] == len(turn["resettled_frames"])
+    assert turn["resettled_frames"] == sorted(set(turn["resettled_frames"]))
+    assert all(-6 <= f < 24 for f in turn["resettled_frames"])
+    assert still["resettles"] == 0 and still["resettled_frames"] == []
+    motions = [{m.motion_id: m for m in read_records(root, "motions")} for root in (plain, low)]
+    assert motions[0]["toy/a/still@sim"].transforms.tobytes() == motions[1]["toy/a/still@sim"].transforms.tobytes()
+    assert motions[0]["toy/a/turn@sim"].transforms.tobytes() != motions[1]["toy/a/turn@sim"].transforms.tobytes()
+    assert validate_dataset(low) == []
 
 
 def test_apparel_bones_by_glob_choose_bones_and_vertices(toy_dataset, tmp_path):
