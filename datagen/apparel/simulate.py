@@ -116,14 +116,15 @@ def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, re
             where = f"relaxation frame {f + 1} of {len(lead)}" if f < len(lead) else f"frame {f - len(lead)}"
             state, speed = world.read()
             if not _sound(state, speed, world.max_speed):
-                before = f" after {len(resettled)} re-settles (max_resettles {max_resettles})" if max_resettles else ""
+                limit = f"(max_resettles {max_resettles})"
                 if len(resettled) >= max_resettles:
-                    raise SimulationExploded(_escape(state, speed, world.max_speed, where) + before)
+                    raise SimulationExploded(_escape(state, speed, world.max_speed, where)
+                                             + (f" after {len(resettled)} re-settles {limit}" if max_resettles else ""))
                 world.resettle(poses[f])
                 state, speed = world.read()
                 if not _sound(state, speed, world.max_speed):
-                    raise SimulationExploded(_escape(state, speed, world.max_speed, where)
-                                             + f" right after re-settling its chains{before}")
+                    raise SimulationExploded(_escape(state, speed, world.max_speed, where) + f" right after "
+                                             f"re-settling its chains, {len(resettled)} re-settles before {limit}")
                 resettled.append(f - len(lead))
             if f >= len(lead):
                 states.append(state)
