@@ -36,7 +36,7 @@ COMMON = {
                              # piece prior alone where a mesh piece wraps a bone, at inference; piece_prior.py)
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
     "apparel_start": "window",  # ours: f_d's training rollouts, "clip" (from rest on the body at the clip's first
-                              # frame, as the simulation and a request start, through the burn-in; opt-in, measured worse) or
+                              # frame, as the simulation and a request start, through the burn-in; opt-in; shipped v7 with bptt 0) or
                               # "window" (`window` frames after K ground-truth states, a share `rest_start` of them
                               # restarted at rest at the window, inside the clip; the default, shipped v6); training.py
     "burn_in": 90,           # "clip": most frames before a scored window (the apparel protocol's BURN_IN)

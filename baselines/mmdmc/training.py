@@ -19,7 +19,7 @@ end to end on their outputs):
   model did.
 - ``apparel`` (needs seg, body): f_d rolled out on the apparel vertices f_c finds, from f_s's body
   states; L1 vertex, edge length (Eq. 14-15) and an L2 regulariser on the displacements. With
-  ``apparel_start="clip"`` (opt-in; measured no better than zero displacement, README) every rollout starts as the simulation
+  ``apparel_start="clip"`` (opt-in; the shipped version 7 with ``bptt`` 0, a hair better than a zero displacement, README) every rollout starts as the simulation
   and a request of the apparel protocol do: at rest on the body at the clip's first frame (K = 3
   history states of the body at rest, :func:`baselines.mmdmc.pipeline.rest_start`), rolled out
   through the burn-in to the window's end (at most ``burn_in`` + ``scored_window`` frames; a longer
