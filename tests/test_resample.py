@@ -126,6 +126,38 @@ def test_cleaning_merges_duplicates_drops_degenerates_and_keeps_pieces():
     assert c.report["kept_pieces"] == 2 and len(c.faces) == len(a.faces) + len(b.faces)
 
 
+def _two_touching_strands():
+    """Two closed tubes (cylinders) stacked end to end so that the end ring of the first lies on the
+    start ring of the second, vertex on vertex: (V, F, owner (V,) bone of each vertex)."""
+    a = trimesh.creation.cylinder(radius=0.1, height=1.0, sections=8)
+    top = a.vertices[:, 2] > 0.49
+    b = a.vertices + [0.0, 0.0, 1.0]
+    b[b[:, 2] < 0.51] = a.vertices[top][np.argmin(np.abs(b[b[:, 2] < 0.51][:, None, :2]
+                                                        - a.vertices[top][None, :, :2]).sum(-1), axis=1)]
+    v = np.concatenate([a.vertices, b])
+    f = np.concatenate([a.faces, a.faces + len(a.vertices)])
+    owner = np.r_[np.zeros(len(a.vertices), int), np.ones(len(a.vertices), int)]
+    return v, f, owner
+
+
+def _weights_of(owner, bones=2):
+    dense = np.zeros((len(owner), bones))
+    dense[np.arange(len(owner)), owner] = 1.0
+    return SparseWeights.from_dense(dense)
+
+
+def test_touching_apparel_pieces_of_other_bones_are_not_welded_but_body_ones_and_seams_are():
+    v, f, owner = _two_touching_strands()
+    touching = int(len(v) - len(np.unique(np.round(v, 9), axis=0)))  # vertices on another's place
+    assert touching > 0
+    apparel = clean_mesh(v, f, _weights_of(owner), np.ones(len(v)))  # two hair links: kept apart
+    assert apparel.report["merged_vertices"] == 0 and apparel.report["kept_pieces"] == 2
+    body = clean_mesh(v, f, _weights_of(owner), np.zeros(len(v)))  # body capsules: welded, as before
+    assert body.report["merged_vertices"] == touching and body.report["kept_pieces"] == 1
+    same = clean_mesh(v, f, _weights_of(np.zeros(len(v), int)), np.ones(len(v)))  # one bone: a seam
+    assert same.report["merged_vertices"] == touching and same.report["kept_pieces"] == 1
+
+
 @pytest.mark.parametrize("breakage,reason", [
     ("nan", "NaN"), ("index", "faces index"), ("flat", "zero area"), ("unweighted", "no skin weight"), ("tiny", "at least 4"),
 ])

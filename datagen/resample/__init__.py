@@ -19,8 +19,9 @@ import importlib
 MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
 MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
 # in the stage's fingerprint, so a re-run redoes rows an older resample made; 2: the resampled mesh
-# is welded (datagen.resample.clean.weld_short_edges: no near-zero edges, no zero-area faces)
-RESAMPLE_VERSION = "2"
+# is welded (datagen.resample.clean.weld_short_edges: no near-zero edges, no zero-area faces); 3: apparel
+# vertices of different bones are never welded before decimation (clean.apparel_owners: hair strands stay apart)
+RESAMPLE_VERSION = "3"
 
 _LAZY = {
     "resample_character": "datagen.resample.character",

@@ -65,16 +65,33 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, weights: SparseWeights) 
         raise BadMesh(f"{int(unweighted.sum())} vertices have no skin weight")
 
 
-def _merge_duplicates(v: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+def _merge_duplicates(v: np.ndarray, scale: float, apart: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(first, inverse): the first vertex of each group of equal positions (up to 1e-9 of
-    ``scale``), in their original order, and each vertex's group."""
-    key = np.ascontiguousarray(np.round(v / (scale * 1e-9)).astype(np.int64))
-    _, first, inverse = np.unique(key.view(np.dtype((np.void, 24))).ravel(), return_index=True,
+    ``scale``), in their original order, and each vertex's group. ``apart`` (N,) int: vertices
+    with different values are never grouped, wherever they are."""
+    key = np.round(v / (scale * 1e-9)).astype(np.int64)
+    if apart is not None:
+        key = np.concatenate([key, np.asarray(apart, np.int64)[:, None]], axis=1)
+    key = np.ascontiguousarray(key)
+    _, first, inverse = np.unique(key.view(np.dtype((np.void, 8 * key.shape[1]))).ravel(), return_index=True,
                                   return_inverse=True)
     order = np.argsort(first)
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     return first[order], rank[inverse.reshape(-1)]
+
+
+def apparel_owners(weights: SparseWeights, apparel) -> np.ndarray:
+    """(N,) int: each apparel vertex's dominant bone (its largest weight; the lowest bone of a tie),
+    -1 for the body's. :func:`clean_mesh` never welds vertices with different owners: a zoo's hair
+    strands, skirt strips and cape links are separate pieces whose ends touch (same positions,
+    other bones), and welded they were decimated into one piece whose edges then stretched up to
+    7x between strands once the physics moved them apart (the demo's apparel characters at resample
+    version 2). Seams of one surface (the same weights on both sides) still weld."""
+    values, indices = np.asarray(weights.values), np.asarray(weights.indices)
+    best = values.max(axis=1, keepdims=True)
+    owner = np.where(values >= best, indices, np.iinfo(np.int32).max).min(axis=1).astype(np.int64)
+    return np.where(np.asarray(apparel, np.float64) > 0.5, owner, -1)
 
 
 WELD_TOLERANCE = 1e-5
@@ -166,7 +183,7 @@ def clean_mesh(vertices, faces, weights: SparseWeights, apparel, min_piece_area:
     check_mesh(v, f, weights)
     report = {"vertices_in": int(len(v)), "faces_in": int(len(f))}
     scale = float(np.ptp(v, axis=0).max()) or 1.0
-    first, inverse = _merge_duplicates(v, scale)
+    first, inverse = _merge_duplicates(v, scale, apparel_owners(weights, apparel))
     report["merged_vertices"] = int(len(v) - len(first))
     v, app = v[first], np.asarray(apparel, np.float64)[first]
     f = inverse[f]
