@@ -119,6 +119,12 @@ class SparseWeights:
             object.__setattr__(self, "_csr", cached)
         return cached
 
+    def dominant(self) -> np.ndarray:
+        """(N,) int64 the keypoint of each vertex's largest weight, the lowest one of a tie (the dense
+        form's ``argmax``, without building it)."""
+        best = self.values.max(axis=1, keepdims=True)
+        return np.where(self.values >= best, self.indices, np.iinfo(np.int32).max).min(axis=1).astype(np.int64)
+
     def row_sums(self) -> np.ndarray:
         """Sum of each vertex's weights (N,)."""
         return self.values.astype(np.float64).sum(axis=1)

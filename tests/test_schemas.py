@@ -140,3 +140,17 @@ def test_format_md_is_up_to_date_and_documents_every_column():
     for rtype in RECORD_TYPES.values():
         for c in rtype.COLUMNS:
             assert f"| `{c.name}` |" in text
+
+
+def test_dominant_is_the_dense_argmax_ties_to_the_lowest_keypoint():
+    from schemas.weights import SparseWeights
+
+    rng = np.random.default_rng(0)
+    dense = rng.random((200, 9)) * (rng.random((200, 9)) < 0.4)
+    dense[np.arange(200), rng.integers(0, 9, 200)] += 0.01  # every row weighted somewhere
+    dense[:20, 2] = dense[:20, 6] = 5.0  # ties between keypoints 2 and 6, stored in either slot order
+    w = SparseWeights.from_dense(dense)
+    np.testing.assert_array_equal(w.dominant(), np.argmax(w.to_dense(np.float64), axis=1))
+    swapped = SparseWeights(w.indices[:, ::-1].copy(), w.values[:, ::-1].copy(), w.num_keypoints)
+    np.testing.assert_array_equal(swapped.dominant(), np.argmax(w.to_dense(np.float64), axis=1))
+    assert (w.dominant()[:20] == 2).all()

@@ -82,16 +82,13 @@ def _merge_duplicates(v: np.ndarray, scale: float, apart: np.ndarray | None = No
 
 
 def apparel_owners(weights: SparseWeights, apparel) -> np.ndarray:
-    """(N,) int: each apparel vertex's dominant bone (its largest weight; the lowest bone of a tie),
+    """(N,) int: each apparel vertex's dominant bone (:meth:`SparseWeights.dominant`),
     -1 for the body's. :func:`clean_mesh` never welds vertices with different owners: a zoo's hair
     strands, skirt strips and cape links are separate pieces whose ends touch (same positions,
     other bones), and welded they were decimated into one piece whose edges then stretched up to
     7x between strands once the physics moved them apart (the demo's apparel characters at resample
     version 2). Seams of one surface (the same weights on both sides) still weld."""
-    values, indices = np.asarray(weights.values), np.asarray(weights.indices)
-    best = values.max(axis=1, keepdims=True)
-    owner = np.where(values >= best, indices, np.iinfo(np.int32).max).min(axis=1).astype(np.int64)
-    return np.where(np.asarray(apparel, np.float64) > 0.5, owner, -1)
+    return np.where(np.asarray(apparel, np.float64) > 0.5, weights.dominant(), -1)
 
 
 WELD_TOLERANCE = 1e-5
