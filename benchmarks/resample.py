@@ -70,7 +70,7 @@ def run_ours(chars, motions, faces, backend):
     start = time.perf_counter()
     for c in chars:
         clean = clean_mesh(c.vertices, c.faces, c.weights, c.apparel_vertex_mask)
-        v, f, _ = resample_to(clean.vertices, clean.faces, faces, backend)
+        v, f, _, _ = resample_to(clean.vertices, clean.faces, faces, backend)
         interpolate_weights(clean.weights, clean.faces, closest_points(clean.vertices, clean.faces, v))
     work = (time.perf_counter() - start) / len(chars)
     start = time.perf_counter()

@@ -1,6 +1,6 @@
 import numpy as np
 
-from mimicbench.mesh import edge_lengths, normalize_unit_height, unique_edges, unit_height_frame
+from mimicbench.mesh import edge_lengths, mesh_pieces, normalize_unit_height, unique_edges, unit_height_frame
 
 
 def test_unique_edges_of_a_tetrahedron_and_a_quad():
@@ -8,6 +8,20 @@ def test_unique_edges_of_a_tetrahedron_and_a_quad():
     assert unique_edges(tet).tolist() == [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]]
     quad = np.array([[0, 1, 2], [0, 2, 3]])
     assert len(unique_edges(quad)) == 5
+
+
+def test_mesh_pieces_by_hand_and_as_trimesh_finds_them():
+    # two triangles sharing an edge are one piece; a triangle apart is another; vertex 7 is in no face
+    f = np.array([[0, 1, 2], [3, 4, 5], [2, 6, 1]])
+    assert mesh_pieces(f, 8).tolist() == [0, 0, 0, 1, 1, 1, 0, 2]
+    import trimesh
+
+    a, b = trimesh.creation.icosphere(1), trimesh.creation.box()
+    faces = np.concatenate([b.faces + len(a.vertices), a.faces])  # the second piece's faces first
+    label = mesh_pieces(faces, len(a.vertices) + len(b.vertices))
+    expected = trimesh.graph.connected_component_labels(trimesh.geometry.faces_to_edges(faces), len(label))
+    assert len(np.unique(label)) == 2 and (label[:len(a.vertices)] == label[0]).all()
+    assert len(np.unique(np.stack([label, expected], 1), axis=0)) == 2  # the same partition
 
 
 def test_edge_lengths_by_hand():

@@ -104,7 +104,7 @@ def test_hausdorff_matches_meshlabs_filter_sampling_every_vertex():
     from datagen.resample.simplify import decimate
 
     mesh = trimesh.creation.capsule(height=1.0, radius=0.2, count=[24, 24])
-    v, f = decimate(mesh.vertices, mesh.faces, 300, "fast")
+    v, f, _ = decimate(mesh.vertices, mesh.faces, 300, "fast")
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=mesh.vertices, face_matrix=mesh.faces.astype(np.int32)))
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f.astype(np.int32)))
@@ -156,6 +156,79 @@ def test_touching_apparel_pieces_of_other_bones_are_not_welded_but_body_ones_and
     assert body.report["merged_vertices"] == touching and body.report["kept_pieces"] == 1
     same = clean_mesh(v, f, _weights_of(np.zeros(len(v), int)), np.ones(len(v)))  # one bone: a seam
     assert same.report["merged_vertices"] == touching and same.report["kept_pieces"] == 1
+
+
+def _two_tubes(lift: float):
+    """Two closed tubes of radius 8 cm and 1 m along +Y, the lower one (piece A) skinned 100% to bone
+    A, the other (piece B) 100% to bone B and lifted by ``lift`` (1.01: its end sits 1 cm above A's;
+    0.99: the two ends overlap by 1 cm, side on side, as the zoo's chain links do at their joints),
+    as an apparel character: (record, (V,) bool, True on piece B)."""
+    from tests.toys import make_tube
+
+    t = make_tube(num_bones=1, branch=False)
+    v = np.concatenate([t["vertices"], t["vertices"] + np.float32([0.0, lift, 0.0])])
+    on_b = np.arange(len(v)) >= len(t["vertices"])
+    tubes = {"vertices": v, "faces": np.concatenate([t["faces"], t["faces"] + len(t["vertices"])]),
+             "keypoints": np.float32([[0, 0, 0], [0, lift, 0]]), "parents": np.int32([-1, 0]),
+             "weights": _weights_of(on_b.astype(int)), "bone_names": ["A", "B"]}
+    rec = dataclasses.replace(make_character(tubes, "toy/two-tubes"), apparel_vertex_mask=np.ones(len(v), bool),
+                              apparel_bone_mask=np.ones(2, bool), bone_roles=["a", "b"], meta=None)
+    return rec, on_b
+
+
+def _assert_each_piece_keeps_its_bone(out):
+    """Every vertex of the resampled piece holding the top vertex has weight 1 on bone B, every other
+    vertex weight 1 on bone A (pieces found by trimesh, not by the code under test)."""
+    dense = out.weights.to_dense(np.float64)
+    np.testing.assert_allclose(dense.sum(1), 1.0, atol=1e-6)
+    label = trimesh.graph.connected_component_labels(trimesh.geometry.faces_to_edges(out.faces), len(out.vertices))
+    assert len(np.unique(label)) == 2
+    on_b = label == label[np.argmax(out.vertices[:, 1])]
+    np.testing.assert_allclose(dense[on_b], np.broadcast_to([0.0, 1.0], (on_b.sum(), 2)), atol=1e-6)
+    np.testing.assert_allclose(dense[~on_b], np.broadcast_to([1.0, 0.0], ((~on_b).sum(), 2)), atol=1e-6)
+
+
+def test_resampled_vertices_take_weights_from_their_own_piece_only(monkeypatch):
+    """Piece B's end sits 1 cm above piece A's; the decimator (here by hand) leaves B's end 6 mm
+    lower, as fast-simplification leaves the zoo's thin hair strands a few mm off their surface.
+    The end's 16 ring vertices and its centre are then 4 mm from A's end cap and 6 mm from their own
+    piece: they keep bone B's weight, and their closest points are on B, 6 mm away."""
+    import fast_simplification
+
+    rec, on_b = _two_tubes(1.01)
+    v, f = rec.vertices.astype(np.float64), rec.faces.astype(np.int64)
+    end = on_b & (v[:, 1] < 1.02)  # B's lowest ring and its end cap's centre
+    assert end.sum() == 17
+    moved = v.copy()
+    moved[end, 1] -= 0.006
+
+    def by_hand(points, triangles, *args, return_collapses=False, **kwargs):
+        out = (moved.astype(np.float32), np.asarray(triangles))
+        return out + (np.zeros((0, 2), np.int64),) if return_collapses else out  # no collapse
+
+    monkeypatch.setattr(fast_simplification, "simplify", by_hand)
+    out = resample_character(rec, [], 1000, "fast")
+    np.testing.assert_array_equal(out.faces, f)
+    _assert_each_piece_keeps_its_bone(out)
+    assert out.meta["resample"]["own_piece_vertices"] == 17
+    anywhere = closest_points(v, f, moved[end])
+    np.testing.assert_allclose(anywhere.distances, 0.004, atol=1e-6)  # on A's end cap
+    from datagen.resample.pieces import own_piece_points
+
+    own = own_piece_points(v, f, moved, on_b.astype(int))  # pieces numbered by first vertex: A 0, B 1
+    np.testing.assert_allclose(own.distances[end], 0.006, atol=1e-6)  # on B's end
+    assert on_b[f[own.faces[end]]].all()
+    np.testing.assert_array_equal(own.faces[~end], closest_points(v, f, moved[~end]).faces)
+
+
+@pytest.mark.parametrize("backend", ["fast", "pymeshlab"])
+def test_decimated_overlapping_pieces_keep_their_own_bones(backend):
+    """B's end overlaps A's by 1 cm, side on side: where the surfaces coincide the closest point on
+    any piece may be the other's; decimated by either backend, each vertex keeps its own piece's bone."""
+    rec, _ = _two_tubes(0.99)
+    out = resample_character(rec, [], 400, backend)
+    _assert_each_piece_keeps_its_bone(out)
+    assert out.meta["resample"]["own_piece_vertices"] > 0
 
 
 @pytest.mark.parametrize("breakage,reason", [

@@ -32,7 +32,8 @@ def test_a_short_edge_collapses_as_a_hand_edge_collapse():
     v, f = sphere.vertices.copy(), sphere.faces.astype(np.int64)
     a, b = sorted(f[0, :2])
     v[b] = v[a] + 1e-8 * np.array([1.0, 0.0, 0.0])  # the edge a-b is now 1e-8 of the size (2)
-    out_v, out_f, report = weld_short_edges(v, f)
+    out_v, out_f, kept, report = weld_short_edges(v, f)
+    assert kept.tolist() == [i for i in range(len(v)) if i != b]
     # the hand collapse: b becomes a, the two faces on the edge go, the vertices after b move down one
     expected_faces = []
     for face in f.tolist():
@@ -51,7 +52,7 @@ def test_a_cluster_of_three_vertices_becomes_its_lowest_vertex():
     i, j, k = sorted(f[5])
     v[j] = v[i] + [0.0, 2e-7, 0.0]
     v[k] = v[i] + [0.0, 0.0, 3e-7]  # a tiny triangle, as fast-simplification leaves at sharp corners
-    out_v, out_f, report = weld_short_edges(v, f)
+    out_v, out_f, _, report = weld_short_edges(v, f)
     assert report["welded_vertices"] == 2 and len(out_v) == len(v) - 2
     np.testing.assert_allclose(out_v[i], v[i], rtol=0, atol=0)
     assert face_areas(out_v, out_f).min() > 1e-12 * size_of(out_v) ** 2
@@ -63,7 +64,7 @@ def test_a_zero_area_sliver_with_long_sides_is_dropped():
     # a unit square split at the midpoint m of its bottom side, plus a sliver (0, m, 1) on that side
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0, 0]], np.float64)
     f = np.array([[0, 4, 3], [4, 1, 2], [4, 2, 3], [0, 1, 4]], np.int64)
-    out_v, out_f, report = weld_short_edges(v, f)
+    out_v, out_f, _, report = weld_short_edges(v, f)
     assert out_f.tolist() == [[0, 4, 3], [4, 1, 2], [4, 2, 3]]
     np.testing.assert_allclose(out_v, v, rtol=0, atol=0)
     assert report["zero_area_faces"] == 1 and report["welded_vertices"] == 0
@@ -73,7 +74,7 @@ def test_a_clean_mesh_comes_back_as_given_duplicate_faces_included():
     sphere = trimesh.creation.icosphere(2)
     v = sphere.vertices.astype(np.float64)
     f = np.concatenate([sphere.faces, sphere.faces[:1, ::-1]]).astype(np.int64)  # one face twice
-    out_v, out_f, report = weld_short_edges(v, f)
+    out_v, out_f, _, report = weld_short_edges(v, f)
     assert out_v is v and out_f is f
     assert not any(report.values())
 
@@ -83,12 +84,12 @@ def test_resampling_a_subdivided_low_poly_sphere_leaves_no_degenerate_faces():
     v, f = sphere.vertices, sphere.faces
     for _ in range(3):  # as resample_to refines it: 80 -> 320 -> 1280 -> 5120 faces
         v, f = trimesh.remesh.subdivide(v, f)
-    raw_v, raw_f = decimate(v, f, 2000, "fast")
+    raw_v, raw_f, _ = decimate(v, f, 2000, "fast")
     size = size_of(raw_v)
     assert (edge_lengths_of(raw_v, raw_f) < 1e-6 * size).sum() > 20  # the decimator's corner clusters
     report: dict = {}
-    out_v, out_f, refined = resample_to(sphere.vertices, sphere.faces, 2000, "fast", report=report)
-    assert refined == 3 and abs(len(out_f) - 2000) <= 20
+    out_v, out_f, refined, pieces = resample_to(sphere.vertices, sphere.faces, 2000, "fast", report=report)
+    assert refined == 3 and abs(len(out_f) - 2000) <= 20 and pieces.tolist() == [0] * len(out_v)
     stored = out_v.astype(np.float32)  # as the characters table keeps them
     assert face_areas(stored, out_f).min() > 1e-12 * size ** 2
     assert edge_lengths_of(stored, out_f).min() > 1e-5 * size

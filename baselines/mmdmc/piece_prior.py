@@ -34,6 +34,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from baselines.mmdmc.rig import attachment_bones
+from mimicbench.mesh import mesh_pieces
 from mimicbench.segments import point_segment_distance
 
 POWER = 4.0        # inverse-distance power of the blend
@@ -79,14 +80,6 @@ def skeleton_hops(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
 def leaves(up: np.ndarray) -> np.ndarray:
     """(Kb,) bool: body bones no body bone hangs from, given ``up`` (:func:`body_parents`)."""
     return np.bincount(up[up >= 0], minlength=len(up)) == 0
-
-
-def mesh_pieces(faces: np.ndarray, n: int) -> np.ndarray:
-    """(n,) int64 label of each of n vertices' piece: connected along face edges (a vertex in no face
-    is its own). Vertices are not welded: the zoo's capsules touch at the joints but are pieces apart."""
-    from baselines.mmdmc.apparel import apparel_components
-
-    return apparel_components(np.asarray(faces, np.int64).reshape(-1, 3), np.ones(n, bool))
 
 
 def piece_means(label: np.ndarray, values: np.ndarray) -> np.ndarray:

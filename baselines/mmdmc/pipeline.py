@@ -20,9 +20,9 @@ from baselines.mmdmc.apparel import HISTORY, apparel_components, component_neigh
 from baselines.mmdmc.body import skin
 from baselines.mmdmc.chain_attachment import attached_weights, prepared_attachment
 from baselines.mmdmc.data import Prepared
-from baselines.mmdmc.piece_prior import mesh_pieces
 from baselines.mmdmc.segmentation import segmenter_inputs
 from baselines.mmdmc.weight_smoothing import diffuse_weights, smooth_weights
+from mimicbench.mesh import mesh_pieces
 
 
 @dataclass

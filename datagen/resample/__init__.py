@@ -1,9 +1,11 @@
 """Resample characters to a target face count (5,000 by default) and re-skin them.
 
 :mod:`.clean` checks and cleans, :mod:`.simplify` decimates (fast-simplification by default, or
-pymeshlab) or refines, :mod:`.closest_point` (libigl's AABB tree) and :mod:`.reskin` carry the
-weights over by barycentric interpolation, :mod:`.quality` measures Hausdorff distance and
-skinning transfer error, :mod:`.character` does one character and :mod:`.stage` a whole dataset.
+pymeshlab) or refines and says which piece of the input each new vertex came from,
+:mod:`.closest_point` (libigl's AABB tree), :mod:`.pieces` (the closest point on the vertex's own
+piece) and :mod:`.reskin` carry the weights over by barycentric interpolation, :mod:`.quality`
+measures Hausdorff distance and skinning transfer error, :mod:`.character` does one character and
+:mod:`.stage` a whole dataset.
 
 Known limit: the zoo's snakes (reptile template, even variants) are chains of 12-60 overlapping
 capsules, each hiding a pair of caps inside the body; at 5,000 faces those interior caps keep
@@ -20,8 +22,9 @@ MIN_FACES = 100  # below this a character mesh is no longer a character; simplif
 MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
 # in the stage's fingerprint, so a re-run redoes rows an older resample made; 2: the resampled mesh
 # is welded (datagen.resample.clean.weld_short_edges: no near-zero edges, no zero-area faces); 3: apparel
-# vertices of different bones are never welded before decimation (clean.apparel_owners: hair strands stay apart)
-RESAMPLE_VERSION = "3"
+# vertices of different bones are never welded before decimation (clean.apparel_owners: hair strands stay apart);
+# 4: a new vertex takes its weights from the piece it came from only (pieces.own_piece_points)
+RESAMPLE_VERSION = "4"
 
 _LAZY = {
     "resample_character": "datagen.resample.character",

@@ -7,6 +7,7 @@ import numpy as np
 
 from datagen.resample.clean import clean_mesh
 from datagen.resample.closest_point import closest_points
+from datagen.resample.pieces import own_piece_points
 from datagen.resample.quality import hausdorff_percent, transfer_error_percent
 from datagen.resample.reskin import interpolate_mask, interpolate_weights
 from datagen.resample.simplify import resample_to
@@ -30,17 +31,21 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
 
     Keypoints, bone names, parents, roles and motions are untouched. ``meta["resample"]`` records
     the input and output face counts, subdivision rounds, what cleaning removed, the symmetric
-    Hausdorff distance and the skinning transfer error (both in percent of height), and, when the
+    Hausdorff distance and the skinning transfer error (both in percent of height), when the
     resampled mesh had short edges or zero-area faces to weld away, ``weld``: what
-    :func:`datagen.resample.clean.weld_short_edges` removed and the face count decimation aimed at.
+    :func:`datagen.resample.clean.weld_short_edges` removed and the face count decimation aimed at,
+    and, when some new vertices lie closest to another piece than the one they came from,
+    ``own_piece_vertices``: how many (they take their weights from their own piece,
+    :func:`datagen.resample.pieces.own_piece_points`).
 
     Raises:
         datagen.resample.clean.BadMesh: the input mesh cannot be resampled (the reason says why).
     """
     clean = clean_mesh(record.vertices, record.faces, record.weights, record.apparel_vertex_mask)
     welded: dict = {}
-    new_v, new_f, refined = resample_to(clean.vertices, clean.faces, faces, backend, report=welded)
-    surface = closest_points(clean.vertices, clean.faces, new_v)
+    new_v, new_f, refined, pieces = resample_to(clean.vertices, clean.faces, faces, backend, report=welded)
+    anywhere = closest_points(clean.vertices, clean.faces, new_v)
+    surface = own_piece_points(clean.vertices, clean.faces, new_v, pieces, anywhere)
     weights = interpolate_weights(clean.weights, clean.faces, surface)
     apparel = interpolate_mask(clean.apparel, clean.faces, surface)
     height = float(np.ptp(clean.vertices[:, 1]))
@@ -48,13 +53,16 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
     quality = {
         "faces_in": int(len(record.faces)), "faces_out": int(len(new_f)), "backend": backend,
         "subdivisions": int(refined), "clean": clean.report,
-        "hausdorff_pct": hausdorff_percent(clean.vertices, clean.faces, new_v, new_f, height, surface),
+        "hausdorff_pct": hausdorff_percent(clean.vertices, clean.faces, new_v, new_f, height, anywhere),
         "transfer_error_pct": transfer_error_percent(clean.vertices, clean.faces, clean.weights, new_v, weights,
                                                      record.keypoints, surface, frames, height),
         "frames_measured": int(len(frames)),
     }
     if welded["welded_vertices"] or welded["zero_area_faces"]:
         quality["weld"] = welded  # only when the resampled mesh needed it, so clean meshes keep their bytes
+    moved = int((surface.faces != anywhere.faces).sum())
+    if moved:
+        quality["own_piece_vertices"] = moved  # likewise: only when a closest point moved to the vertex's own piece
     meta = dict(record.meta or {})
     meta["resample"] = quality
     return dataclasses.replace(

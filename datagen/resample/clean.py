@@ -20,6 +20,7 @@ import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from mimicbench.mesh import mesh_pieces
 from schemas.weights import SparseWeights
 
 
@@ -104,7 +105,7 @@ def _zero_area(v: np.ndarray, f: np.ndarray, scale: float) -> np.ndarray:
 
 
 def weld_short_edges(vertices: np.ndarray, faces: np.ndarray, tolerance: float = WELD_TOLERANCE
-                     ) -> tuple[np.ndarray, np.ndarray, dict]:
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     """Collapse every edge shorter than ``tolerance`` times the mesh's size (its largest
     bounding-box side) into one vertex, then drop the faces that lost a corner, faces of zero area
     (below 1e-12 * size^2), duplicate faces (the same three corners) and unused vertices.
@@ -123,9 +124,9 @@ def weld_short_edges(vertices: np.ndarray, faces: np.ndarray, tolerance: float =
         vertices: (N, 3) float64. faces: (M, 3) int64.
 
     Returns:
-        (vertices (N', 3), faces (M', 3), report): the report counts ``welded_vertices``,
-        ``collapsed_faces`` (lost a corner), ``zero_area_faces``, ``duplicate_faces`` and
-        ``unused_vertices``.
+        (vertices (N', 3), faces (M', 3), kept (N',) int64, report): ``kept`` holds the index in
+        ``vertices`` of each vertex kept; the report counts ``welded_vertices``, ``collapsed_faces``
+        (lost a corner), ``zero_area_faces``, ``duplicate_faces`` and ``unused_vertices``.
     """
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64)
@@ -153,7 +154,7 @@ def weld_short_edges(vertices: np.ndarray, faces: np.ndarray, tolerance: float =
         report["zero_area_faces"] += int(zero.sum())
         f = f[~zero]
     if report["welded_vertices"] == 0 and report["zero_area_faces"] == 0:
-        return vertices, faces, report
+        return vertices, faces, np.arange(len(v)), report
     corners = np.ascontiguousarray(np.sort(f, axis=1))
     _, unique_idx = np.unique(corners.view(np.dtype((np.void, 24))).ravel(), return_index=True)
     report["duplicate_faces"] = int(len(f) - len(unique_idx))
@@ -162,15 +163,7 @@ def weld_short_edges(vertices: np.ndarray, faces: np.ndarray, tolerance: float =
     remap = np.full(len(v), -1, np.int64)
     remap[used] = np.arange(len(used))
     report["unused_vertices"] = int(len(v) - len(used) - report["welded_vertices"])
-    return v[used], remap[f], report
-
-
-def piece_labels(faces: np.ndarray, num_vertices: int) -> np.ndarray:
-    """(M,) label of each face's connected piece (faces sharing a vertex are connected)."""
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
-    graph = coo_matrix((np.ones(len(edges), np.int8), (edges[:, 0], edges[:, 1])), shape=(num_vertices, num_vertices))
-    _, labels = connected_components(graph, directed=False)
-    return labels[faces[:, 0]]
+    return v[used], remap[f], used, report
 
 
 def clean_mesh(vertices, faces, weights: SparseWeights, apparel, min_piece_area: float = 1e-6) -> CleanMesh:
@@ -194,7 +187,7 @@ def clean_mesh(vertices, faces, weights: SparseWeights, apparel, min_piece_area:
     report["duplicate_faces"] = int(len(f) - len(unique_idx))
     keep = np.sort(unique_idx)
     f, area = f[keep], area[keep]
-    labels = piece_labels(f, len(v))
+    labels = mesh_pieces(f, len(v))[f[:, 0]]  # each face's piece
     piece_area = np.bincount(labels, weights=area)
     used_pieces = np.unique(labels)
     small = np.zeros(len(piece_area), bool)

@@ -1,8 +1,9 @@
 """Skin weights for a resampled mesh by barycentric interpolation of the original weights.
 
-Each new vertex takes the closest point on the original surface; its weights are the
-barycentric combination of the weights of that triangle's three vertices, pruned to the 8
-largest and renormalised. The apparel mask is interpolated the same way (kept where >= 0.5).
+Each new vertex takes the closest point on the original surface, on the piece it came from
+(:func:`datagen.resample.pieces.own_piece_points`); its weights are the barycentric combination of
+the weights of that triangle's three vertices, pruned to the 8 largest and renormalised. The
+apparel mask is interpolated the same way (kept where >= 0.5).
 """
 from __future__ import annotations
 
