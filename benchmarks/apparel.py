@@ -54,7 +54,7 @@ import numpy as np
 FPS, SUBSTEPS, ITERATIONS = 30.0, 8, 30
 CLIPS_PER_CHARACTER = 3  # the zoo's default: a character's set-up is shared by this many clips
 LINK, RADIUS, MASS, PER_CHAIN = 0.08, 0.015, 0.05, 5
-SWING, TWIST, STIFFNESS, DAMPING = 0.7, 0.2, 0.03, 0.4  # the stage's skirt defaults
+SWING, TWIST, STIFFNESS, DAMPING = 0.7, 0.2, 0.03, 0.6  # the stage's skirt defaults (damping 0.4 up to simulation version 11)
 LINEAR_DAMPING, ANGULAR_DAMPING = 0.1, 0.3
 TORSO_HEAD = np.array([0.0, 1.0, 0.0])
 TORSO_BOX = np.array([[-0.15, 0.55, -0.1], [0.15, 1.4, 0.1]])  # torso and hips; the chains hang round the hips

@@ -64,6 +64,18 @@ def _link_geometry(k: int, bones: list[int], parents, keypoints, vertices, owner
     return axis, length, max(spread, 0.002 * height), (None if found is None else found[0])
 
 
+def shell(hull: np.ndarray | None, axis: np.ndarray, length: float, thickness: float) -> np.ndarray | None:
+    """``hull`` (P, 3) points relative to a link's head, each moved ``thickness`` metres further from
+    the link's bone (the segment from the head along unit ``axis`` for ``length``); None stays None."""
+    if hull is None or thickness <= 0:
+        return hull
+    points = np.asarray(hull, np.float64)
+    along = np.clip(points @ axis, 0.0, length)
+    out = points - along[:, None] * axis  # (P, 3) from the bone
+    distance = np.linalg.norm(out, axis=1, keepdims=True)
+    return points + thickness * out / np.maximum(distance, 1e-12)
+
+
 def _gravity_torque(i: int, link_parents: list[int], heads, centres, masses, gravity: float) -> float:
     """Torque (N m) the links at and below link i exert about its joint when held horizontally."""
     below = {i}
@@ -100,11 +112,13 @@ def build_chains(keypoints: np.ndarray, parents: np.ndarray, bone_names: list[st
         links = []
         for b, parent in zip(bones, link_parents):
             axis, length, spread, hull = _link_geometry(b, bones, parents, keypoints, vertices, owner, height)
+            if parent >= 0 and cp.contact_frequency > 0:
+                hull = shell(hull, axis, length, cp.contact_shell)
             links.append(LinkSpec(bone=b, head=keypoints[b].copy(), axis=axis, length=length,
                                   radius=spread * cp.radius_scale, mass=cp.link_mass,
                                   linear_damping=cp.linear_damping, angular_damping=cp.angular_damping,
                                   friction=cp.friction, hull=hull, axial_share=cp.axial_inertia,
-                                  contact_frequency=cp.root_contact_frequency if parent < 0 else 0.0))
+                                  contact_frequency=cp.root_contact_frequency if parent < 0 else cp.contact_frequency))
         heads = [link.head for link in links]
         centres = [link.head + 0.5 * link.length * link.axis for link in links]
         masses = [link.mass for link in links]

@@ -35,7 +35,8 @@ def register(subparsers) -> None:
         "--params FILE overrides parameters per apparel kind (skirt, hair, ponytail, cape, coat_tail, default):\n"
         '  {"simulation": {"max_speed": 25}, "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.6}}}\n'
         "fields: link_mass, stiffness, damping, strength, linear_damping, angular_damping, swing_limit, "
-        "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency; "
+        "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency, "
+        "contact_frequency, contact_shell; "
         "simulation: gravity, max_speed, solver_iterations, anchor_force, contact_erp, max_joint_velocity, "
         "constraint_erp, piece_mass, max_resettles (datagen/apparel/params.py).",
         formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -166,7 +166,7 @@ class ApparelWorld:
         # (J,) below this rotation angle a joint is within both limits (less a margin for rounding)
         self._limit_floor = np.minimum(self._swing_limits, self._twist_limits) * (1.0 - 1e-9)
         limits = np.stack([self._limit_floor, self._swing_limits, self._twist_limits])  # (3, J)
-        self._kernel_arrays = (limits, self.springs.gains, self.springs.blocks, self.springs.rows, self.springs.padded)
+        self._kernel_arrays = (limits, self.springs.gains) + self.springs.kernel_arrays
         self._rotation, self._torques = np.zeros((len(limits[0]), 3)), np.zeros((len(limits[0]), 3))  # joint_torques' out
 
     def _load(self, path: Path, chain: ChainSpec, root_head: np.ndarray, offsets=None) -> int:
