@@ -313,3 +313,48 @@ def test_window_starts_of_version_6_still_train(apparel_data, run):
     assert last["vertex"] < first["vertex"], (first, last)
     with pytest.raises(ValueError, match="apparel_start"):
         next(iter(st.batches({**cfg, "apparel_start": "middle"}, ctx, np.random.default_rng(0))))
+
+
+def test_body_history_model_trains_and_its_batches_are_what_a_request_is_answered_with(apparel_data, run, tmp_path):
+    """apparel_model="body_history" (methods version 8): a batch is the clip from its first frame with
+    each apparel vertex's frame-bone rotations and rest offset, ``history_frames`` of its frames
+    scored; a few steps lower the vertex loss; and the trained module gives, on the batch, exactly what
+    `predict` answers a request of the clip with."""
+    import shutil
+
+    from baselines.mmdmc.apparel_history import BodyHistoryApparel
+    from baselines.mmdmc.data import TrainingData
+    from baselines.mmdmc.method import load_modules
+    from baselines.mmdmc.pipeline import apparel_probability, predict
+    from baselines.mmdmc.training import apparel_states
+
+    cfg = {**tiny_config(), "apparel_points": 0, "apparel_model": "body_history", "history_hidden": 16,
+           "history_frames": 5}
+    ctx = context(apparel_data, run, "apparel", cfg)
+    st = trainable("mmdmc").stage("apparel")
+    torch.manual_seed(0)
+    module = st.build(cfg, ctx)
+    assert isinstance(module, BodyHistoryApparel)
+    batch = _tensors(next(iter(st.batches(cfg, ctx, np.random.default_rng(0)))))
+    frames, a = batch["body"].shape[1:3]
+    assert batch["rotations"].shape == (1, frames, a, 3, 3) and batch["rest_offset"].shape == (1, a, 3)
+    assert int(batch["scored"].sum()) == 5
+    first = {k: float(v.detach()) for k, v in st.loss(module, batch, ctx).items()}
+    last = after_steps(st, module, batch, ctx, lr=1e-3, steps=20)
+    assert last["vertex"] < first["vertex"], (first, last)
+    # through the trainer into a run folder, then inference's own path
+    for need in ("seg", "body"):
+        shutil.copytree(run / need, tmp_path / need)
+    train_stage("mmdmc", "apparel", apparel_data, tmp_path, cfg, epochs=1, seed=0, progress=False)
+    mods = load_modules(tmp_path, stages=("seg", "body", "apparel"))
+    assert isinstance(mods.apparel, BodyHistoryApparel)
+    data = TrainingData.load(apparel_data)
+    clip = data.clips[0]
+    c = data.characters[clip.character_id]
+    idx = np.flatnonzero(apparel_probability(mods.seg, c, mods.mask_by_piece) > mods.threshold)
+    with torch.no_grad():
+        states, _ = apparel_states(mods.apparel, batch, cfg)
+    got = states[0].numpy() * c.height + c.centre
+    answered = predict(mods, c, clip.kinematic, "no_refine")[:, idx]
+    assert np.abs(answered - (batch["body"][0].numpy() * c.height + c.centre)).max() > 1e-6  # f_d moved it
+    np.testing.assert_allclose(got, answered, atol=2e-5)

@@ -43,6 +43,13 @@ COMMON = {
     "scored_window": 16,     # "clip": frames of a scored window (the apparel protocol's WINDOW)
     "bptt": 3,               # "clip": truncated backpropagation every that many rollout steps (0: none; full
                              # backpropagation through a from-rest rollout did not learn a toy lag, tests)
+    "apparel_model": "rollout",  # ours: f_d, "rollout" (the paper's recurrence on K = 3 apparel states, apparel.py;
+                                 # up to v7) or "body_history" (a per-vertex MLP on the body's motion history in
+                                 # the frame bone's frame, apparel_history.py; shipped v8)
+    "history_hidden": 256,   # "body_history": MLP width
+    "history_layers": 3,     # "body_history": hidden layers
+    "history_frames": 8,     # "body_history": scored frames a clip contributes to a step (0: all)
+    "w_stretch": 1.0,        # "body_history": weight of the apparel mesh edges' relative stretch (what ELS scores)
     "rest_start": 0.5,       # "window" only: share of the windows restarted at rest on the body at the window
 }
 

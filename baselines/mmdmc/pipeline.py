@@ -1,6 +1,9 @@
 """The MMDMC forward pass at inference (Fig. 2): f_c's apparel mask, f_s's weights and LBS of the
 body motion, f_d's rollout on the apparel vertices, f_j's refinement.
 
+With the body-history f_d (methods version 8, :mod:`baselines.mmdmc.apparel_history`) there is no
+rollout: each frame's apparel is predicted from the body's history in the request.
+
 The rollout starts where a request starts: nothing is known of the apparel before it, so the
 K = 3 history states are the body state of the request's first frame (the apparel at rest on the
 body, not moving). The apparel protocol's requests (cases version 2) start at the clip's first
@@ -17,6 +20,7 @@ import numpy as np
 import torch
 
 from baselines.mmdmc.apparel import HISTORY, apparel_components, component_neighbours
+from baselines.mmdmc.apparel_history import BodyHistoryApparel, frame_bones, frame_rotations, rest_offsets
 from baselines.mmdmc.body import skin
 from baselines.mmdmc.chain_attachment import attached_weights, prepared_attachment
 from baselines.mmdmc.data import Prepared
@@ -197,6 +201,25 @@ def rollout_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
     return states[0]
 
 
+@torch.no_grad()
+def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, transforms, weights: torch.Tensor,
+                      idx: np.ndarray, neighbours: np.ndarray) -> torch.Tensor:
+    """Apparel states (F, A, 3) (unit-height frame) of the vertices ``idx`` over a request whose body
+    states are (F, N, 3), skinned with ``weights`` (N, Kb), for transforms (F, K, 7): f_d's rollout from
+    rest (:func:`rollout_from_body`) or, for the body-history model, its prediction from the history
+    of the frame bones (:mod:`baselines.mmdmc.apparel_history`)."""
+    dev = body.device
+    t = torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body], device=dev)  # (F, Kb, 7)
+    if isinstance(dyn, BodyHistoryApparel):
+        bones, fw = frame_bones(weights[torch.as_tensor(idx, device=dev)].cpu().numpy())
+        rest_offset = rest_offsets(prep.rest[idx], prep.keypoints[prep.body], bones, fw) / prep.height
+        rot = frame_rotations(t, torch.as_tensor(bones, device=dev), torch.as_tensor(fw, device=dev))
+        states, _ = dyn.states(body[None, :, torch.as_tensor(idx, device=dev)], rot[None],
+                               torch.as_tensor(rest_offset, dtype=body.dtype, device=dev)[None])
+        return states[0]
+    return rollout_from_body(dyn, prep, body, to_unit(prep, t[..., 4:]), idx, neighbours)
+
+
 VARIANTS = ("full", "no_refine", "no_apparel", "body_only")
 
 
@@ -226,8 +249,7 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
     y = s.clone()
     if mask.any() and variant != "no_apparel":
         idx, nb = apparel_layout(prep, mask, modules.knn)
-        joints = to_unit(prep, torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body, 4:], device=s.device))
-        y[:, torch.as_tensor(idx, device=s.device)] = rollout_from_body(modules.apparel, prep, s, joints, idx, nb)
+        y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(modules.apparel, prep, s, transforms, w, idx, nb)
     if variant in ("full", "no_apparel") and modules.refine is not None:
         p = torch.as_tensor(np.array(mask if gt_mask is not None else prob), dtype=s.dtype, device=s.device)
         rest = torch.as_tensor(prep.rest_norm, device=s.device)

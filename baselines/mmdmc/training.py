@@ -57,12 +57,13 @@ import torch
 from scipy.spatial import cKDTree
 
 from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbours, apparel_components
+from baselines.mmdmc.apparel_history import BodyHistoryApparel, frame_bones, frame_rotations, rest_offsets
 from baselines.mmdmc.body import BodySkinning, skin
 from baselines.mmdmc.config import CONFIGS
 from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
 from baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
 from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, mesh_weights,
-                                      rollout_from_body, rollout_from_rest, to_unit)
+                                      apparel_from_body, rollout_from_rest, to_unit)
 from baselines.mmdmc.refine import JointRefiner
 from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
@@ -258,7 +259,17 @@ def loss_body(module, batch, context) -> dict:
 
 # ---- apparel ---------------------------------------------------------------------------------
 
+APPAREL_MODELS = ("rollout", "body_history")
+
+
+def apparel_model(config: dict) -> str:
+    """The config's ``apparel_model`` (absent in configs up to methods version 7: ``"rollout"``)."""
+    return config_choice(config, "apparel_model", APPAREL_MODELS, "rollout")
+
+
 def build_apparel(config: dict, context: StageContext | None = None) -> torch.nn.Module:
+    if apparel_model(config) == "body_history":
+        return BodyHistoryApparel(config.get("history_hidden", 256), config.get("history_layers", 3))
     return ApparelDynamics(config["apparel_hidden"], config["code"])
 
 
@@ -266,12 +277,20 @@ def _predicted_mask(c: Prepared, context: StageContext, config: dict) -> np.ndar
     return apparel_probability(context.frozen["seg"], c, config.get("mask_by_piece", False)) > config["threshold"]
 
 
+def _mask_components(c: Prepared, mask: np.ndarray) -> np.ndarray:
+    """(A,) component labels of the vertices of ``mask`` (:func:`apparel_components`, cached on ``c``)."""
+    key = ("components", mask.tobytes())
+    if key not in c.cache:
+        c.cache[key] = apparel_components(c.faces, mask)
+    return c.cache[key]
+
+
 def _pick_components(c: Prepared, mask: np.ndarray, cap: int, r: np.random.Generator) -> np.ndarray:
     """Apparel vertex indices: every one, or whole components drawn at random until ``cap``."""
     idx = np.flatnonzero(mask)
     if cap <= 0 or len(idx) <= cap:
         return idx
-    labels = apparel_components(c.faces, mask)
+    labels = _mask_components(c, mask)
     keep, total = [], 0
     for lab in r.permutation(np.unique(labels)):
         members = idx[labels == lab]
@@ -322,8 +341,9 @@ def _apparel_character(c: Prepared, context: StageContext, config: dict, r: np.r
     if not mask.any():
         return None
     idx = _pick_components(c, mask, config["apparel_points"], r)
-    nb = component_neighbours(c.rest[idx], apparel_components(c.faces, np.isin(np.arange(len(c.rest)), idx)),
-                              config["knn"])
+    # whole components were drawn, so the drawn vertices' components are theirs in the whole mask
+    labels = _mask_components(c, mask)[np.searchsorted(np.flatnonzero(mask), idx)]
+    nb = component_neighbours(c.rest[idx], labels, config["knn"])
     w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
                      config.get("weight_smoothing", 0), config.get("weight_smoothing_radius", 0.0)).cpu()
     edges = np.stack([np.repeat(np.arange(len(idx)), nb.shape[1] - 1), nb[:, 1:].reshape(-1)], 1)
@@ -341,7 +361,7 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
     a from-rest rollout (:func:`rollout_span`) with the frames a request would score
     (:func:`scored_frames`); ``"window"``: a window of ``window`` frames after K ground-truth states, a
     share ``rest_start`` of them restarted at rest on the body at the window (version 6's)."""
-    if apparel_start(config) == "clip":
+    if apparel_model(config) == "body_history" or apparel_start(config) == "clip":
         yield from _batches_apparel_clip(config, context, rng)
         return
     data = training_data(config, context)
@@ -387,16 +407,47 @@ def _batches_apparel_clip(config: dict, context: StageContext, rng: np.random.Ge
                 continue
             idx, nb, w, edges = found
             kin = clip.kinematic[t0:t0 + length]
-            yield {"body": _apparel_body(c, idx, w, kin)[None], "joints": c.norm(kin[:, c.body, 4:])[None],
-                   "rest": c.rest_norm[idx][None], "neighbours": nb, "edges": edges,
-                   "truth": c.norm(posed(c, clip.simulated[t0:t0 + length], idx))[None],
-                   "scored": scored_frames(t0, length, window)}
+            item = {"body": _apparel_body(c, idx, w, kin)[None], "joints": c.norm(kin[:, c.body, 4:])[None],
+                    "rest": c.rest_norm[idx][None], "neighbours": nb, "edges": edges,
+                    "truth": c.norm(posed(c, clip.simulated[t0:t0 + length], idx))[None],
+                    "scored": scored_frames(t0, length, window)}
+            if apparel_model(config) == "body_history":
+                bones, fw = frame_bones(w[idx].numpy())
+                item["rotations"] = frame_rotations(torch.as_tensor(kin[:, c.body]), torch.as_tensor(bones),
+                                                    torch.as_tensor(fw))[None].numpy()
+                item["rest_offset"] = (rest_offsets(c.rest[idx], c.keypoints[c.body], bones, fw)
+                                       / c.height)[None].astype(np.float32)
+                item["mesh_edges"] = _edges_among(c.edges, idx)
+                item["scored"] = _some_frames(item["scored"], config.get("history_frames", 0),
+                                              np.random.default_rng(seed))
+            yield item
+
+
+def _edges_among(edges: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(E', 2) int64 the mesh edges (E, 2) whose two ends are both among the sorted vertices ``idx``,
+    as indices into ``idx``."""
+    both = np.isin(edges, idx).all(1)
+    return np.searchsorted(idx, edges[both]).astype(np.int64)
+
+
+def _some_frames(scored: np.ndarray, n: int, r: np.random.Generator) -> np.ndarray:
+    """(L,) bool: ``n`` of the ``scored`` frames drawn at random (0 or more than there are: all of them).
+    The body-history model predicts every frame on its own, so a few frames a clip stand in for all."""
+    on = np.flatnonzero(scored)
+    if n <= 0 or n >= len(on):
+        return scored
+    out = np.zeros_like(scored)
+    out[r.choice(on, size=n, replace=False)] = True
+    return out
 
 
 def apparel_states(module, batch, config: dict) -> tuple[torch.Tensor, torch.Tensor]:
     """f_d's states and displacements (B, T, A, 3) for an apparel batch: from rest at its first frame
     through :func:`baselines.mmdmc.pipeline.rollout_from_rest` (inference's own path) when the batch
-    has no ``history``, else from the batch's K history states."""
+    has no ``history``, else from the batch's K history states. The body-history model gives every
+    frame (its displacements are the offsets from the body states)."""
+    if isinstance(module, BodyHistoryApparel):
+        return module.states(batch["body"], batch["rotations"], batch["rest_offset"])
     if "history" in batch:
         return module.rollout(batch["history"], batch["body"], batch["rest"], batch["joints"], batch["neighbours"])
     return rollout_from_rest(module, batch["body"], batch["rest"], batch["joints"], batch["neighbours"],
@@ -404,8 +455,15 @@ def apparel_states(module, batch, config: dict) -> tuple[torch.Tensor, torch.Ten
 
 
 def loss_apparel(module, batch, context) -> dict:
-    states, disp = apparel_states(module, batch, context.config)
     truth = batch["truth"]
+    if isinstance(module, BodyHistoryApparel):  # only the drawn scored frames are predicted
+        on = torch.as_tensor(batch["scored"], dtype=torch.bool)
+        states, disp = module.states(batch["body"], batch["rotations"], batch["rest_offset"], on)
+        truth = truth[:, on]
+        return weighted_total({"vertex": vertex_l1(states, truth),
+                               "stretch": edge_stretch(states, truth, batch["mesh_edges"]),
+                               "reg": l2_regulariser(disp)}, {"w_stretch": 1.0, **context.config})
+    states, disp = apparel_states(module, batch, context.config)
     if "scored" in batch:  # only the frames a request scores
         on = torch.as_tensor(batch["scored"], dtype=torch.bool)
         states, disp, truth = states[:, on], disp[:, on], truth[:, on]
@@ -440,9 +498,8 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
             y = s.clone()
             if mask.any():
                 idx, nb = apparel_layout(c, mask, config["knn"])
-                joints = to_unit(c, torch.as_tensor(kin[:, c.body, 4:], device=s.device))
-                y[:, torch.as_tensor(idx, device=s.device)] = rollout_from_body(context.frozen["apparel"], c, s,
-                                                                                joints, idx, nb)
+                y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(context.frozen["apparel"], c, s, kin,
+                                                                                w, idx, nb)
             s, y, kin = s[t0 - q:], y[t0 - q:], kin[t0 - q:]
             yield {"body": s.cpu().numpy(), "combined": y.cpu().numpy(), "prob": np.tile(prob, (t, 1)),
                    "rest": c.rest_norm[None], "truth": c.norm(posed(c, clip.simulated[t0:t0 + t])), "edges": c.edges}
