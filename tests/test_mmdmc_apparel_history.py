@@ -1,6 +1,7 @@
 """The body-history f_d (methods version 8): its inputs against a naive loop and hand values, its
 invariance to the character's heading, its zero start, and that it learns a lag from the history."""
 import numpy as np
+import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
@@ -126,3 +127,18 @@ def test_it_learns_a_lag_that_only_the_history_shows():
         err = np.mean([float((model.states(b, r, o)[0] - t).norm(dim=-1).mean()) for b, r, o, t in held])
     zero = np.mean([float((b - t).norm(dim=-1).mean()) for b, _, _, t in held])
     assert err < 0.35 * zero, (err, zero)
+
+
+def test_offset_smoothing_averages_over_component_neighbours_by_hand():
+    from baselines.mmdmc.apparel_history import smooth_offsets
+
+    # a strip of 4 vertices, each with itself and its next along the strip; the last with itself twice
+    nb = torch.tensor([[0, 1], [1, 2], [2, 3], [3, 3]])
+    off = torch.tensor([[0.0, 0, 0], [2.0, 0, 0], [4.0, 0, 0], [8.0, 0, 0]])
+    np.testing.assert_allclose(smooth_offsets(off, nb, 1)[:, 0].numpy(), [1, 3, 6, 8])
+    np.testing.assert_allclose(smooth_offsets(off, nb, 2)[:, 0].numpy(), [2, 4.5, 7, 8])
+    assert torch.equal(smooth_offsets(off, None, 0), off)
+    # a constant offset (a whole garment swung the same way) is left as it is
+    np.testing.assert_allclose(smooth_offsets(torch.ones(2, 4, 3), nb, 3).numpy(), np.ones((2, 4, 3)))
+    with pytest.raises(ValueError, match="neighbours"):
+        smooth_offsets(off, None, 1)

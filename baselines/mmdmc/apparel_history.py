@@ -128,12 +128,28 @@ class BodyHistoryApparel(nn.Module):
         return self.net(features) * OUTPUT_SCALE
 
     def states(self, body: torch.Tensor, rotations: torch.Tensor, rest_offset: torch.Tensor,
-               frames: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+               frames: torch.Tensor | None = None, neighbours: torch.Tensor | None = None,
+               smoothing: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
         """Apparel states and their offsets from the body, each (B, F', A, 3) (unit-height frame), of the
-        request frames ``frames`` (F',) (None: all F), from :func:`history_features`' inputs."""
+        request frames ``frames`` (F',) (None: all F), from :func:`history_features`' inputs. With
+        ``smoothing`` > 0 the offsets are averaged that many times over ``neighbours`` (A, k), each
+        vertex's nearest vertices in its own apparel component (:func:`smooth_offsets`)."""
         feats = history_features(body, rotations, rest_offset)
         if frames is not None:
             feats, body, rotations = feats[:, frames], body[:, frames], rotations[:, frames]
         offset = self(feats)
-        world = (rotations @ offset[..., None])[..., 0]
+        world = smooth_offsets((rotations @ offset[..., None])[..., 0], neighbours, smoothing)
         return body + world, world
+
+
+def smooth_offsets(offsets: torch.Tensor, neighbours: torch.Tensor | None, passes: int) -> torch.Tensor:
+    """(..., A, 3) offsets averaged ``passes`` times over each vertex's ``neighbours`` (A, k) (itself
+    among them): a swing's offset varies slowly along a garment, a per-vertex error does not, and the
+    difference of two neighbours' offsets is what stretches the edge between them (ELS)."""
+    if passes < 0:
+        raise ValueError(f"smoothing: expected >= 0 passes, got {passes}")
+    if passes and neighbours is None:
+        raise ValueError("smoothing: neighbours (A, k) are needed to smooth offsets")
+    for _ in range(passes):
+        offsets = offsets[..., neighbours, :].mean(-2)
+    return offsets

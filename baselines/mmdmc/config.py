@@ -49,6 +49,7 @@ COMMON = {
     "history_hidden": 256,   # "body_history": MLP width
     "history_layers": 3,     # "body_history": hidden layers
     "history_frames": 8,     # "body_history": scored frames a clip contributes to a step (0: all)
+    "history_smoothing": 0,  # "body_history": passes averaging the offsets over each vertex's component neighbours
     "w_stretch": 1.0,        # "body_history": weight of the apparel mesh edges' relative stretch (what ELS scores)
     "rest_start": 0.5,       # "window" only: share of the windows restarted at rest on the body at the window
 }

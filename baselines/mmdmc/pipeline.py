@@ -43,6 +43,8 @@ class Modules:
     mask_by_piece: bool = False
     weight_smoothing: int = 0
     weight_smoothing_radius: float = 0.0
+    offset_smoothing: int = 0
+    """The body-history f_d's offset smoothing passes (its config's ``history_smoothing``)."""
 
 
 def device_of(module: torch.nn.Module) -> torch.device:
@@ -203,7 +205,7 @@ def rollout_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
 
 @torch.no_grad()
 def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, transforms, weights: torch.Tensor,
-                      idx: np.ndarray, neighbours: np.ndarray) -> torch.Tensor:
+                      idx: np.ndarray, neighbours: np.ndarray, smoothing: int = 0) -> torch.Tensor:
     """Apparel states (F, A, 3) (unit-height frame) of the vertices ``idx`` over a request whose body
     states are (F, N, 3), skinned with ``weights`` (N, Kb), for transforms (F, K, 7): f_d's rollout from
     rest (:func:`rollout_from_body`) or, for the body-history model, its prediction from the history
@@ -215,7 +217,8 @@ def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
         rest_offset = rest_offsets(prep.rest[idx], prep.keypoints[prep.body], bones, fw) / prep.height
         rot = frame_rotations(t, torch.as_tensor(bones, device=dev), torch.as_tensor(fw, device=dev))
         states, _ = dyn.states(body[None, :, torch.as_tensor(idx, device=dev)], rot[None],
-                               torch.as_tensor(rest_offset, dtype=body.dtype, device=dev)[None])
+                               torch.as_tensor(rest_offset, dtype=body.dtype, device=dev)[None],
+                               neighbours=torch.as_tensor(neighbours, device=dev), smoothing=smoothing)
         return states[0]
     return rollout_from_body(dyn, prep, body, to_unit(prep, t[..., 4:]), idx, neighbours)
 
@@ -249,7 +252,8 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
     y = s.clone()
     if mask.any() and variant != "no_apparel":
         idx, nb = apparel_layout(prep, mask, modules.knn)
-        y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(modules.apparel, prep, s, transforms, w, idx, nb)
+        y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(modules.apparel, prep, s, transforms, w, idx, nb,
+                                                                           modules.offset_smoothing)
     if variant in ("full", "no_apparel") and modules.refine is not None:
         p = torch.as_tensor(np.array(mask if gt_mask is not None else prob), dtype=s.dtype, device=s.device)
         rest = torch.as_tensor(prep.rest_norm, device=s.device)

@@ -447,7 +447,8 @@ def apparel_states(module, batch, config: dict) -> tuple[torch.Tensor, torch.Ten
     has no ``history``, else from the batch's K history states. The body-history model gives every
     frame (its displacements are the offsets from the body states)."""
     if isinstance(module, BodyHistoryApparel):
-        return module.states(batch["body"], batch["rotations"], batch["rest_offset"])
+        return module.states(batch["body"], batch["rotations"], batch["rest_offset"], None, batch["neighbours"],
+                             int(config.get("history_smoothing", 0)))
     if "history" in batch:
         return module.rollout(batch["history"], batch["body"], batch["rest"], batch["joints"], batch["neighbours"])
     return rollout_from_rest(module, batch["body"], batch["rest"], batch["joints"], batch["neighbours"],
@@ -458,7 +459,8 @@ def loss_apparel(module, batch, context) -> dict:
     truth = batch["truth"]
     if isinstance(module, BodyHistoryApparel):  # only the drawn scored frames are predicted
         on = torch.as_tensor(batch["scored"], dtype=torch.bool)
-        states, disp = module.states(batch["body"], batch["rotations"], batch["rest_offset"], on)
+        states, disp = module.states(batch["body"], batch["rotations"], batch["rest_offset"], on,
+                                     batch["neighbours"], int(context.config.get("history_smoothing", 0)))
         truth = truth[:, on]
         return weighted_total({"vertex": vertex_l1(states, truth),
                                "stretch": edge_stretch(states, truth, batch["mesh_edges"]),
@@ -498,8 +500,8 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
             y = s.clone()
             if mask.any():
                 idx, nb = apparel_layout(c, mask, config["knn"])
-                y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(context.frozen["apparel"], c, s, kin,
-                                                                                w, idx, nb)
+                y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(
+                    context.frozen["apparel"], c, s, kin, w, idx, nb, int(config.get("history_smoothing", 0)))
             s, y, kin = s[t0 - q:], y[t0 - q:], kin[t0 - q:]
             yield {"body": s.cpu().numpy(), "combined": y.cpu().numpy(), "prob": np.tile(prob, (t, 1)),
                    "rest": c.rest_norm[None], "truth": c.norm(posed(c, clip.simulated[t0:t0 + t])), "edges": c.edges}
