@@ -36,6 +36,11 @@ end to end on their outputs):
   weights; ``weight_smoothing`` (edge hops) and ``weight_smoothing_radius`` (a distance) smooth
   f_s's weights along the mesh (:mod:`baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
   model's settings) and read at inference from the stages' checkpoints.
+  With ``apparel_model="body_history"`` (ours; the shipped version 8) f_d is
+  :class:`baselines.mmdmc.apparel_history.BodyHistoryApparel`: each batch is a clip read from where a
+  request of it starts, with each apparel vertex's frame rotations and rest offset; ``history_frames``
+  of its scored frames are predicted, and the loss is vertex L1 plus ``w_stretch`` times the relative
+  stretch of the apparel's mesh edges.
 - ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference (with
   ``apparel_start="clip"`` f_d rolls out from the window's request start, its burn-in, as a
   request does); L1 vertex, edge length, L2 on the corrections.
