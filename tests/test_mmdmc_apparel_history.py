@@ -142,3 +142,22 @@ def test_offset_smoothing_averages_over_component_neighbours_by_hand():
     np.testing.assert_allclose(smooth_offsets(torch.ones(2, 4, 3), nb, 3).numpy(), np.ones((2, 4, 3)))
     with pytest.raises(ValueError, match="neighbours"):
         smooth_offsets(off, None, 1)
+
+
+def test_the_modules_smoothing_passes_average_its_offsets():
+    from baselines.mmdmc.apparel_history import smooth_offsets
+
+    body, rot, rest = [torch.as_tensor(x, dtype=torch.float32) for x in _random_motion(np.random.default_rng(5), a=4)]
+    nb = torch.tensor([[0, 1], [1, 2], [2, 3], [3, 3]])
+    torch.manual_seed(0)
+    plain = BodyHistoryApparel(hidden=8, layers=1)
+    torch.nn.init.normal_(plain.net[-1].weight)
+    smoothed = BodyHistoryApparel(hidden=8, layers=1, smoothing=2)
+    smoothed.load_state_dict(plain.state_dict())
+    with torch.no_grad():
+        _, raw = plain.states(body, rot, rest)
+        states, off = smoothed.states(body, rot, rest, neighbours=nb)
+    np.testing.assert_allclose(off.numpy(), smooth_offsets(raw, nb, 2).numpy(), atol=1e-7)
+    np.testing.assert_allclose(states.numpy(), (body + off).numpy(), atol=1e-7)
+    with pytest.raises(ValueError, match="passes"):
+        BodyHistoryApparel(smoothing=-1)

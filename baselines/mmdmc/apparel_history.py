@@ -121,8 +121,11 @@ class BodyHistoryApparel(nn.Module):
 
     model = "body_history"
 
-    def __init__(self, hidden: int = 256, layers: int = 3):
+    def __init__(self, hidden: int = 256, layers: int = 3, smoothing: int = 0):
         super().__init__()
+        if smoothing < 0:
+            raise ValueError(f"smoothing: expected >= 0 passes, got {smoothing}")
+        self.smoothing = smoothing  # offset smoothing passes (config ``history_smoothing``), :func:`smooth_offsets`
         self.net = mlp([FEATURES] + [hidden] * layers + [3], last_act=False)
         nn.init.zeros_(self.net[-1].weight)  # untrained: zero offset, mmdmc_no_apparel
         nn.init.zeros_(self.net[-1].bias)
@@ -131,17 +134,17 @@ class BodyHistoryApparel(nn.Module):
         return self.net(features) * OUTPUT_SCALE
 
     def states(self, body: torch.Tensor, rotations: torch.Tensor, rest_offset: torch.Tensor,
-               frames: torch.Tensor | None = None, neighbours: torch.Tensor | None = None,
-               smoothing: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+               frames: torch.Tensor | None = None,
+               neighbours: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """Apparel states and their offsets from the body, each (B, F', A, 3) (unit-height frame), of the
-        request frames ``frames`` (F',) (None: all F), from :func:`history_features`' inputs. With
-        ``smoothing`` > 0 the offsets are averaged that many times over ``neighbours`` (A, k), each
-        vertex's nearest vertices in its own apparel component (:func:`smooth_offsets`)."""
+        request frames ``frames`` (F',) (None: all F), from :func:`history_features`' inputs. With the
+        module's ``smoothing`` > 0 the offsets are averaged that many times over ``neighbours`` (A, k),
+        each vertex's nearest vertices in its own apparel component (:func:`smooth_offsets`)."""
         feats = history_features(body, rotations, rest_offset)
         if frames is not None:
             feats, body, rotations = feats[:, frames], body[:, frames], rotations[:, frames]
         offset = self(feats)
-        world = smooth_offsets((rotations @ offset[..., None])[..., 0], neighbours, smoothing)
+        world = smooth_offsets((rotations @ offset[..., None])[..., 0], neighbours, self.smoothing)
         return body + world, world
 
 

@@ -60,8 +60,7 @@ def load_modules(folder=None, device: str = "cpu", stages=STAGES):
     apparel = read_header(checkpoint_path("apparel", folder))["config"] if "apparel" in stages else {}
     return Modules(mods["seg"], mods["body"], mods["apparel"], mods["refine"], config["knn"], config["threshold"],
                    apparel.get("apparel_skinning", "fs"), bool(apparel.get("mask_by_piece", False)),
-                   int(config.get("weight_smoothing", 0)), float(config.get("weight_smoothing_radius", 0.0)),
-                   int(apparel.get("history_smoothing", 0)))
+                   int(config.get("weight_smoothing", 0)), float(config.get("weight_smoothing_radius", 0.0)))
 
 
 class Mmdmc(PoseTransferMethod):

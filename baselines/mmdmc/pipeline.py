@@ -43,8 +43,6 @@ class Modules:
     mask_by_piece: bool = False
     weight_smoothing: int = 0
     weight_smoothing_radius: float = 0.0
-    offset_smoothing: int = 0
-    """The body-history f_d's offset smoothing passes (its config's ``history_smoothing``)."""
 
 
 def device_of(module: torch.nn.Module) -> torch.device:
@@ -203,24 +201,35 @@ def rollout_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
     return states[0]
 
 
+def history_inputs(prep: Prepared, idx: np.ndarray, weights: torch.Tensor, transforms) -> tuple[torch.Tensor, torch.Tensor]:
+    """The body-history f_d's per-vertex frame inputs of the vertices ``idx`` (A,) skinned with
+    ``weights`` (N, Kb), for transforms (F, K, 7): each vertex's frame rotations (F, A, 3, 3)
+    (:func:`~baselines.mmdmc.apparel_history.frame_rotations`) and its rest offset (A, 3) in the
+    unit-height frame (:func:`~baselines.mmdmc.apparel_history.rest_offsets`), on ``weights``' device.
+    Training batches and requests both read them here."""
+    dev = weights.device
+    bones, fw = frame_bones(weights[torch.as_tensor(idx, device=dev)].cpu().numpy())
+    t = torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body], device=dev)  # (F, Kb, 7)
+    rot = frame_rotations(t, torch.as_tensor(bones, device=dev), torch.as_tensor(fw, device=dev))
+    rest_offset = rest_offsets(prep.rest[idx], prep.keypoints[prep.body], bones, fw) / prep.height
+    return rot, torch.as_tensor(rest_offset, dtype=torch.float32, device=dev)
+
+
 @torch.no_grad()
 def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, transforms, weights: torch.Tensor,
-                      idx: np.ndarray, neighbours: np.ndarray, smoothing: int = 0) -> torch.Tensor:
+                      idx: np.ndarray, neighbours: np.ndarray) -> torch.Tensor:
     """Apparel states (F, A, 3) (unit-height frame) of the vertices ``idx`` over a request whose body
     states are (F, N, 3), skinned with ``weights`` (N, Kb), for transforms (F, K, 7): f_d's rollout from
     rest (:func:`rollout_from_body`) or, for the body-history model, its prediction from the history
-    of the frame bones (:mod:`baselines.mmdmc.apparel_history`)."""
+    of each vertex's frame (:mod:`baselines.mmdmc.apparel_history`)."""
     dev = body.device
-    t = torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body], device=dev)  # (F, Kb, 7)
     if isinstance(dyn, BodyHistoryApparel):
-        bones, fw = frame_bones(weights[torch.as_tensor(idx, device=dev)].cpu().numpy())
-        rest_offset = rest_offsets(prep.rest[idx], prep.keypoints[prep.body], bones, fw) / prep.height
-        rot = frame_rotations(t, torch.as_tensor(bones, device=dev), torch.as_tensor(fw, device=dev))
-        states, _ = dyn.states(body[None, :, torch.as_tensor(idx, device=dev)], rot[None],
-                               torch.as_tensor(rest_offset, dtype=body.dtype, device=dev)[None],
-                               neighbours=torch.as_tensor(neighbours, device=dev), smoothing=smoothing)
+        rot, rest_offset = history_inputs(prep, idx, weights, transforms)
+        states, _ = dyn.states(body[None, :, torch.as_tensor(idx, device=dev)], rot[None], rest_offset[None],
+                               neighbours=torch.as_tensor(neighbours, device=dev))
         return states[0]
-    return rollout_from_body(dyn, prep, body, to_unit(prep, t[..., 4:]), idx, neighbours)
+    joints = to_unit(prep, torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body, 4:], device=dev))
+    return rollout_from_body(dyn, prep, body, joints, idx, neighbours)
 
 
 VARIANTS = ("full", "no_refine", "no_apparel", "body_only")
@@ -252,8 +261,7 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
     y = s.clone()
     if mask.any() and variant != "no_apparel":
         idx, nb = apparel_layout(prep, mask, modules.knn)
-        y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(modules.apparel, prep, s, transforms, w, idx, nb,
-                                                                           modules.offset_smoothing)
+        y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(modules.apparel, prep, s, transforms, w, idx, nb)
     if variant in ("full", "no_apparel") and modules.refine is not None:
         p = torch.as_tensor(np.array(mask if gt_mask is not None else prob), dtype=s.dtype, device=s.device)
         rest = torch.as_tensor(prep.rest_norm, device=s.device)

@@ -62,13 +62,13 @@ import torch
 from scipy.spatial import cKDTree
 
 from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbours, apparel_components
-from baselines.mmdmc.apparel_history import BodyHistoryApparel, frame_bones, frame_rotations, rest_offsets
+from baselines.mmdmc.apparel_history import BodyHistoryApparel
 from baselines.mmdmc.body import BodySkinning, skin
 from baselines.mmdmc.config import CONFIGS
 from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
 from baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
-from baselines.mmdmc.pipeline import (apparel_layout, apparel_probability, body_states, mesh_weights,
-                                      apparel_from_body, rollout_from_rest, to_unit)
+from baselines.mmdmc.pipeline import (apparel_from_body, apparel_layout, apparel_probability, body_states,
+                                      history_inputs, mesh_weights, rollout_from_rest, to_unit)
 from baselines.mmdmc.refine import JointRefiner
 from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
@@ -274,7 +274,8 @@ def apparel_model(config: dict) -> str:
 
 def build_apparel(config: dict, context: StageContext | None = None) -> torch.nn.Module:
     if apparel_model(config) == "body_history":
-        return BodyHistoryApparel(config.get("history_hidden", 256), config.get("history_layers", 3))
+        return BodyHistoryApparel(config.get("history_hidden", 256), config.get("history_layers", 3),
+                                  int(config.get("history_smoothing", 0)))
     return ApparelDynamics(config["apparel_hidden"], config["code"])
 
 
@@ -417,11 +418,8 @@ def _batches_apparel_clip(config: dict, context: StageContext, rng: np.random.Ge
                     "truth": c.norm(posed(c, clip.simulated[t0:t0 + length], idx))[None],
                     "scored": scored_frames(t0, length, window)}
             if apparel_model(config) == "body_history":
-                bones, fw = frame_bones(w[idx].numpy())
-                item["rotations"] = frame_rotations(torch.as_tensor(kin[:, c.body]), torch.as_tensor(bones),
-                                                    torch.as_tensor(fw))[None].numpy()
-                item["rest_offset"] = (rest_offsets(c.rest[idx], c.keypoints[c.body], bones, fw)
-                                       / c.height)[None].astype(np.float32)
+                rot, rest_offset = history_inputs(c, idx, w, kin)
+                item["rotations"], item["rest_offset"] = rot[None].numpy(), rest_offset[None].numpy()
                 item["mesh_edges"] = _edges_among(c.edges, idx)
                 item["scored"] = _some_frames(item["scored"], config.get("history_frames", 0),
                                               np.random.default_rng(seed))
@@ -452,8 +450,7 @@ def apparel_states(module, batch, config: dict) -> tuple[torch.Tensor, torch.Ten
     has no ``history``, else from the batch's K history states. The body-history model gives every
     frame (its displacements are the offsets from the body states)."""
     if isinstance(module, BodyHistoryApparel):
-        return module.states(batch["body"], batch["rotations"], batch["rest_offset"], None, batch["neighbours"],
-                             int(config.get("history_smoothing", 0)))
+        return module.states(batch["body"], batch["rotations"], batch["rest_offset"], None, batch["neighbours"])
     if "history" in batch:
         return module.rollout(batch["history"], batch["body"], batch["rest"], batch["joints"], batch["neighbours"])
     return rollout_from_rest(module, batch["body"], batch["rest"], batch["joints"], batch["neighbours"],
@@ -464,12 +461,11 @@ def loss_apparel(module, batch, context) -> dict:
     truth = batch["truth"]
     if isinstance(module, BodyHistoryApparel):  # only the drawn scored frames are predicted
         on = torch.as_tensor(batch["scored"], dtype=torch.bool)
-        states, disp = module.states(batch["body"], batch["rotations"], batch["rest_offset"], on,
-                                     batch["neighbours"], int(context.config.get("history_smoothing", 0)))
+        states, disp = module.states(batch["body"], batch["rotations"], batch["rest_offset"], on, batch["neighbours"])
         truth = truth[:, on]
         return weighted_total({"vertex": vertex_l1(states, truth),
                                "stretch": edge_stretch(states, truth, batch["mesh_edges"]),
-                               "reg": l2_regulariser(disp)}, {"w_stretch": 1.0, **context.config})
+                               "reg": l2_regulariser(disp)}, context.config)
     states, disp = apparel_states(module, batch, context.config)
     if "scored" in batch:  # only the frames a request scores
         on = torch.as_tensor(batch["scored"], dtype=torch.bool)
@@ -505,8 +501,8 @@ def batches_refine(config: dict, context: StageContext, rng: np.random.Generator
             y = s.clone()
             if mask.any():
                 idx, nb = apparel_layout(c, mask, config["knn"])
-                y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(
-                    context.frozen["apparel"], c, s, kin, w, idx, nb, int(config.get("history_smoothing", 0)))
+                y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(context.frozen["apparel"], c, s, kin,
+                                                                                w, idx, nb)
             s, y, kin = s[t0 - q:], y[t0 - q:], kin[t0 - q:]
             yield {"body": s.cpu().numpy(), "combined": y.cpu().numpy(), "prob": np.tile(prob, (t, 1)),
                    "rest": c.rest_norm[None], "truth": c.norm(posed(c, clip.simulated[t0:t0 + t])), "edges": c.edges}
