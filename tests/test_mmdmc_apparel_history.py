@@ -161,3 +161,16 @@ def test_the_modules_smoothing_passes_average_its_offsets():
     np.testing.assert_allclose(states.numpy(), (body + off).numpy(), atol=1e-7)
     with pytest.raises(ValueError, match="passes"):
         BodyHistoryApparel(smoothing=-1)
+
+
+def test_the_configs_arap_weight_reaches_the_module_and_a_negative_one_is_refused():
+    from baselines.mmdmc.apparel_arap import ITERATIONS
+    from baselines.mmdmc.training import build_apparel
+
+    plain = build_apparel({"apparel_model": "body_history", "history_hidden": 8, "history_layers": 1})
+    assert plain.arap == 0.0 and plain.arap_iterations == ITERATIONS
+    kept = build_apparel({"apparel_model": "body_history", "history_hidden": 8, "history_layers": 1,
+                          "history_arap": 0.03, "history_arap_iterations": 3})
+    assert kept.arap == 0.03 and kept.arap_iterations == 3
+    with pytest.raises(ValueError, match="arap"):
+        BodyHistoryApparel(arap=-0.1)

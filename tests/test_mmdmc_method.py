@@ -149,3 +149,36 @@ def test_no_apparel_is_the_full_model_with_f_d_left_out(character):
     m.modules = dataclasses.replace(mods, refine=None)
     [unrefined] = m.transfer_motion([request(rig, window, rec)])
     np.testing.assert_allclose(unrefined, ref, atol=2e-4)
+
+
+def test_the_apparel_is_restored_by_soft_arap_as_the_modules_weight_asks(character):
+    # f_d's prediction with and without the restoration (baselines/mmdmc/apparel_arap.py): the
+    # restored apparel is restore() of the unrestored one in metres (ARAP is the same in any unit and
+    # place), nothing else moves, and the apparel's edges come closer to their rest lengths
+    from baselines.mmdmc.apparel_arap import edges_among, restore
+    from baselines.mmdmc.pipeline import apparel_probability
+
+    rig, window, rec = character
+    m = get_method("mmdmc_no_refine")
+    m.transfer_motion([request(rig, window, rec)])  # loads the modules
+    mods = m.modules
+    outs = {}
+    for weight in (0.0, 0.03):
+        f_d = copy.deepcopy(mods.apparel)
+        f_d.arap = weight
+        m.modules = dataclasses.replace(mods, apparel=f_d)
+        [outs[weight]] = m.transfer_motion([request(rig, window, rec)])
+    prep = next(iter(m._prepared.values()))
+    idx = np.flatnonzero(apparel_probability(mods.seg, prep, mods.mask_by_piece) > mods.threshold)
+    edges = edges_among(prep.edges, idx)
+    rest = np.asarray(rig.vertices, np.float64)[idx]
+    expected = restore(outs[0.0][:, idx], rest, edges, 0.03, mods.apparel.arap_iterations)
+    np.testing.assert_allclose(outs[0.03][:, idx], expected, atol=1e-5 * rec.height)
+    body = np.setdiff1d(np.arange(len(rig.vertices)), idx)
+    np.testing.assert_array_equal(outs[0.03][:, body], outs[0.0][:, body])
+
+    def stretch(x):
+        ln = np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=-1)
+        return np.abs(ln / np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=-1) - 1).mean()
+
+    assert stretch(outs[0.03][:, idx]) < stretch(outs[0.0][:, idx])

@@ -26,7 +26,9 @@ starts, its learned displacement removed 0.08% of ``mmdmc_no_apparel``'s PMD_a o
 (methods version 7). On the same data a per-vertex MLP on these inputs, fitted without the stretch
 term, predicts the held-out offsets with 37% less error than a zero displacement; shipped with
 ``w_stretch`` 1.0, so that edges keep their lengths (ELS), version 8 is 11.3% below
-``mmdmc_no_apparel`` (README, "Issue 33, round 6"). The chains' lag, swing and flare in spins are a
+``mmdmc_no_apparel`` (README, "Issue 33, round 6"). Version 9 trains for positions (``w_stretch``
+0.1) and gives the edges their lengths back after the MLP, by soft ARAP against the rest apparel
+(:mod:`baselines.mmdmc.apparel_arap`, config ``history_arap``; README, "Issue 33, round 7"). The chains' lag, swing and flare in spins are a
 function of the body's recent turning and acceleration in the vertex's frame, which one frame's
 velocity and acceleration (K = 3 states) do not carry. All positions in the character's unit-height
 frame.
@@ -37,6 +39,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from baselines.mmdmc.apparel_arap import ITERATIONS as ARAP_ITERATIONS
 from baselines.mmdmc.nn import mlp
 from mimicbench.skinning_torch import quat_to_matrix_torch
 
@@ -121,11 +124,18 @@ class BodyHistoryApparel(nn.Module):
 
     model = "body_history"
 
-    def __init__(self, hidden: int = 256, layers: int = 3, smoothing: int = 0):
+    def __init__(self, hidden: int = 256, layers: int = 3, smoothing: int = 0, arap: float = 0.0,
+                 arap_iterations: int = ARAP_ITERATIONS):
         super().__init__()
         if smoothing < 0:
             raise ValueError(f"smoothing: expected >= 0 passes, got {smoothing}")
+        if arap < 0 or arap_iterations < 0:
+            raise ValueError(f"arap: expected a weight >= 0 and iterations >= 0, got {arap} and {arap_iterations}")
         self.smoothing = smoothing  # offset smoothing passes (config ``history_smoothing``), :func:`smooth_offsets`
+        # a request's apparel restored by soft ARAP with this pull towards the prediction (config
+        # ``history_arap``; 0: not restored), :func:`baselines.mmdmc.apparel_arap.restore`
+        self.arap = arap
+        self.arap_iterations = arap_iterations
         self.net = mlp([FEATURES] + [hidden] * layers + [3], last_act=False)
         nn.init.zeros_(self.net[-1].weight)  # untrained: zero offset, mmdmc_no_apparel
         nn.init.zeros_(self.net[-1].bias)

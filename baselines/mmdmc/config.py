@@ -45,11 +45,13 @@ COMMON = {
                              # backpropagation through a from-rest rollout did not learn a toy lag, tests)
     "apparel_model": "rollout",  # ours: f_d, "rollout" (the paper's recurrence on K = 3 apparel states, apparel.py;
                                  # up to v7) or "body_history" (a per-vertex MLP on the body's motion history in
-                                 # the frame bone's frame, apparel_history.py; shipped v8)
+                                 # the frame bone's frame, apparel_history.py; shipped v8, v9)
     "history_hidden": 256,   # "body_history": MLP width
     "history_layers": 3,     # "body_history": hidden layers
     "history_frames": 8,     # "body_history": scored frames a clip contributes to a step (0: all)
     "history_smoothing": 0,  # "body_history": passes averaging the offsets over each vertex's component neighbours
+    "history_arap": 0.0,     # "body_history": a request's apparel restored by soft ARAP with this pull towards
+                             # f_d's prediction (apparel_arap.py; 0: not restored; shipped v9: 0.03)
     "w_stretch": 1.0,        # "body_history": weight of the apparel mesh edges' relative stretch (what ELS scores)
     "rest_start": 0.5,       # "window" only: share of the windows restarted at rest on the body at the window
 }

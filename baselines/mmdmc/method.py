@@ -64,10 +64,11 @@ def load_modules(folder=None, device: str = "cpu", stages=STAGES):
 
 
 class Mmdmc(PoseTransferMethod):
-    metadata = MethodMetadata(name="mmdmc", version="8", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mmdmc", version="9", licence="MIT", needs_training=True, citation=CITATION,
                               protocols=("apparel",), tags=("learned", "apparel"),
                               description="MMDMC reference: apparel mask, geodesic-attention skinning, "
-                                          "apparel offsets from the body's motion history, joint refinement")
+                                          "apparel offsets from the body's motion history kept to their lengths by "
+                                          "soft ARAP, joint refinement")
     variant = "full"
     uses_gt_mask = False
 
@@ -115,21 +116,21 @@ class Mmdmc(PoseTransferMethod):
 
 
 class MmdmcBodyOnly(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_body_only", version="8", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mmdmc_body_only", version="9", licence="MIT", needs_training=True,
                               citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
                               description="MMDMC ablation: the body module alone (Table 2, Body Module)")
     variant = "body_only"
 
 
 class MmdmcNoRefine(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_no_refine", version="8", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mmdmc_no_refine", version="9", licence="MIT", needs_training=True,
                               citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
                               description="MMDMC ablation: body + apparel modules, no refinement (Table 2)")
     variant = "no_refine"
 
 
 class MmdmcNoApparel(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_no_apparel", version="8", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mmdmc_no_apparel", version="9", licence="MIT", needs_training=True,
                               citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
                               description="MMDMC ablation: full model with f_d's displacement zero (same mask, "
                                           "skinning and refinement; f_d's effect is mmdmc against this)")
@@ -137,7 +138,7 @@ class MmdmcNoApparel(Mmdmc):
 
 
 class MmdmcGtMask(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_gt_mask", version="8", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mmdmc_gt_mask", version="9", licence="MIT", needs_training=True,
                               citation=CITATION, protocols=("apparel",),
                               tags=("learned", "apparel", "ablation", GT_MASK_TAG),
                               description="MMDMC ablation: full model with the ground-truth apparel mask (Table 2)")

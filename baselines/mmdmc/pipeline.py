@@ -2,7 +2,9 @@
 body motion, f_d's rollout on the apparel vertices, f_j's refinement.
 
 With the body-history f_d (methods version 8, :mod:`baselines.mmdmc.apparel_history`) there is no
-rollout: each frame's apparel is predicted from the body's history in the request.
+rollout: each frame's apparel is predicted from the body's history in the request, and (version 9,
+config ``history_arap``) restored to its rest edge lengths by soft ARAP
+(:mod:`baselines.mmdmc.apparel_arap`).
 
 The rollout starts where a request starts: nothing is known of the apparel before it, so the
 K = 3 history states are the body state of the request's first frame (the apparel at rest on the
@@ -20,6 +22,7 @@ import numpy as np
 import torch
 
 from baselines.mmdmc.apparel import HISTORY, apparel_components, component_neighbours
+from baselines.mmdmc.apparel_arap import edges_among, restore
 from baselines.mmdmc.apparel_history import BodyHistoryApparel, frame_bones, frame_rotations, rest_offsets
 from baselines.mmdmc.body import skin
 from baselines.mmdmc.chain_attachment import attached_weights, prepared_attachment
@@ -227,6 +230,10 @@ def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
         rot, rest_offset = history_inputs(prep, idx, weights, transforms)
         states, _ = dyn.states(body[None, :, torch.as_tensor(idx, device=dev)], rot[None], rest_offset[None],
                                neighbours=torch.as_tensor(neighbours, device=dev))
+        if dyn.arap > 0:
+            kept = restore(states[0].cpu().numpy(), prep.rest_norm[idx], edges_among(prep.edges, idx), dyn.arap,
+                           dyn.arap_iterations)
+            return torch.as_tensor(kept, dtype=states.dtype, device=dev)
         return states[0]
     joints = to_unit(prep, torch.as_tensor(np.asarray(transforms, np.float32)[:, prep.body, 4:], device=dev))
     return rollout_from_body(dyn, prep, body, joints, idx, neighbours)

@@ -62,6 +62,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbours, apparel_components
+from baselines.mmdmc.apparel_arap import ITERATIONS, edges_among
 from baselines.mmdmc.apparel_history import BodyHistoryApparel
 from baselines.mmdmc.body import BodySkinning, skin
 from baselines.mmdmc.config import CONFIGS
@@ -275,7 +276,8 @@ def apparel_model(config: dict) -> str:
 def build_apparel(config: dict, context: StageContext | None = None) -> torch.nn.Module:
     if apparel_model(config) == "body_history":
         return BodyHistoryApparel(config.get("history_hidden", 256), config.get("history_layers", 3),
-                                  int(config.get("history_smoothing", 0)))
+                                  int(config.get("history_smoothing", 0)), float(config.get("history_arap", 0.0)),
+                                  int(config.get("history_arap_iterations", ITERATIONS)))
     return ApparelDynamics(config["apparel_hidden"], config["code"])
 
 
@@ -420,17 +422,10 @@ def _batches_apparel_clip(config: dict, context: StageContext, rng: np.random.Ge
             if apparel_model(config) == "body_history":
                 rot, rest_offset = history_inputs(c, idx, w, kin)
                 item["rotations"], item["rest_offset"] = rot[None].numpy(), rest_offset[None].numpy()
-                item["mesh_edges"] = _edges_among(c.edges, idx)
+                item["mesh_edges"] = edges_among(c.edges, idx)
                 item["scored"] = _some_frames(item["scored"], config.get("history_frames", 0),
                                               np.random.default_rng(seed))
             yield item
-
-
-def _edges_among(edges: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """(E', 2) int64 the mesh edges (E, 2) whose two ends are both among the sorted vertices ``idx``,
-    as indices into ``idx``."""
-    both = np.isin(edges, idx).all(1)
-    return np.searchsorted(idx, edges[both]).astype(np.int64)
 
 
 def _some_frames(scored: np.ndarray, n: int, r: np.random.Generator) -> np.ndarray:
