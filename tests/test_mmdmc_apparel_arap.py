@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from baselines.mmdmc.apparel_arap import edges_among, fit_rotations, laplacian, restore, unique_edges
+from baselines.mmdmc.apparel_arap import edges_among, fit_rotations, laplacian, nearest_rotations, restore
 
 
 def _strip(n: int = 11, length: float = 1.0, width: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
@@ -16,6 +16,11 @@ def _strip(n: int = 11, length: float = 1.0, width: float = 0.05) -> tuple[np.nd
     v = np.concatenate([np.stack([xs, np.zeros(n), np.zeros(n)], 1), np.stack([xs, np.full(n, width), np.zeros(n)], 1)])
     faces = np.array([f for i in range(n - 1) for f in ([i, i + 1, n + i], [i + 1, n + i + 1, n + i])])
     return v, np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+
+
+def unique_edges(edges: np.ndarray) -> np.ndarray:
+    """(E', 2) each undirected edge once, as (low, high)."""
+    return np.unique(np.sort(edges, axis=1), axis=0)
 
 
 def _lengths(x: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -58,13 +63,32 @@ def test_fitted_rotations_match_scipys_kabsch():
     rng = np.random.default_rng(3)
     rest, edges = _strip(6)
     posed = rest @ Rotation.random(random_state=4).as_matrix().T + rng.normal(0, 0.01, rest.shape)
-    q = fit_rotations(rest, posed[None], unique_edges(edges))[0]
+    q = fit_rotations(rest, posed[None], edges)[0]
     np.testing.assert_allclose(np.linalg.det(q), 1.0, atol=1e-9)
     e = unique_edges(edges)
     for i in (0, 3, 7, 11):
         nbrs = [b for a, b in e if a == i] + [a for a, b in e if b == i]
         ref = Rotation.align_vectors(posed[i] - posed[nbrs], rest[i] - rest[nbrs])[0].as_matrix()
         np.testing.assert_allclose(q[i], ref, atol=1e-9)
+
+
+def test_nearest_rotations_are_the_svds_including_reflections_and_rank_deficient_matrices():
+    rng = np.random.default_rng(7)
+    m = rng.normal(size=(2000, 3, 3))
+    m[:500] = np.eye(3) + 0.2 * rng.normal(size=(500, 3, 3))     # near a rotation (what ARAP sees)
+    m[500:510, :, 2] = m[500:510, :, 1]                           # rank 2: collinear-free but flat
+    m[510:520] = np.einsum("ni,nj->nij", rng.normal(size=(10, 3)), rng.normal(size=(10, 3)))  # rank 1
+    m[520:530] = 0.0
+    q = nearest_rotations(m)
+    np.testing.assert_allclose(np.einsum("nji,njk->nik", q, q), np.broadcast_to(np.eye(3), q.shape), atol=1e-9)
+    np.testing.assert_allclose(np.linalg.det(q), 1.0, atol=1e-9)
+    u, _, vt = np.linalg.svd(m[:500])
+    np.testing.assert_allclose(q[:500], u @ vt, atol=1e-9)
+    # the rotation nearest each matrix: no rotation of a random few is closer (the minimiser of
+    # |Q - M|_F over SO(3), by the SVD with the sign of its last column set to make det +1)
+    u, _, vt = np.linalg.svd(m[530:])
+    u[:, :, 2] *= np.sign(np.linalg.det(u @ vt))[:, None]
+    np.testing.assert_allclose(q[530:], u @ vt, atol=1e-8)
 
 
 def test_a_rigid_motion_of_the_rest_apparel_is_kept_as_it_is():
@@ -125,5 +149,7 @@ def test_bad_arguments_are_refused_with_what_was_expected():
         restore(rest[None], rest, edges, 0.0)
     with pytest.raises(ValueError, match=r"\(F, A, 3\)"):
         restore(rest, rest, edges, 0.1)
-    with pytest.raises(ValueError, match="expected < 6"):
+    with pytest.raises(ValueError, match=r"vertex 9, expected 0\.\.5"):
         restore(rest[None], rest, np.array([[0, 9]]), 0.1)
+    with pytest.raises(ValueError, match=r"vertex -1, expected 0\.\.5"):
+        restore(rest[None], rest, np.array([[-1, 2]]), 0.1)

@@ -174,3 +174,29 @@ def test_the_configs_arap_weight_reaches_the_module_and_a_negative_one_is_refuse
     assert kept.arap == 0.03 and kept.arap_iterations == 3
     with pytest.raises(ValueError, match="arap"):
         BodyHistoryApparel(arap=-0.1)
+
+
+def test_with_still_zero_a_still_body_keeps_its_skinned_apparel_and_motion_still_moves_it():
+    rng = np.random.default_rng(9)
+    body, rot, rest = [torch.as_tensor(x, dtype=torch.float32) for x in _random_motion(rng, f=12, a=5)]
+    torch.manual_seed(1)
+    free = BodyHistoryApparel(hidden=8, layers=1)
+    torch.nn.init.normal_(free.net[-1].weight)
+    torch.nn.init.normal_(free.net[-1].bias)
+    still = BodyHistoryApparel(hidden=8, layers=1, still_zero=True)
+    still.load_state_dict(free.state_dict())
+    # a body that stands still in a turned pose: every frame is frame 0
+    standing, turned = body[:, :1].expand_as(body).clone(), rot[:, :1].expand_as(rot).clone()
+    with torch.no_grad():
+        _, free_off = free.states(standing, turned, rest)
+        states, off = still.states(standing, turned, rest)
+        np.testing.assert_allclose(states.numpy(), standing.numpy(), atol=1e-7)
+        assert free_off.abs().max() > 1e-3  # the plain MLP's answer is not zero there
+        # moving: the MLP's offset less the one the same frame would have with the lag inputs zero
+        _, moved = still.states(body, rot, rest)
+        feats = history_features(body, rot, rest)
+        calm = feats.clone()
+        calm[..., 6:] = 0.0
+        expected = (rot @ (free(feats) - free(calm))[..., None])[..., 0]
+    np.testing.assert_allclose(moved.numpy(), expected.numpy(), atol=1e-6)
+    assert moved.abs().max() > 1e-3

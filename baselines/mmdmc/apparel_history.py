@@ -16,7 +16,11 @@ offsets do not tear where its largest weight changes bone). In that frame it see
   started),
 
 and an MLP maps those 6 + 6 len(LAGS) numbers to an offset in the frame: the vertex's state is
-``s_t + R_t offset``. A zero offset is ``mmdmc_no_apparel``; the last layer starts at zero. No
+``s_t + R_t offset``. With ``still_zero`` (config ``history_still_zero``, version 9) the offset is the
+MLP's answer less its answer for the same rest offset and gravity with the lag inputs zero (the body
+still for a second): a body that does not move keeps its skinned apparel. Without it, the sag the MLP
+learnt from the training simulator's relaxed chains carried over to a real character whose own
+physics barely moves (Gene's ``stand``: PMD_a 2.5 times ``mmdmc_no_apparel``'s). A zero offset is ``mmdmc_no_apparel``; the last layer starts at zero. No
 rollout: every frame is one independent prediction, so training needs no backpropagation through
 time, and a bad frame cannot derail the next. Training adds the relative stretch of the apparel's
 mesh edges to the vertex loss (config ``w_stretch``), the quantity ELS scores.
@@ -125,7 +129,7 @@ class BodyHistoryApparel(nn.Module):
     model = "body_history"
 
     def __init__(self, hidden: int = 256, layers: int = 3, smoothing: int = 0, arap: float = 0.0,
-                 arap_iterations: int = ARAP_ITERATIONS):
+                 arap_iterations: int = ARAP_ITERATIONS, still_zero: bool = False):
         super().__init__()
         if smoothing < 0:
             raise ValueError(f"smoothing: expected >= 0 passes, got {smoothing}")
@@ -136,6 +140,10 @@ class BodyHistoryApparel(nn.Module):
         # ``history_arap``; 0: not restored), :func:`baselines.mmdmc.apparel_arap.restore`
         self.arap = arap
         self.arap_iterations = arap_iterations
+        # the offset is the MLP's answer less its answer for the same vertex and gravity with the
+        # body still through every lag (config ``history_still_zero``): a still body keeps its
+        # skinned apparel, whatever the MLP learnt of the training simulator's sag
+        self.still_zero = still_zero
         self.net = mlp([FEATURES] + [hidden] * layers + [3], last_act=False)
         nn.init.zeros_(self.net[-1].weight)  # untrained: zero offset, mmdmc_no_apparel
         nn.init.zeros_(self.net[-1].bias)
@@ -154,6 +162,10 @@ class BodyHistoryApparel(nn.Module):
         if frames is not None:
             feats, body, rotations = feats[:, frames], body[:, frames], rotations[:, frames]
         offset = self(feats)
+        if self.still_zero:
+            still = feats.clone()
+            still[..., 6:] = 0.0  # the same vertex and gravity with the body still through the lags
+            offset = offset - self(still)
         world = smooth_offsets((rotations @ offset[..., None])[..., 0], neighbours, self.smoothing)
         return body + world, world
 

@@ -50,6 +50,8 @@ COMMON = {
     "history_layers": 3,     # "body_history": hidden layers
     "history_frames": 8,     # "body_history": scored frames a clip contributes to a step (0: all)
     "history_smoothing": 0,  # "body_history": passes averaging the offsets over each vertex's component neighbours
+    "history_still_zero": False,  # "body_history": the offset is the MLP's less its answer for a still body
+                             # (so a body that does not move keeps its skinned apparel; shipped v9: true)
     "history_arap": 0.0,     # "body_history": a request's apparel restored by soft ARAP with this pull towards
                              # f_d's prediction (apparel_arap.py; 0: not restored; shipped v9: 0.03)
     "w_stretch": 1.0,        # "body_history": weight of the apparel mesh edges' relative stretch (what ELS scores)

@@ -277,7 +277,8 @@ def build_apparel(config: dict, context: StageContext | None = None) -> torch.nn
     if apparel_model(config) == "body_history":
         return BodyHistoryApparel(config.get("history_hidden", 256), config.get("history_layers", 3),
                                   int(config.get("history_smoothing", 0)), float(config.get("history_arap", 0.0)),
-                                  int(config.get("history_arap_iterations", ITERATIONS)))
+                                  int(config.get("history_arap_iterations", ITERATIONS)),
+                                  bool(config.get("history_still_zero", False)))
     return ApparelDynamics(config["apparel_hidden"], config["code"])
 
 
