@@ -131,8 +131,9 @@ def test_no_apparel_is_the_full_model_with_f_d_left_out(character):
     assert moved[~mask].max() < 1e-6 * rec.height  # f_d moves nothing but f_c's mask
     assert moved[mask].max() > 1e-3 * rec.height  # the shipped f_d (version 8) moves the apparel
     # the one f_d is seen through is made plain: a constant offset of OUTPUT_SCALE (unit-height frame)
-    # along each vertex's frame bone's X
+    # along each vertex's frame bone's X (as it is: not less its still-body answer, not restored)
     pushed = copy.deepcopy(full_method.modules.apparel)
+    pushed.still_zero, pushed.arap = False, 0.0
     with torch.no_grad():
         pushed.net[-1].weight.zero_()
         pushed.net[-1].bias[:] = torch.tensor([1.0, 0.0, 0.0])

@@ -22,7 +22,7 @@ SHIPPED = {
     "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior, MimicatInitOnly), "7",
                 "a674302154d6e723bf0de4ee9dad7f63eb88197ad7e9e82fc59db920213f81d9"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "9",
-              "9a9720d4773e057bdf36fad39387013f4b096acdd31fa17011bb8b3dbbdd49d2"),
+              "c0ba1a01ddb5ad9cf3f33002b62926c2d7c4ec92bb1100d3b1d5b6321c0ad3af"),
     "cgt": (Cgt.shipped, (Cgt,), "3", "290c85714ab2869ea1c1865a3cd14702c15534f723ed1bcbe3f90bb1a7f39681"),
     "npt": (Npt.shipped, (Npt,), "4", "c950a63dcf602a3b69981684a8f11c9f3af2a76db68e76010c3dddf94424fefe"),
     "sfpt": (Sfpt.shipped, (Sfpt,), "1", "4e72e1e72735edfdcd6cae92ec24c38da013d46aa8cbd06565bdf912bee7e89a"),
