@@ -4,7 +4,7 @@ The override file (``--params FILE``) holds any subset of::
 
     {"simulation": {"gravity": 9.8, "max_speed": 25.0, "solver_iterations": 30, "anchor_force": 2000.0,
                     "contact_erp": 0.5, "max_joint_velocity": 30.0, "constraint_erp": 0.8, "piece_mass": 0.0,
-                    "max_resettles": 5},
+                    "piece_velocity": true, "max_resettles": 5},
      "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.8}, "default": {"link_mass": 0.1}}}
 
 A kind is the apparel kind of a chain (``skirt``, ``hair``, ``cape``, ``coat_tail``,
@@ -91,6 +91,12 @@ class SimParams:
     follows its moved constraint only through it, and at Bullet's 0.2 an anchor trailed a body bone turning 23.6 rad/s by 0.2 rad.
     ``piece_mass`` (kg): 0 places the body pieces at their bones' poses; above 0 they are bodies of that
     mass carried there by constraints, so contacts see a limb's speed (slower; see the README).
+    ``piece_velocity``: with ``piece_mass`` 0, each piece placed at its bone's pose every step is also
+    given the speed of that motion (linear and angular, from the step before; a body of
+    :data:`datagen.apparel.world.MOVING_PIECE_MASS` kg), so Bullet's contacts see the limb's speed
+    (simulation version 13); False: static pieces, which contacts take as standing still (version 12
+    and before): a contact spring's damping then pulled a link toward the world's rest, not the
+    limb's, and an arm sweeping round in a spin struck the cape it carried (issue 33).
     ``max_resettles`` (an integer >= 0): frames of a clip at which chains that escaped the speed
     bound (or went NaN) may be put back at rest on their anchors before the clip fails
     (:mod:`datagen.apparel.simulate`); 0 fails the clip at its first escape (simulation version 10)."""
@@ -103,6 +109,7 @@ class SimParams:
     max_joint_velocity: float = 30.0
     constraint_erp: float = 0.8
     piece_mass: float = 0.0
+    piece_velocity: bool = True
     max_resettles: int = 5
 
 

@@ -1,8 +1,11 @@
 """The pybullet world of one character: body pieces that follow the clip and dynamic apparel chains.
 
-Each body piece is a mass-0 convex hull placed at its bone's pose every substep or, with
-``piece_mass`` > 0 (:class:`~datagen.apparel.params.SimParams`), a body of that mass carried
-there by a fixed constraint, so that Bullet's contacts see a limb's speed. Each chain
+Each body piece is a convex hull placed every substep where it ended the last one and given the
+speed that carries it to its bone's pose by the step's end (``piece_velocity``, simulation version 13;
+:func:`piece_velocities`), so that Bullet's contacts see a limb's speed; with ``piece_velocity`` off, a
+mass-0 hull placed at its bone's pose (Bullet takes it as standing still); with ``piece_mass`` > 0
+(:class:`~datagen.apparel.params.SimParams`), a body of that mass carried there by a fixed constraint
+(slower: the constraints join the solver). Each chain
 is a multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass
 and is carried the same way (``changeConstraint``; a teleported base would move the whole chain
 rigidly, and it would never swing). Springs toward rest: torques for every joint at once
@@ -40,6 +43,8 @@ BODY_GROUP, BODY_MASK = 0b01, 0b10
 REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
 CLEARING_MARGINS = (0.0, 0.005, 0.01, 0.02)  # metres: hull points this far outside the body are kept
 PIECE_ACCEL = 2000.0  # m/s^2: a piece's constraint's force limit per kilogram
+MOVING_PIECE_MASS = 1000.0  # kg of a piece given its speed each step (SimParams.piece_velocity): a link's
+# contact moves it by a few micrometres a second
 MAX_IDLE_CLIENTS = 1  # pybullet clients a process keeps for its next worlds
 _IDLE_CLIENTS: list[int] = []  # DIRECT clients of closed worlds, emptied by the next world (resetSimulation)
 
@@ -62,6 +67,21 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     w, u = q[:, :1], q[:, 1:]
     uv = _cross(u, v)
     return v + 2.0 * (w * uv + _cross(u, uv))
+
+
+def piece_velocities(placed: np.ndarray, before: np.ndarray, dt: float, gravity: float) -> np.ndarray:
+    """(..., 2, 3) the linear (m/s) and angular (rad/s, world frame) velocities that carry body pieces
+    from placements ``before`` (..., 7) (position, quaternion x, y, z, w) to ``placed`` (..., 7) in
+    ``dt`` seconds, with ``gravity`` dt (m/s) added upward: Bullet adds gravity's pull to a body's speed
+    before it solves the contacts, so the contacts see the limb's speed. A placement without one before
+    it (NaN) gets none."""
+    placed = np.asarray(placed, np.float64)
+    before = np.where(np.isnan(before), placed, before)
+    linear = (placed[..., :3] - before[..., :3]) / dt
+    linear[..., 1] += gravity * dt
+    turn = Rotation.from_quat(placed[..., 3:].reshape(-1, 4)) * Rotation.from_quat(before[..., 3:].reshape(-1, 4)).inv()
+    angular = turn.as_rotvec().reshape(linear.shape) / dt
+    return np.stack([linear, angular], axis=-2)
 
 
 @dataclass
@@ -100,16 +120,19 @@ class ApparelWorld:
                                      contactERP=float(sim.contact_erp), erp=float(sim.constraint_erp),
                                      deterministicOverlappingPairs=1, physicsClientId=cid)
         self.piece_ids, self._piece_constraints = [], []
+        self._moving_pieces = sim.piece_mass == 0 and sim.piece_velocity  # placed and given their speed each step
+        mass = float(sim.piece_mass) if sim.piece_mass > 0 else MOVING_PIECE_MASS if self._moving_pieces else 0.0
         for piece in pieces:
             shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=piece.points.tolist(), physicsClientId=cid)
             head = self.keypoints[piece.bone].tolist()
-            body = pb.createMultiBody(baseMass=float(sim.piece_mass), baseCollisionShapeIndex=shape, basePosition=head,
+            body = pb.createMultiBody(baseMass=mass, baseCollisionShapeIndex=shape, basePosition=head,
                                       physicsClientId=cid)
             pb.setCollisionFilterGroupMask(body, -1, BODY_GROUP, BODY_MASK, physicsClientId=cid)
             self.piece_ids.append(body)
-            if sim.piece_mass > 0:
+            if mass > 0:
                 pb.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0,
                                   activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
+            if sim.piece_mass > 0:
                 held = pb.createConstraint(body, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0], [0, 0, 0], head,
                                            physicsClientId=cid)
                 pb.changeConstraint(held, maxForce=sim.piece_mass * PIECE_ACCEL, physicsClientId=cid)
@@ -310,8 +333,10 @@ class ApparelWorld:
 
         The pieces' placements and the anchors' pivots and orientations of all S poses are computed
         at once, before the first step; a piece's or an anchor's constraint is changed only
-        when its bone moved since the last placement. Only the bones in :attr:`driven_bones` are
-        read from ``poses``.
+        when its bone moved since the last placement. Moving pieces (``piece_velocity``) are placed
+        every step where the step before left them (its pose; the first step's own), with the speed
+        that carries them to this step's pose (:func:`piece_velocities`). Only the bones in
+        :attr:`driven_bones` are read from ``poses``.
         """
         pb, cid = self.pb, self.client
         poses = np.asarray(poses, np.float64)
@@ -322,9 +347,15 @@ class ApparelWorld:
             self._anchor_offsets, q.shape[:2] + (3,)).reshape(-1, 3)).reshape(q.shape[:2] + (3,))
         anchor = np.concatenate([pivots, q[..., [1, 2, 3, 0]]], axis=-1)  # (S, A, 7)
         piece = np.concatenate([piece_t, piece_q], axis=-1)  # (S, P, 7)
-        piece_moved = np.any(piece != np.concatenate([self._placed_pieces[None], piece[:-1]]), axis=-1)
+        before = np.concatenate([self._placed_pieces[None], piece[:-1]])  # (S, P, 7) each piece one step earlier
+        piece_moved = np.any(piece != before, axis=-1)
+        self._placed_pieces = piece[-1]
+        if self._moving_pieces:  # each step starts where the last one ended and carries the piece to its pose
+            piece_moved[:] = True
+            piece_speed = piece_velocities(piece, before, self.dt, self.sim.gravity).tolist()  # (S, P, 2, 3)
+            piece = np.where(np.isnan(before), piece, before)
         anchor_moved = np.any(anchor != np.concatenate([self._placed_anchors[None], anchor[:-1]]), axis=-1)
-        self._placed_pieces, self._placed_anchors = piece[-1], anchor[-1]
+        self._placed_anchors = anchor[-1]
         piece_at, piece_turn = piece[..., :3].tolist(), piece[..., 3:].tolist()  # per step and piece
         anchor_at, anchor_turn = anchor[..., :3].tolist(), anchor[..., 3:].tolist()  # per step and anchor
         pieces_moved = [[] for _ in range(len(poses))]  # per step: the pieces to move
@@ -335,7 +366,7 @@ class ApparelWorld:
             anchors_moved[s].append(i)
         reset, change, stepper = pb.resetBasePositionAndOrientation, pb.changeConstraint, pb.stepSimulation
         after, piece_ids, constraints = self._after_step, self.piece_ids, self._anchor_constraints
-        held = self._piece_constraints
+        held, moving, speed = self._piece_constraints, self._moving_pieces, pb.resetBaseVelocity
         for s in range(len(poses)):  # pybullet's client id passed by position where it can be (quicker)
             for i in pieces_moved[s]:
                 if held:
@@ -343,6 +374,8 @@ class ApparelWorld:
                            physicsClientId=cid)
                 else:
                     reset(piece_ids[i], piece_at[s][i], piece_turn[s][i], cid)
+                    if moving:
+                        speed(piece_ids[i], piece_speed[s][i][0], piece_speed[s][i][1], cid)
             for i in anchors_moved[s]:
                 change(constraints[i], jointChildPivot=anchor_at[s][i], jointChildFrameOrientation=anchor_turn[s][i],
                        physicsClientId=cid)
@@ -356,15 +389,26 @@ class ApparelWorld:
 
         pybullet's saveState / restoreState; the spring torques set after the last step are taken
         back (adding their negatives leaves exact zeros), so a clip simulated after a reset gives
-        the same bytes as one simulated in a new world (tests/test_apparel_physics.py checks it).
+        the same bytes as one simulated in a new world (tests/test_apparel_physics.py and
+        tests/test_apparel_zoo.py check it). Bullet keeps its overlapping pairs and their contacts
+        (with the impulses it warm-starts from) across restoreState: moving pieces (dynamic bodies,
+        ``piece_velocity``) join the chains they touch into one solver island, whose contacts' order
+        and warm start then came from the clip before (other bytes in a reused world, simulation
+        version 13). So first every body is moved a kilometre from every other and collision
+        detection run, which drops every pair; restoreState then puts the bodies back.
         """
+        pb, cid = self.pb, self.client
         if self._pending is not None:
             self._apply_torques(-self._pending)
             self._pending = None
         if self._built_state is None:
-            self._built_state = self.pb.saveState(physicsClientId=self.client)
+            self._built_state = pb.saveState(physicsClientId=cid)
         else:
-            self.pb.restoreState(stateId=self._built_state, physicsClientId=self.client)
+            for k, body in enumerate(self.piece_ids + [c.body for c in self.chains]):
+                pb.resetBasePositionAndOrientation(body, [1000.0 * (k + 1), 0.0, 0.0], [0.0, 0.0, 0.0, 1.0],
+                                                   physicsClientId=cid)
+            pb.performCollisionDetection(physicsClientId=cid)
+            pb.restoreState(stateId=self._built_state, physicsClientId=cid)
         self._placed_pieces[:] = np.nan
         self._placed_anchors[:] = np.nan
 
