@@ -578,6 +578,31 @@ def test_quality_accelerations_peak_and_99th_percentile_by_hand(frames):
     # float32 vertices near 1 m: rounding noise of about 1e-4 m/s^2 at 30 fps
     assert q["p99_accel"] == pytest.approx(d * fps ** 2 if frames == 20 else 0.0, rel=1e-4, abs=1e-3)
     assert q["max_accel_kinematic"] < 1e-3 and q["p99_accel_kinematic"] < 1e-3
+    assert q["max_accel_kinematic_body"] < 1e-3
+
+
+def test_quality_kinematic_body_peak_by_hand():
+    # issue 33: a limb striking the apparel (a thigh at a jump's landing) moves faster than the
+    # apparel's own kinematic clip, so the quality records the body's kinematic peak too. The toy's
+    # torso (bone 0, one-hot weights, every body vertex) jumps into a drift of d per frame after frame
+    # 5 in the kinematic clip while the chain's bones stay: every torso vertex's second difference is
+    # d at frame 5, so the body's peak is d fps^2 and the apparel's stays 0 (rounding only)
+    from datagen.apparel.body_shapes import body_pieces
+    from datagen.apparel.quality import clip_quality
+    from mimicbench.kinematics import rest_transforms
+
+    rec = make_character()
+    fps, d, frames = 30.0, 0.02, 20
+    kinematic = np.repeat(rest_transforms(rec.keypoints)[None], frames, axis=0).astype(np.float32)
+    kinematic[:, 0, 4] += d * np.clip(np.arange(frames) - 5, 0, None)
+    owner = rec.weight_indices[:, 0]
+    apparel = np.asarray(rec.apparel_vertex_mask, bool)
+    assert (owner[~apparel] == 0).all()
+    pieces = body_pieces(rec.vertices, rec.keypoints, owner, ~np.asarray(rec.apparel_bone_mask, bool))
+    q = clip_quality(rec.vertices, rec.faces, rec.keypoints, rec.weights, apparel, pieces, kinematic, kinematic,
+                     fps, rec.height)
+    assert q["max_accel_kinematic_body"] == pytest.approx(d * fps ** 2, rel=1e-4)
+    assert q["max_accel_kinematic"] < 1e-3 and q["max_accel"] < 1e-3
 
 
 @pytest.mark.parametrize("piece_mass, piece_velocity", [(0.0, False), (0.0, True), (100.0, True)])
