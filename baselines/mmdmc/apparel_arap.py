@@ -102,7 +102,7 @@ def restore(predicted: np.ndarray, rest: np.ndarray, edges: np.ndarray, weight: 
         weight: pull towards the prediction, > 0 (per vertex, against each of its edges' weight 1).
         iterations: local-global steps (0: the prediction itself).
     """
-    from scipy.sparse import diags
+    from scipy.sparse import identity
     from scipy.sparse.linalg import factorized
 
     p = np.asarray(predicted, np.float64)
@@ -119,8 +119,7 @@ def restore(predicted: np.ndarray, rest: np.ndarray, edges: np.ndarray, weight: 
     if iterations <= 0 or len(e) == 0:
         return p.copy()
     f, a = p.shape[:2]
-    adj = adjacency(e, a)
-    solve = factorized((diags(np.asarray(adj.sum(1)).ravel() + weight) - adj).tocsc())
+    solve = factorized((laplacian(e, a) + weight * identity(a)).tocsc())
     q = np.empty((f, a, 3, 3))
     b = np.empty((f, a, 3))
     x = p

@@ -231,7 +231,10 @@ def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
         states, _ = dyn.states(body[None, :, torch.as_tensor(idx, device=dev)], rot[None], rest_offset[None],
                                neighbours=torch.as_tensor(neighbours, device=dev))
         if dyn.arap > 0:
-            kept = restore(states[0].cpu().numpy(), prep.rest_norm[idx], edges_among(prep.edges, idx), dyn.arap,
+            key = ("apparel_edges", idx.tobytes())  # the mesh edges among the apparel, once per character and mask
+            if key not in prep.cache:
+                prep.cache[key] = edges_among(prep.edges, idx)
+            kept = restore(states[0].cpu().numpy(), prep.rest_norm[idx], prep.cache[key], dyn.arap,
                            dyn.arap_iterations)
             return torch.as_tensor(kept, dtype=states.dtype, device=dev)
         return states[0]
