@@ -8,6 +8,8 @@ import numpy as np
 from schemas.columns import Column
 
 TABLE = "rigid_bodies"
+# the tables of a character's own physics (an MMD file): stages that keep its bones keep them too
+PHYSICS_TABLES = (TABLE, "joints")
 SHAPES = ("sphere", "box", "capsule")
 MODES = ("static", "dynamic", "dynamic_bone")
 

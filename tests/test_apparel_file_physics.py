@@ -317,3 +317,39 @@ def test_a_struck_file_chain_is_resettled_at_rest_on_its_anchor():
     assert struck.transforms[n + 5, 1, 5] < PIVOT[1] - 0.02  # struck, it swings down again from rest
     with pytest.raises(SimulationExploded, match=r"^a link reached \d+\.\d m/s at frame 12 \(bound 25 m/s\)$"):
         run(n, 0)
+
+
+@pytest.mark.slow
+def test_gene_keeps_its_file_physics_through_resample_and_retarget(assets_dir, tmp_path):
+    """A user's path: an MMD model ingested, resampled, given another character's clip by
+    ``datagen retarget`` and simulated. The file's 87 bodies and 92 joints travel with the
+    character through both stages (without them ``datagen apparel`` fell back to the zoo's chain
+    defaults on Gene's apparel bones, and a dance exploded there), and the retargeted clip is
+    simulated with the file's physics."""
+    from datagen.zoo.build import build_character
+    from datagen.zoo.plan import plan_zoo
+    from mimicbench.cli import main
+    from schemas.shards import read_records, write_records
+
+    spec = [s for s in plan_zoo(12, seed=0) if s.category == "humanoid"][0]
+    walker = build_character(spec, "train", 1, 24)
+    write_records(tmp_path / "walk", "characters", [walker.record], "train")
+    write_records(tmp_path / "walk", "motions", walker.motions[:1], "train")
+    assert main(["datagen", "ingest", str(assets_dir / "mmd" / "Gene.pmx"), "--out", str(tmp_path / "gene"),
+                 "--quiet"]) == 0
+    assert main(["datagen", "resample", str(tmp_path / "gene"), str(tmp_path / "g5k"), "--quiet"]) == 0
+    assert main(["datagen", "retarget", str(tmp_path / "walk"), str(tmp_path / "g5k"), str(tmp_path / "moved"),
+                 "--quiet"]) == 0
+    source = {t: read_records(tmp_path / "gene", t) for t in ("rigid_bodies", "joints")}
+    for folder in ("g5k", "moved"):
+        for table, rows in source.items():
+            copied = read_records(tmp_path / folder, table)
+            assert [(r.character_id, r.name, r.mode if table == "rigid_bodies" else r.kind) for r in copied] == \
+                [(r.character_id, r.name, r.mode if table == "rigid_bodies" else r.kind) for r in rows], (folder, table)
+    assert len(source["rigid_bodies"]) == 87 and len(source["joints"]) == 92
+    assert main(["datagen", "apparel", str(tmp_path / "moved"), str(tmp_path / "sim"), "--relax-frames", "5",
+                 "--quiet"]) == 0
+    (c,) = read_records(tmp_path / "sim", "characters")
+    ((clip, q),) = c.meta["apparel"]["clips"].items()
+    assert clip == f"{walker.record.character_id}/{walker.motions[0].name}"
+    assert q["physics"] == "file" and q["links"] == 62 and q["resettles"] == 0

@@ -22,10 +22,11 @@ from datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_
 from mimicbench.engines import Engine
 from schemas.errors import UserError
 from schemas.motion import SIM_SUFFIX
+from schemas.rigid_body import PHYSICS_TABLES
 from schemas.shards import has_table, read_records, splits_of
 from schemas.status import StatusRecord
 
-FILE_PHYSICS_TABLES = ("rigid_bodies", "joints")
+FILE_PHYSICS_TABLES = PHYSICS_TABLES
 
 
 def is_simulated(motion) -> bool:

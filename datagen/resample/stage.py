@@ -21,6 +21,7 @@ from datagen.stage_runner import Stage, StageRun, run_stage, summarize_statuses
 from schemas.errors import DatasetError
 from schemas.fingerprint import fingerprint_mismatch
 from schemas.shard_stream import checked_parquet_file, iter_records, iter_row_groups, read_row_group
+from schemas.rigid_body import PHYSICS_TABLES
 from schemas.shards import readable_entries, remove_split, splits_of
 from schemas.status import StatusRecord
 from schemas.tables import ROW_GROUP_SIZE, rows_per_shard
@@ -47,7 +48,7 @@ def _one(item, faces, backend):
 
 
 STAGE = Stage("resample", ResampleParams, inputs=("characters", "motions"), item=_one,
-              outputs=("characters", "status"), copies=("motions", "pairs"))
+              outputs=("characters", "status"), copies=("motions", "pairs", *PHYSICS_TABLES))
 
 
 def _reusable_rows(run: StageRun) -> tuple[dict, list[str]]:

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 from datagen.retarget.retarget import retarget_clip
 from datagen.retarget.roles import humanoid_roles
 from datagen.stage_runner import Stage, StageRun
-from schemas.shards import read_records
+from schemas.rigid_body import PHYSICS_TABLES
+from schemas.shards import has_table, read_records
 from schemas.status import StatusRecord
 
 MIN_ROLES = 8
@@ -25,15 +26,28 @@ class RetargetParams:
 
 
 STAGE = Stage("retarget", RetargetParams, inputs=("characters", "motions"), item=retarget_clip,
-              outputs=("characters", "motions", "status"), out_name="OUT folder")
+              outputs=("characters", "motions", "status", *PHYSICS_TABLES), out_name="OUT folder")
+
+
+def _write_physics(run: StageRun, characters_dir, targets: list) -> None:
+    """The ``targets``' own rigid bodies and joints (an MMD file's physics) from ``characters_dir``,
+    in their characters' splits, so that ``datagen apparel`` simulates a retargeted clip with the
+    file's physics; nothing when ``characters_dir`` has none."""
+    split = {t.character_id: t.split for t in targets}
+    for table in PHYSICS_TABLES:
+        if not has_table(characters_dir, table):
+            continue
+        rows = [r for r in read_records(characters_dir, table) if r.character_id in split]
+        for sp in sorted({split[r.character_id] for r in rows}):
+            run.write(table, [r for r in rows if split[r.character_id] == sp], sp)
 
 
 def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", targets: str = "*",
                       progress: bool = True) -> dict:
     """Retarget the clips of ``motions_dir``'s characters matching the glob ``sources`` onto those of
     ``characters_dir`` matching ``targets`` with at least :data:`MIN_ROLES` humanoid bone roles, into
-    ``out_dir``: the targets, the clips (``<target>/<source>/<clip>``), a status row per pair and
-    ``retarget_report.json`` (mapped and unmapped bones per pair). Returns a summary."""
+    ``out_dir``: the targets (with their own rigid bodies and joints, an MMD file's physics), the
+    clips (``<target>/<source>/<clip>``), a status row per pair and ``retarget_report.json`` (mapped and unmapped bones per pair). Returns a summary."""
     from tqdm.auto import tqdm
 
     start = time.perf_counter()
@@ -68,6 +82,7 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
     run.write_splits("characters", chars)
     run.write_splits("motions", out_motions)
     run.write_status(statuses)
+    _write_physics(run, characters_dir, chars)
     (run.out_dir / "retarget_report.json").write_text(json.dumps(reports, ensure_ascii=False, indent=1))
     run.finish()
     return {"pairs": len(pairs), "clips": len(out_motions), "characters": len(chars),
