@@ -37,11 +37,12 @@ def _pendulum(joint, extra=(), bob_mask=0xFFFF, damping=0.5):
     return bodies + list(extra), [joint]
 
 
-def _run(bodies, joints, seconds, pose_of=None, gravity=9.8):
+def _run(bodies, joints, seconds, pose_of=None, gravity=9.8, contact_frequency=0.0):
     """Bob centre (3,) after ``seconds`` at 240 Hz; bones: 0 at the pivot, 1 (the bob's) at the bob."""
     keypoints = np.array([PIVOT, PIVOT + [ARM, 0, 0]])
     rest = rest_transforms(keypoints).astype(np.float64)
-    with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08, gravity=gravity) as world:
+    with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1 / 240, 30, 0.08, gravity=gravity,
+                   contact_frequency=contact_frequency) as world:
         for i in range(int(seconds * 240)):
             world.set_body_pose(rest if pose_of is None else pose_of(i / 240, rest))
             world.step()
@@ -78,6 +79,24 @@ def test_the_mask_decides_whether_the_bob_lands_on_the_shelf(bob_mask, shelf_mas
         assert bob[0] > 0.2 and bob[1] > 0.55  # stopped on the shelf
     else:
         assert abs(bob[0]) < 0.05 and abs(bob[1] - (PIVOT[1] - ARM)) < 0.01  # hangs below the pivot
+
+
+@pytest.mark.parametrize("frequency", [0.0, 30.0, 45.0])
+def test_a_contact_spring_lets_a_resting_bob_sink_g_over_w_squared(frequency):
+    # the bob, released horizontal, rests on a static shelf whose top touches its bottom; the
+    # contact carries its whole weight (the contact point is under its centre, at the same lever
+    # arm), so a spring of stiffness m w^2 is pressed g / w^2 deep (10.9 mm at 30 rad/s, 4.8 at
+    # 45); Bullet's rigid contact lets it in by its slop only
+    top = PIVOT[1] - 0.05
+    shelf = _body(2, "box", [0.1, 0.02, 0.2], [ARM, top - 0.02, 0.0], "static", group=2)
+    bodies, joints = _pendulum(_joint(0, 1, *FREE), [shelf], damping=0.9)
+    bob = _run(bodies, joints, 3.0, contact_frequency=frequency)
+    depth = top - (bob[1] - 0.05)
+    if frequency == 0:
+        assert depth < 0.002
+    else:
+        assert depth == pytest.approx(9.8 / frequency ** 2, rel=0.05)  # measured 10.6 and 4.72 mm
+    assert np.linalg.norm(bob - PIVOT) == pytest.approx(ARM, abs=1e-3)
 
 
 @pytest.mark.parametrize("lo, hi, reverse, expected", [(-0.3, 0.1, False, -0.3), (-0.1, 0.6, False, -0.1),

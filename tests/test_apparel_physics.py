@@ -302,6 +302,8 @@ def test_params_file_overrides_and_errors(tmp_path):
     assert p.simulation.max_resettles == 5  # the default
     assert params_from_json({"simulation": {"max_resettles": 0}}).simulation.max_resettles == 0
     assert params_from_json({"simulation": {"max_resettles": 3.0}}).simulation.max_resettles == 3
+    assert p.simulation.file_contact_frequency == 0.0  # an MMD file's rigid contacts by default
+    assert params_from_json({"simulation": {"file_contact_frequency": 75}}).simulation.file_contact_frequency == 75.0
     assert p.for_kind("sleeve").link_mass == pytest.approx(0.2)  # unknown kinds use the overridden default
     assert p.for_kind("hair").link_mass == pytest.approx(ApparelParams().for_kind("hair").link_mass)
     for bad, msg in (({"kinds": {"hair": {"stiffnes": 1}}}, "unknown field 'stiffnes'"),
@@ -309,6 +311,7 @@ def test_params_file_overrides_and_errors(tmp_path):
                      ({"physics": {}}, "unknown section"),
                      ({"kinds": {"hair": {"collide_body": 1}}}, "expected true or false"),
                      ({"simulation": {"max_resettles": -1}}, r"max_resettles: expected a number >= 0, got -1"),
+                     ({"simulation": {"file_contact_frequency": -5}}, r"file_contact_frequency: expected a number >= 0"),
                      ({"simulation": {"max_resettles": 2.5}}, r"max_resettles: expected a whole number, got 2.5")):
         f.write_text(json.dumps(bad))
         with pytest.raises(UserError, match=msg):

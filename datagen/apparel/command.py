@@ -38,7 +38,7 @@ def register(subparsers) -> None:
         "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency, "
         "contact_frequency, contact_shell; "
         "simulation: gravity, max_speed, solver_iterations, anchor_force, contact_erp, max_joint_velocity, "
-        "constraint_erp, piece_mass, piece_velocity, max_resettles (datagen/apparel/params.py).",
+        "constraint_erp, piece_mass, piece_velocity, max_resettles, file_contact_frequency (datagen/apparel/params.py).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("in_dataset")
     p.add_argument("out_dataset")

@@ -51,13 +51,18 @@ class FileWorld:
         metres_per_unit: the file's unit (for spring stiffness), metres.
         gravity: m/s^2 along -Y. apparel: (K,) bool, the only bones :meth:`clip_out` changes (None: all).
         max_speed: m/s, a faster body is an explosion.
+        contact_frequency: rad/s; above 0 every dynamic body touches others through a critically
+            damped contact spring of this frequency (stiffness m w^2, damping 2 m w, m its mass: it
+            sinks g / w^2 under its own weight) instead of Bullet's rigid contacts
+            (:attr:`~datagen.apparel.params.SimParams.file_contact_frequency`).
     Use as a context manager (the client is disconnected on exit).
     """
 
     def __init__(self, bodies: list[RigidBodyRecord], joints: list[JointRecord], keypoints: np.ndarray,
                  parents: np.ndarray, dt: float, solver_iterations: int = 30, metres_per_unit: float = 0.08,
                  gravity: float = FILE_GRAVITY, apparel: np.ndarray | None = None,
-                 max_speed: float = SimParams.max_speed):
+                 max_speed: float = SimParams.max_speed,
+                 contact_frequency: float = SimParams.file_contact_frequency):
         import pybullet
 
         self.pb, pb = pybullet, pybullet
@@ -103,6 +108,10 @@ class FileWorld:
                                                    physicsClientId=cid)
                     pb.changeDynamics(mb, li, lateralFriction=float(rb.friction), restitution=float(rb.restitution),
                                       physicsClientId=cid)
+                    if contact_frequency > 0:
+                        w, mass = float(contact_frequency), pb.getDynamicsInfo(mb, li, physicsClientId=cid)[0]
+                        pb.changeDynamics(mb, li, contactStiffness=mass * w * w, contactDamping=2.0 * mass * w,
+                                          physicsClientId=cid)
                     if not build.fixed[li]:
                         pb.resetJointStateMultiDof(mb, li, build.rest_q[li], physicsClientId=cid)
                         gain, torque = build.gains[li]
@@ -261,13 +270,14 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     (:mod:`datagen.apparel.quality`, plus ``physics: "file"`` and the scene's counts).
 
     ``sim``: :class:`~datagen.apparel.params.SimParams` (solver iterations, speed bound,
-    re-settles; gravity is :data:`FILE_GRAVITY`).
+    re-settles, ``file_contact_frequency``; gravity is :data:`FILE_GRAVITY`).
     """
     steps = substeps_for(physics_fps, motion.fps)
     unit = float(((record.meta or {}).get("mmd") or {}).get("metres_per_unit", 0.08))
     apparel_bones = np.asarray(apparel_bones, bool)
     with FileWorld(bodies, joints, record.keypoints, record.parents, 1.0 / (motion.fps * steps),
-                   sim.solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed) as world:
+                   sim.solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed,
+                   contact_frequency=sim.file_contact_frequency) as world:
         simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles)
         plan = world.plan
     pieces = body_pieces(record.vertices, record.keypoints, dominant_bone(record.weights, record.num_joints),

@@ -99,7 +99,14 @@ class SimParams:
     limb's, and an arm sweeping round in a spin struck the cape it carried (issue 33).
     ``max_resettles`` (an integer >= 0): frames of a clip at which chains that escaped the speed
     bound (or went NaN) may be put back at rest on their anchors before the clip fails
-    (:mod:`datagen.apparel.simulate`); 0 fails the clip at its first escape (simulation version 10)."""
+    (:mod:`datagen.apparel.simulate`); 0 fails the clip at its first escape (simulation version 10).
+    ``file_contact_frequency`` (rad/s, >= 0): for a character simulated with its own file's bodies
+    (an MMD model, :mod:`datagen.apparel.file_physics`), 0 keeps Bullet's rigid contacts, as MMD's
+    players do; above 0 each dynamic body touches others through a critically damped contact spring
+    of that frequency (it sinks g / w^2 under its own weight, 1.7 mm at 75). On Gene with motion
+    capture, hair resting on the shoulders' bodies shook under rigid contacts (README, "Real motions
+    on Gene"): 75 took the peaks from 27-39 to 14-17 m/s^2, but Gene's `stand` let 0.8 % more of its
+    apparel into the body, so the default stays 0."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -111,6 +118,7 @@ class SimParams:
     piece_mass: float = 0.0
     piece_velocity: bool = True
     max_resettles: int = 5
+    file_contact_frequency: float = 0.0
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -132,6 +140,7 @@ _RANGES = {  # field: (low, high, low_open)
     "contact_frequency": (0.0, None, False), "contact_shell": (0.0, None, False), "piece_mass": (0.0, None, False),
     "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True), "contact_erp": (0.0, 1.0, True),
     "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True), "max_resettles": (0, None, False),
+    "file_contact_frequency": (0.0, None, False),
 }
 
 
