@@ -26,8 +26,6 @@ from schemas.rigid_body import PHYSICS_TABLES
 from schemas.shards import has_table, read_records, splits_of
 from schemas.status import StatusRecord
 
-FILE_PHYSICS_TABLES = PHYSICS_TABLES
-
 
 def is_simulated(motion) -> bool:
     """True for a motion this stage wrote (name ``<clip>@sim``)."""
@@ -55,8 +53,8 @@ class ApparelStageParams:
     apparel_bones: list | None = None
 
 
-STAGE = Stage("apparel", ApparelStageParams, inputs=("characters", "motions", *FILE_PHYSICS_TABLES),
-              item=_simulate_one, outputs=("characters", "motions", "status"), copies=FILE_PHYSICS_TABLES,
+STAGE = Stage("apparel", ApparelStageParams, inputs=("characters", "motions", *PHYSICS_TABLES),
+              item=_simulate_one, outputs=("characters", "motions", "status"), copies=PHYSICS_TABLES,
               made_by="motions", title="the apparel stage")
 
 

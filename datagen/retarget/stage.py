@@ -31,14 +31,15 @@ STAGE = Stage("retarget", RetargetParams, inputs=("characters", "motions"), item
 
 def _write_physics(run: StageRun, characters_dir, targets: list) -> None:
     """The ``targets``' own rigid bodies and joints (an MMD file's physics) from ``characters_dir``,
-    in their characters' splits, so that ``datagen apparel`` simulates a retargeted clip with the
-    file's physics; nothing when ``characters_dir`` has none."""
+    in their characters' splits (a split without any: an empty shard, replacing an earlier run's),
+    so that ``datagen apparel`` simulates a retargeted clip with the file's physics; no table when
+    ``characters_dir`` has none."""
     split = {t.character_id: t.split for t in targets}
     for table in PHYSICS_TABLES:
         if not has_table(characters_dir, table):
             continue
         rows = [r for r in read_records(characters_dir, table) if r.character_id in split]
-        for sp in sorted({split[r.character_id] for r in rows}):
+        for sp in sorted(set(split.values())):
             run.write(table, [r for r in rows if split[r.character_id] == sp], sp)
 
 
@@ -47,7 +48,8 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
     """Retarget the clips of ``motions_dir``'s characters matching the glob ``sources`` onto those of
     ``characters_dir`` matching ``targets`` with at least :data:`MIN_ROLES` humanoid bone roles, into
     ``out_dir``: the targets (with their own rigid bodies and joints, an MMD file's physics), the
-    clips (``<target>/<source>/<clip>``), a status row per pair and ``retarget_report.json`` (mapped and unmapped bones per pair). Returns a summary."""
+    clips (``<target>/<source>/<clip>``), a status row per pair and ``retarget_report.json``
+    (mapped and unmapped bones per pair). Returns a summary."""
     from tqdm.auto import tqdm
 
     start = time.perf_counter()
