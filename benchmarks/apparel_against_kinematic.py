@@ -6,8 +6,8 @@ real motions much of the penetration is the skinned clip's own (Gene's cloak ins
 pieces in poses far from its rest), so this prints, per clip of OUT (a ``datagen apparel``
 output folder), the stage's figures beside :func:`~datagen.apparel.quality.clip_quality` of the
 kinematic clip taken as the simulated one (same body pieces, same apparel vertices), and for
-each folder the medians and the clips over 3x the larger of the apparel's and the body's
-kinematic peaks. A second folder (the same clips simulated with other ``--params``) adds its
+each folder the medians and the clips over the jitter bound (3x the larger of the apparel's
+kinematic peak and that of the body it touches, :func:`~datagen.apparel.quality.over_jitter_bound`). A second folder (the same clips simulated with other ``--params``) adds its
 figures beside the first's.
 
     PYTHONPATH=. python benchmarks/apparel_against_kinematic.py OUT [OTHER_OUT]
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from datagen.apparel.body_shapes import body_pieces
-from datagen.apparel.quality import clip_quality
+from datagen.apparel.quality import clip_quality, over_jitter_bound
 from datagen.apparel.selection import dominant_bone
 from datagen.apparel.stage import _apparel_masks
 from schemas.motion import SIM_SUFFIX
@@ -55,11 +55,6 @@ def kinematic(out: Path, wanted: set[str]) -> dict[str, dict]:
     return result
 
 
-def over_3x(q: dict) -> bool:
-    """Peak apparel acceleration above 3x the larger of the apparel's and the body's kinematic peaks."""
-    return q["max_accel"] > 3.0 * max(q["max_accel_kinematic"], q["max_accel_kinematic_body"])
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out", type=Path, help="a datagen apparel output folder")
@@ -74,7 +69,8 @@ def main() -> None:
         print(clip, kin[clip]["frames"], *cells)
     for name, r in zip(("out", "other"), runs):
         medians = " ".join(f"{k} {np.median([q[k] for q in r.values()]):.2f}" for k in SHOWN)
-        print(f"{name}: {len(r)} clips, median {medians}; over 3x {sum(over_3x(q) for q in r.values())}, "
+        print(f"{name}: {len(r)} clips, median {medians}; over the jitter bound "
+              f"{sum(over_jitter_bound(q) for q in r.values())}, "
               f"re-settles {sum(q['resettles'] for q in r.values())}")
     print("kinematic: median " + " ".join(f"{k} {np.median([q[k] for q in kin.values()]):.2f}" for k in SHOWN[1:]))
 

@@ -272,7 +272,8 @@ def test_urdf_matches_the_chain():
 
 def test_links_collide_as_the_hull_of_their_vertices(tmp_path):
     rec = make_character()
-    chain = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, ApparelParams()).chains[0]
+    whole = params_from_json({"kinds": {"skirt": {"root_hull_from": 0.0}}})  # the skirt's root keeps its whole hull
+    chain = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, whole).chains[0]
     owner = rec.weight_indices[:, 0]  # one-hot toy weights
     for link in chain.links:
         own = rec.vertices[owner == link.bone].astype(np.float64) - link.head
@@ -608,6 +609,36 @@ def test_quality_kinematic_body_peak_by_hand():
     assert q["max_accel_kinematic"] < 1e-3 and q["max_accel"] < 1e-3
 
 
+@pytest.mark.parametrize("axis, touches", [(4, True), (6, False)])
+def test_quality_touching_peak_counts_only_limbs_that_reach_the_apparel(axis, touches):
+    # the toy's torso box (x in [-0.15, 0.15], z in [-0.1, 0.1]) is 8 cm from the chain's cylinders
+    # (x in [0.23, 0.27], 2 cm radius) at rest, farther than TOUCH_SHARE x height (1.6 cm). It jumps
+    # into a drift of d = 2 cm per frame after frame 5: along +X it runs through the chain (every torso
+    # vertex accelerates by d fps^2 at frame 5 and some come within reach), along +Z it passes beside
+    # it (its nearest vertex stays 8 cm off in X), so the touching peak is d fps^2 or 0 while the
+    # body's peak is d fps^2 either way; a strike's peak over 3x the apparel's is jitter only when it
+    # is also over 3x the touching limbs' peak
+    from datagen.apparel.body_shapes import body_pieces
+    from datagen.apparel.quality import TOUCH_SHARE, clip_quality, over_jitter_bound
+    from mimicbench.kinematics import rest_transforms
+
+    rec = make_character()
+    assert TOUCH_SHARE * rec.height < 0.08
+    fps, d, frames = 30.0, 0.02, 20
+    kinematic = np.repeat(rest_transforms(rec.keypoints)[None], frames, axis=0).astype(np.float32)
+    kinematic[:, 0, axis] += d * np.clip(np.arange(frames) - 5, 0, None)
+    owner = rec.weight_indices[:, 0]
+    apparel = np.asarray(rec.apparel_vertex_mask, bool)
+    pieces = body_pieces(rec.vertices, rec.keypoints, owner, ~np.asarray(rec.apparel_bone_mask, bool))
+    q = clip_quality(rec.vertices, rec.faces, rec.keypoints, rec.weights, apparel, pieces, kinematic, kinematic,
+                     fps, rec.height)
+    assert q["max_accel_kinematic_body"] == pytest.approx(d * fps ** 2, rel=1e-4)
+    assert q["max_accel_kinematic_touching"] == pytest.approx(d * fps ** 2 if touches else 0.0, rel=1e-4, abs=1e-3)
+    struck = q | {"max_accel": 2.0 * d * fps ** 2, "max_accel_kinematic": 1.0}  # a strike twice the limb's peak
+    assert over_jitter_bound(struck) is (not touches)
+    assert over_jitter_bound(struck | {"max_accel": 4.0 * d * fps ** 2}) is True
+
+
 @pytest.mark.parametrize("piece_mass, piece_velocity", [(0.0, False), (0.0, True), (100.0, True)])
 def test_body_pieces_with_mass_are_carried_at_the_limbs_speed(piece_mass, piece_velocity):
     # the torso slides along +X at 0.5 m/s (a clip of 240 Hz steps): a static piece (piece_velocity
@@ -792,3 +823,39 @@ def test_a_state_still_bad_right_after_resettling_fails_the_clip():
         with pytest.raises(SimulationExploded, match=r"^a link reached \d+\.\d m/s at frame 7 \(bound 25 m/s\) right "
                                                      r"after re-settling its chains, 0 re-settles before \(max_resettles 5\)$"):
             simulate_clip(Unfixed(world, world.chains[0].body, [7], [40.0, 0, 0]), clip, 8, 0)
+
+
+def test_cut_near_pivot_clips_the_hull_at_a_share_of_the_link():
+    # a link 10 cm long down -Y whose hull is a 2 x 2 cm box (its 8 corners, at 0 and 10 cm along the
+    # bone): a share 0.3 clips it at 3 cm, the box from 3 to 10 cm (8 corners: 4 kept, 4 where the
+    # side edges cross the plane); share 0 keeps the hull as it is, as does a share whose part spans
+    # no volume (1: the bottom face alone)
+    from datagen.apparel.chains import cut_near_pivot
+
+    axis, length = np.array([0.0, -1.0, 0.0]), 0.1
+    hull = np.array([[x, -y, z] for y in (0.0, 0.1) for x in (-0.01, 0.01) for z in (-0.01, 0.01)])
+    cut = cut_near_pivot(hull, axis, length, 0.3)
+    expected = np.array([[x, -y, z] for y in (0.03, 0.1) for x in (-0.01, 0.01) for z in (-0.01, 0.01)])
+    assert len(cut) == 8
+    assert np.abs(np.sort(cut.round(9), axis=0) - np.sort(expected, axis=0)).max() < 1e-12
+    assert cut_near_pivot(hull, axis, length, 0.0) is hull
+    assert cut_near_pivot(hull, axis, length, 1.0) is hull
+    assert cut_near_pivot(None, axis, length, 0.3) is None
+
+
+def test_skirt_roots_collide_only_beyond_root_hull_from():
+    # the skirt kind's root link keeps the hull points 30 % of its length or more from the hip pivot
+    # (simulation version 14); its other links, and every link of a kind with root_hull_from 0,
+    # keep their whole hull
+    rec = make_character()
+    cut = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, ApparelParams()).chains
+    whole = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask,
+                              params_from_json({"kinds": {"skirt": {"root_hull_from": 0.0}}})).chains
+    assert ApparelParams().for_kind("skirt").root_hull_from == 0.3 and ApparelParams().for_kind("hair").root_hull_from == 0
+    (chain,), (full,) = cut, whole
+    assert chain.kind == "skirt" and chain.link_parents[0] == -1
+    root, root_full = chain.links[0], full.links[0]
+    assert (root_full.hull @ root_full.axis).min() < 0.3 * root_full.length
+    assert (root.hull @ root.axis).min() >= 0.3 * root.length - 1e-9
+    for a, b in zip(chain.links[1:], full.links[1:]):
+        assert np.array_equal(a.hull, b.hull)

@@ -77,7 +77,8 @@ def body_pieces(vertices: np.ndarray, keypoints: np.ndarray, owner: np.ndarray, 
 
 
 def points_inside(pieces: list[BodyPiece], transforms: np.ndarray, points: np.ndarray, tol: float = 0.0) -> np.ndarray:
-    """(..., P) bool: posed points inside any posed piece (deeper than ``tol`` metres).
+    """(..., P) bool: posed points inside any posed piece (deeper than ``tol`` metres; a negative
+    ``tol`` also takes points within ``-tol`` outside it).
 
     Args:
         transforms: (..., K, 7) poses (q_w, q_x, q_y, q_z, t) of every bone.
@@ -91,7 +92,8 @@ def points_inside(pieces: list[BodyPiece], transforms: np.ndarray, points: np.nd
         t = transforms[..., piece.bone, 4:]
         centre = t + quat_apply(q, piece.centre)  # (..., 3)
         offset = points - centre[..., None, :]
-        near = np.nonzero(np.einsum("...pc,...pc->...p", offset, offset) < piece.radius ** 2)
+        reach = piece.radius + max(-tol, 0.0)
+        near = np.nonzero(np.einsum("...pc,...pc->...p", offset, offset) < reach ** 2)
         if not len(near[0]):
             continue
         qn = np.broadcast_to(q[..., None, :], points.shape[:-1] + (4,))[near]

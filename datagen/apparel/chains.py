@@ -76,6 +76,24 @@ def shell(hull: np.ndarray | None, axis: np.ndarray, length: float, thickness: f
     return points + thickness * out / np.maximum(distance, 1e-12)
 
 
+def cut_near_pivot(hull: np.ndarray | None, axis: np.ndarray, length: float, share: float) -> np.ndarray | None:
+    """The part of the convex hull of ``hull`` (P, 3 points relative to a link's head) at least
+    ``share`` x ``length`` metres along unit ``axis`` from the head (the pivot): the hull of its
+    points past that plane and of the points where segments between points on either side cross
+    it (the hull clipped by the plane); ``hull`` unchanged when ``share`` is 0 or the part spans
+    no volume."""
+    if hull is None or share <= 0:
+        return hull
+    points = np.asarray(hull, np.float64)
+    along = points @ axis - share * length  # (P,) signed distance past the plane
+    beyond, before = points[along >= 0], points[along < 0]
+    a, b = along[along >= 0][:, None], along[along < 0][None, :]
+    t = (a / (a - b))[..., None]  # (B, A, 1) where each segment from a kept point crosses the plane
+    crossings = (beyond[:, None] + t * (before[None] - beyond[:, None])).reshape(-1, 3)
+    found = hull_points(np.concatenate([beyond, crossings]))
+    return hull if found is None else found[0]
+
+
 def _gravity_torque(i: int, link_parents: list[int], heads, centres, masses, gravity: float) -> float:
     """Torque (N m) the links at and below link i exert about its joint when held horizontally."""
     below = {i}
@@ -114,6 +132,8 @@ def build_chains(keypoints: np.ndarray, parents: np.ndarray, bone_names: list[st
             axis, length, spread, hull = _link_geometry(b, bones, parents, keypoints, vertices, owner, height)
             if parent >= 0 and cp.contact_frequency > 0:
                 hull = shell(hull, axis, length, cp.contact_shell)
+            if parent < 0:
+                hull = cut_near_pivot(hull, axis, length, cp.root_hull_from)
             links.append(LinkSpec(bone=b, head=keypoints[b].copy(), axis=axis, length=length,
                                   radius=spread * cp.radius_scale, mass=cp.link_mass,
                                   linear_damping=cp.linear_damping, angular_damping=cp.angular_damping,

@@ -35,7 +35,7 @@ def register(subparsers) -> None:
         "--params FILE overrides parameters per apparel kind (skirt, hair, ponytail, cape, coat_tail, default):\n"
         '  {"simulation": {"max_speed": 25}, "kinds": {"hair": {"stiffness": 0.05, "swing_limit": 0.6}}}\n'
         "fields: link_mass, stiffness, damping, strength, linear_damping, angular_damping, swing_limit, "
-        "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency, "
+        "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency, root_hull_from, "
         "contact_frequency, contact_shell; "
         "simulation: gravity, max_speed, solver_iterations, anchor_force, contact_erp, max_joint_velocity, "
         "constraint_erp, piece_mass, piece_velocity, max_resettles, file_contact_frequency (datagen/apparel/params.py).",
@@ -83,6 +83,12 @@ def run(args) -> int:
           f"characters with apparel in {s['seconds']:.1f} s; apparel inside the body {fmt(s['inside_pct_mean'])} % "
           f"(new {fmt(s['new_inside_pct_mean'])} %), secondary motion {fmt(s['secondary_motion_pct_mean'])} % of "
           f"height, max edge stretch {fmt(s['max_edge_stretch'])} -> {args.out_dataset}")
+    if s["over_jitter_bound"]:
+        n = len(s["over_jitter_bound"])
+        print(f"{n} {'clip peaks' if n == 1 else 'clips peak'} above 3x the acceleration of the kinematic apparel and "
+              f"of the body that touches it (jitter, not a limb's strike): {', '.join(s['over_jitter_bound'][:5])}"
+              f"{' ...' if len(s['over_jitter_bound']) > 5 else ''}; their quality is in the characters' "
+              f"meta['apparel']")
     share = s["failed"] / max(1, s["simulated"] + s["reused"] + s["failed"])
     if s["failed"]:
         print(f"{s['failed']} failed clips ({100 * share:.1f} % of the clips, --max-failed "

@@ -19,6 +19,12 @@ posed by linear blend skinning with the stored transforms:
   2x and 4x the physics rate) that the apparel's own kinematic peak cannot show (the skinned hem
   passes through the thigh), so ``max_accel`` over 3x ``max_accel_kinematic`` alone does not tell
   jitter from a strike (issue 33: seed-711 jumps 54-81 m/s^2 against 16.6 apparel and 105-130 body).
+- ``max_accel_kinematic_touching``: the same over the body vertices of the body pieces (each
+  vertex's piece is its dominant bone's) that some simulated apparel vertex comes within
+  :data:`TOUCH_SHARE` of the height of at some frame: the limbs that can strike the apparel (a hand
+  waving far from a skirt does not count), m/s^2; 0 when no piece is touched.
+  :func:`over_jitter_bound` compares ``max_accel`` with 3x the larger of this and
+  ``max_accel_kinematic``: the jitter test of issue 33.
 - ``secondary_motion_pct`` (mean over frames) and ``secondary_motion_max_pct`` (worst frame):
   mean distance of apparel vertices from their kinematic positions, percent of height.
 
@@ -32,9 +38,29 @@ from __future__ import annotations
 import numpy as np
 
 from datagen.apparel.body_shapes import BodyPiece, points_inside
+from datagen.apparel.selection import dominant_bone
 from mimicbench.kinematics import rest_transforms
 from mimicbench.mesh import edge_lengths, unique_edges
 from mimicbench.skinning import linear_blend_skinning
+
+
+TOUCH_SHARE = 0.02  # an apparel vertex this close to a body piece (share of height) touches it
+JITTER_RATIO = 3.0  # issue 33: a clip's peak over this many times its kinematic peak is jitter
+
+
+def over_jitter_bound(quality: dict) -> bool:
+    """True when a clip's ``max_accel`` is above :data:`JITTER_RATIO` times the larger of its
+    apparel's kinematic peak and the kinematic peak of the body vertices that touch its apparel
+    (a limb's strike is physical; a peak above both is the simulation's own). Qualities recorded
+    before ``max_accel_kinematic_touching`` existed are judged by the apparel's peak alone."""
+    bound = max(quality["max_accel_kinematic"], quality.get("max_accel_kinematic_touching", 0.0))
+    return quality["max_accel"] > JITTER_RATIO * bound
+
+
+def _touched_bones(pieces: list[BodyPiece], transforms: np.ndarray, points: np.ndarray, reach: float) -> list[int]:
+    """The bones of the pieces that any of ``points`` (F, A, 3) comes within ``reach`` metres of
+    (or inside) at some frame of the poses ``transforms`` (F, K, 7)."""
+    return [piece.bone for piece in pieces if points_inside([piece], transforms, points, tol=-reach).any()]
 
 
 def _accel(posed: np.ndarray, fps: float) -> np.ndarray:
@@ -83,11 +109,16 @@ def clip_quality(vertices, faces, keypoints, weights, apparel_mask, pieces: list
     moved = np.linalg.norm(sim - kin, axis=-1).mean(axis=1) / height * 100.0
     peak, p99 = _peak_and_p99(_accel(sim, fps))
     peak_kinematic, p99_kinematic = _peak_and_p99(_accel(kin, fps))
-    peak_body = _peak_and_p99(_accel(kin_body, fps))[0]
+    acc_body = _accel(kin_body, fps)  # (F - 2, B)
+    peak_body = _peak_and_p99(acc_body)[0]
+    owner = dominant_bone(weights, len(keypoints))[~mask]
+    touching = np.isin(owner, _touched_bones(pieces, np.asarray(simulated, np.float64), sim, TOUCH_SHARE * height))
+    peak_touching = _peak_and_p99(acc_body[:, touching])[0]
     return {
         "inside_pct": float(inside.mean() * 100.0), "inside_rest_pct": float(inside_rest.mean() * 100.0),
         "new_inside_pct": float(new_inside.mean()), "new_inside_max_pct": float(new_inside.max()),
         "max_edge_stretch": stretch, "max_accel": peak, "max_accel_kinematic": peak_kinematic,
         "p99_accel": p99, "p99_accel_kinematic": p99_kinematic, "max_accel_kinematic_body": peak_body,
+        "max_accel_kinematic_touching": peak_touching,
         "secondary_motion_pct": float(moved.mean()), "secondary_motion_max_pct": float(moved.max()),
     }

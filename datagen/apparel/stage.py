@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from datagen.apparel.params import ApparelParams
+from datagen.apparel.quality import over_jitter_bound
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
@@ -115,7 +116,9 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
 
     Returns:
         Summary: characters, clips simulated, reused, failed, resettled (clips of OUT with a
-        re-settled frame), mean quality, seconds, statuses.
+        re-settled frame), over_jitter_bound (the simulated clips' motion ids whose peak apparel
+        acceleration is over :data:`~datagen.apparel.quality.JITTER_RATIO` times their kinematic peaks,
+        :func:`~datagen.apparel.quality.over_jitter_bound`), mean quality, seconds, statuses.
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)
@@ -163,11 +166,12 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         return float(np.mean([q[key] for q in qs])) if qs else None
 
     resettled = sum(q["resettles"] > 0 for q in qs)
+    jittery = sorted(k for k, q in quality.items() if over_jitter_bound(q))
     if progress:
         print(summarize_statuses(statuses) + f", {resettled} re-settled (chains put back at rest after an escape)")
     return {"characters": sum(1 for b, _ in masks.values() if b.any()), "clips": len(kinematic),
             "simulated": sum(s.status == "ok" for s in statuses), "reused": reused,
-            "failed": sum(s.status == "failed" for s in statuses), "resettled": resettled,
+            "failed": sum(s.status == "failed" for s in statuses), "resettled": resettled, "over_jitter_bound": jittery,
             "new_inside_pct_mean": mean("new_inside_pct"), "inside_pct_mean": mean("inside_pct"),
             "secondary_motion_pct_mean": mean("secondary_motion_pct"),
             "max_edge_stretch": max((q["max_edge_stretch"] for q in qs), default=None),

@@ -118,7 +118,8 @@ class ApparelWorld:
         pb.setGravity(0.0, -sim.gravity, 0.0, physicsClientId=cid)
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(sim.solver_iterations),
                                      contactERP=float(sim.contact_erp), erp=float(sim.constraint_erp),
-                                     deterministicOverlappingPairs=1, physicsClientId=cid)
+                                     deterministicOverlappingPairs=1, collisionFilterMode=0,
+                                     physicsClientId=cid)  # mode 0: two bodies collide when each one's group is in the other's mask
         self.piece_ids, self._piece_constraints = [], []
         self._moving_pieces = sim.piece_mass == 0 and sim.piece_velocity  # placed and given their speed each step
         mass = float(sim.piece_mass) if sim.piece_mass > 0 else MOVING_PIECE_MASS if self._moving_pieces else 0.0
