@@ -188,3 +188,57 @@ def test_bad_pipeline_files_are_refused_with_the_reason(tmp_path, capsys, text, 
     err = capsys.readouterr().err
     assert message in err and "bad.toml" in err
     assert not (tmp_path / "w").exists()
+
+
+def test_a_pipeline_retargets_motion_capture_onto_a_character(tmp_path, assets_dir, capsys):
+    # the retarget step takes two folders of earlier steps (the clips' dataset and the characters'),
+    # as `datagen retarget MOTIONS CHARACTERS OUT` does, and is skipped once done; the clip keeps
+    # every frame of the BVH file (its "Frames:" line, read here as text)
+    from schemas.shards import read_records
+
+    bvh = assets_dir / "bvh" / "CMU_02_01.bvh"
+    path = tmp_path / "rt.toml"
+    path.write_text(f"""
+[pipeline]
+name = "rt"
+workdir = "w"
+
+[[steps]]
+name = "mocap"
+run = "ingest"
+paths = ["{bvh}"]
+out = "mocap"
+allow_outside = true
+
+[[steps]]
+name = "people"
+run = "ingest"
+paths = ["{assets_dir / 'glb' / 'Quaternius_Punk.glb'}"]
+out = "people"
+allow_outside = true
+
+[[steps]]
+run = "retarget"
+motions = "mocap"
+characters = "people"
+out = "moved"
+quiet = true
+""")
+    assert main(["pipeline", str(path), "--workdir", str(tmp_path / "w")]) == 0
+    [clip] = read_records(tmp_path / "w" / "moved", "motions")
+    frames = int(next(line for line in bvh.read_text().splitlines() if line.startswith("Frames:")).split()[1])
+    assert len(clip.transforms) == frames
+    [person] = read_records(tmp_path / "w" / "people", "characters")
+    assert clip.character_id == person.character_id and clip.motion_id.startswith(person.character_id + "/")
+    capsys.readouterr()
+    assert main(["pipeline", str(path), "--workdir", str(tmp_path / "w")]) == 0
+    lines = {line.split()[0]: line.split()[1] for line in capsys.readouterr().out.splitlines()
+             if line.startswith("  ") and len(line.split()) > 1}
+    assert (lines["mocap"], lines["people"], lines["retarget"]) == ("skipped",) * 3
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in (REPO / "examples" / "pipelines").glob("*.toml")))
+def test_the_example_pipeline_files_load(name, tmp_path):
+    # every option of every step is checked when a file is loaded (nothing runs)
+    pipeline = load_pipeline(REPO / "examples" / "pipelines" / name, workdir=tmp_path / "w")
+    assert pipeline.steps and all(step_argv(step, pipeline) for step in pipeline.steps)

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from mimicbench.summary import StageSummary
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -27,7 +29,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args) -> StageSummary:
     from datagen.retarget.stage import retarget_datasets
     from datagen.stage_runner import summarize_statuses
 
@@ -35,4 +37,4 @@ def run(args) -> int:
     print(summarize_statuses(s["statuses"]))
     print(f"{s['clips']} clips on {s['characters']} characters ({s['pairs']} pairs) in {args.out} in "
           f"{s['seconds']:.1f} s; report: {args.out}/retarget_report.json")
-    return 1 if s["failed"] else 0
+    return StageSummary(s["clips"], s["failed"], s["seconds"], str(args.out))

@@ -7,7 +7,7 @@ workdir = "data/demo"   # folders of the steps are relative to it (itself relati
 engine = "local"        # or "ray"; ray_address = "ray://head:10001"; jobs = 2
 
 [[steps]]
-run = "zoo"             # zoo | ingest | resample | apparel | correspond | cases | bench | leaderboard
+run = "zoo"             # zoo | ingest | retarget | resample | apparel | correspond | cases | bench | leaderboard
 out = "zoo"
 characters = 16
 ```
@@ -70,6 +70,10 @@ STEP_KINDS = {
     "ingest": StepKind(("datagen", "ingest"), positional=("paths",), folders=("out", "paths"),
                        reads=(("paths", None),), writes=(("out", ("characters", "motions")),),
                        engine=True, jobs=True),
+    "retarget": StepKind(("datagen", "retarget"), positional=("motions", "characters", "out"),
+                         folders=("motions", "characters", "out"),
+                         reads=(("motions", ("characters", "motions")), ("characters", ("characters",))),
+                         writes=(("out", ("characters", "motions")),)),
     "resample": StepKind(("datagen", "resample"), positional=("in", "out"), folders=("in", "out"),
                          reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
                          engine=True, jobs=True, versions=("datagen.resample:RESAMPLE_VERSION",)),
