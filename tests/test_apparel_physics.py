@@ -844,14 +844,16 @@ def test_cut_near_pivot_clips_the_hull_at_a_share_of_the_link():
 
 
 def test_skirt_roots_collide_only_beyond_root_hull_from():
-    # the skirt kind's root link keeps the hull points 30 % of its length or more from the hip pivot
+    # the skirt kind's root link (and the coat tail's) keeps its hull 30 % of its length or more from the hip pivot
     # (simulation version 14); its other links, and every link of a kind with root_hull_from 0,
     # keep their whole hull
     rec = make_character()
     cut = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask, ApparelParams()).chains
     whole = character_physics(rec, rec.apparel_bone_mask, rec.apparel_vertex_mask,
                               params_from_json({"kinds": {"skirt": {"root_hull_from": 0.0}}})).chains
-    assert ApparelParams().for_kind("skirt").root_hull_from == 0.3 and ApparelParams().for_kind("hair").root_hull_from == 0
+    kinds = ApparelParams()
+    assert kinds.for_kind("skirt").root_hull_from == kinds.for_kind("coat_tail").root_hull_from == 0.3
+    assert kinds.for_kind("hair").root_hull_from == kinds.for_kind("cape").root_hull_from == 0
     (chain,), (full,) = cut, whole
     assert chain.kind == "skirt" and chain.link_parents[0] == -1
     root, root_full = chain.links[0], full.links[0]

@@ -42,7 +42,7 @@ SIM_VERSION = "14"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the 
 # the limb, not in the world: an arm sweeping round in a spin struck the cape it carried (seed-711
 # dynamic zoo: spins above 3x their kinematic peak 16 of 40 -> 0, their worst frame 2.40 -> 1.08 % of
 # apparel vertices inside; jumps 1 -> 3, skirt strips struck by the thighs at landing, as high at 4x
-# the physics rate); 14: a skirt strip's root link collides only with the part of its hull beyond 30 %
+# the physics rate); 14: a skirt strip's or coat tail's root link collides only with the part of its hull beyond 30 %
 # of its length from the hip pivot (ChainParams.root_hull_from: a thigh pressing next to the pivot,
 # where no turn clears it, fought the twist limit and whipped the strip: seed 0's random poses 117.7 ->
 # 14.3 m/s^2), and chains and body pieces collide only when each one's group is in the other's mask
