@@ -634,6 +634,15 @@ def test_quality_touching_peak_counts_only_limbs_that_reach_the_apparel(axis, to
                      fps, rec.height)
     assert q["max_accel_kinematic_body"] == pytest.approx(d * fps ** 2, rel=1e-4)
     assert q["max_accel_kinematic_touching"] == pytest.approx(d * fps ** 2 if touches else 0.0, rel=1e-4, abs=1e-3)
+    # the pieces are tested a few frames at a time, stopping at a piece's first touch: the torso
+    # reaches the chain only some frames after the drift starts, so small chunks see it late
+    from datagen.apparel.quality import _touched_bones
+    from mimicbench.skinning import linear_blend_skinning
+
+    posed = linear_blend_skinning(rec.vertices, rec.keypoints, rec.weights, kinematic).astype(np.float64)[:, apparel]
+    for chunk in (1, 3, frames):
+        assert _touched_bones(pieces, kinematic.astype(np.float64), posed, 0.02 * rec.height, chunk) == \
+            ([0] if touches else [])
     struck = q | {"max_accel": 2.0 * d * fps ** 2, "max_accel_kinematic": 1.0}  # a strike twice the limb's peak
     assert over_jitter_bound(struck) is (not touches)
     assert over_jitter_bound(struck | {"max_accel": 4.0 * d * fps ** 2}) is True
@@ -841,6 +850,15 @@ def test_cut_near_pivot_clips_the_hull_at_a_share_of_the_link():
     assert cut_near_pivot(hull, axis, length, 0.0) is hull
     assert cut_near_pivot(hull, axis, length, 1.0) is hull
     assert cut_near_pivot(None, axis, length, 0.3) is None
+    # a link's hull keeps at most MAX_LINK_HULL_POINTS points, the clipped one too (a ball of 400
+    # points on its surface clipped through its middle has over 200 hull points)
+    from datagen.apparel.chains import MAX_LINK_HULL_POINTS
+
+    rng = np.random.default_rng(0)
+    ball = rng.normal(size=(400, 3))
+    ball = 0.05 * ball / np.linalg.norm(ball, axis=1, keepdims=True) + [0.0, -0.05, 0.0]
+    clipped = cut_near_pivot(ball, axis, length, 0.5)
+    assert len(clipped) <= MAX_LINK_HULL_POINTS and (clipped @ axis).min() >= 0.05 - 1e-9
 
 
 def test_skirt_roots_collide_only_beyond_root_hull_from():

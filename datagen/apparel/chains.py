@@ -80,8 +80,8 @@ def cut_near_pivot(hull: np.ndarray | None, axis: np.ndarray, length: float, sha
     """The part of the convex hull of ``hull`` (P, 3 points relative to a link's head) at least
     ``share`` x ``length`` metres along unit ``axis`` from the head (the pivot): the hull of its
     points past that plane and of the points where segments between points on either side cross
-    it (the hull clipped by the plane); ``hull`` unchanged when ``share`` is 0 or the part spans
-    no volume."""
+    it (the hull clipped by the plane, at most :data:`MAX_LINK_HULL_POINTS` of its points);
+    ``hull`` unchanged when ``share`` is 0 or the part spans no volume."""
     if hull is None or share <= 0:
         return hull
     points = np.asarray(hull, np.float64)
@@ -90,7 +90,7 @@ def cut_near_pivot(hull: np.ndarray | None, axis: np.ndarray, length: float, sha
     a, b = along[along >= 0][:, None], along[along < 0][None, :]
     t = (a / (a - b))[..., None]  # (B, A, 1) where each segment from a kept point crosses the plane
     crossings = (beyond[:, None] + t * (before[None] - beyond[:, None])).reshape(-1, 3)
-    found = hull_points(np.concatenate([beyond, crossings]))
+    found = hull_points(np.concatenate([beyond, crossings]), max_points=MAX_LINK_HULL_POINTS)
     return hull if found is None else found[0]
 
 

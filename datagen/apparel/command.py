@@ -68,6 +68,7 @@ def run(args) -> int:
     from datagen.apparel.params import load_params
     from mimicbench.engines import engine_from_args
     from datagen.apparel.stage import simulate_dataset
+    from datagen.apparel.quality import JITTER_RATIO
 
     params = load_params(args.params)
     if args.gravity is not None:
@@ -85,7 +86,7 @@ def run(args) -> int:
           f"height, max edge stretch {fmt(s['max_edge_stretch'])} -> {args.out_dataset}")
     if s["over_jitter_bound"]:
         n = len(s["over_jitter_bound"])
-        print(f"{n} {'clip peaks' if n == 1 else 'clips peak'} above 3x the acceleration of the kinematic apparel and "
+        print(f"{n} {'clip peaks' if n == 1 else 'clips peak'} above {JITTER_RATIO:g}x the acceleration of the kinematic apparel and "
               f"of the body that touches it (jitter, not a limb's strike): {', '.join(s['over_jitter_bound'][:5])}"
               f"{' ...' if len(s['over_jitter_bound']) > 5 else ''}; their quality is in the characters' "
               f"meta['apparel']")

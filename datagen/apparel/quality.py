@@ -57,10 +57,15 @@ def over_jitter_bound(quality: dict) -> bool:
     return quality["max_accel"] > JITTER_RATIO * bound
 
 
-def _touched_bones(pieces: list[BodyPiece], transforms: np.ndarray, points: np.ndarray, reach: float) -> list[int]:
+def _touched_bones(pieces: list[BodyPiece], transforms: np.ndarray, points: np.ndarray, reach: float,
+                   chunk: int = 32) -> list[int]:
     """The bones of the pieces that any of ``points`` (F, A, 3) comes within ``reach`` metres of
-    (or inside) at some frame of the poses ``transforms`` (F, K, 7)."""
-    return [piece.bone for piece in pieces if points_inside([piece], transforms, points, tol=-reach).any()]
+    (or inside) at some frame of the poses ``transforms`` (F, K, 7). Frames are tested ``chunk`` at
+    a time and a piece's test stops at its first touch (most touched pieces are touched in the
+    first frames; testing every frame of a 1,901-frame clip doubled the cost of its quality)."""
+    return [piece.bone for piece in pieces
+            if any(points_inside([piece], transforms[s:s + chunk], points[s:s + chunk], tol=-reach).any()
+                   for s in range(0, len(points), chunk))]
 
 
 def _accel(posed: np.ndarray, fps: float) -> np.ndarray:
