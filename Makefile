@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 PYTEST_ARGS ?=
 
-.PHONY: setup lint test test-fast demo clean
+.PHONY: setup lint test test-fast demo docs clean
 
 $(VENV)/.installed: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -26,5 +26,8 @@ test-fast: lint  ## ruff, then the suite without the slow end-to-end tests
 demo: setup  ## build a small zoo, run every bundled method, print the leaderboard
 	$(VENV)/bin/mimicbench demo --out demo-output
 
+docs: setup  ## build the documentation site into site/ (mkdocs-material, strict: a warning fails it)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict
+
 clean:
-	rm -rf $(VENV) .pytest_cache demo-output
+	rm -rf $(VENV) .pytest_cache demo-output site

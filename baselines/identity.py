@@ -7,7 +7,7 @@ from benchmark.method import MethodMetadata, PoseTransferMethod
 
 
 class Identity(PoseTransferMethod):
-    metadata = MethodMetadata(name="identity", version="1", licence="MIT",
+    metadata = MethodMetadata(name="identity", version="1", licence="MIT", reads_rig=False,
                               description="returns the target's rest mesh")
 
     def transfer(self, requests):

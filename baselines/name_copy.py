@@ -1,6 +1,7 @@
 """``name_copy``: carry each source bone's pose over to the target bone of the same name.
 
-The source's transforms are estimated from its posed vertices (weighted Kabsch). A target bone
+The source's transforms are read off its posed vertices (the shared joint fit,
+:func:`baselines.posing.source_pose`). A target bone
 with a same-named source bone takes that bone's world rotation and, when its parent is the
 same-named bone's parent too, its translation relative to the parent beyond the rest offset
 (a body bone the clip moves, IK-driven feet), scaled by the ratio of sizes (largest rest
@@ -19,7 +20,7 @@ from benchmark.method import MethodMetadata, PoseTransferMethod
 
 
 class NameCopy(PoseTransferMethod):
-    metadata = MethodMetadata(name="name_copy", version="4", licence="MIT",
+    metadata = MethodMetadata(name="name_copy", version="5", licence="MIT",
                               description="rotations and local translations copied between bones of the same name")
 
     def transfer(self, requests):

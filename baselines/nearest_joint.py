@@ -28,16 +28,18 @@ def nearest_joint_pairs(source, target) -> np.ndarray:
 
 
 class NearestJoint(PoseTransferMethod):
-    metadata = MethodMetadata(name="nearest_joint", version="4", licence="MIT",
+    metadata = MethodMetadata(name="nearest_joint", version="5", licence="MIT",
                               description="Hungarian matching of unit-height rest joints")
+
+    pairs = staticmethod(nearest_joint_pairs)
+    """(source, target) -> (P, 2) bone pairs; a subclass may match otherwise."""
 
     def transfer(self, requests):
         return [self._one(r) for r in requests]
 
-    @staticmethod
-    def _one(r):
+    def _one(self, r):
         q_src, t_src = source_pose(r)
-        pairs = nearest_joint_pairs(r.source, r.target)
+        pairs = self.pairs(r.source, r.target)
         kt = r.target.keypoints
         q = np.tile([1.0, 0.0, 0.0, 0.0], (len(kt), 1))
         matched = np.zeros(len(kt), bool)

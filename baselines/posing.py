@@ -5,62 +5,20 @@ from __future__ import annotations
 import numpy as np
 
 from benchmark.request import Rig, TransferRequest
-from mimicbench.kinematics import array_to_transforms, forward_kinematics, local_from_global, transforms_to_array
-from mimicbench.quaternion import quat_angle, quat_apply
-from mimicbench.rotation_average import weighted_quaternion_average
+from mimicbench.kinematics import forward_kinematics, local_from_global, transforms_to_array
+from mimicbench.pose_readoff import read_rig_pose
 from mimicbench.skinning import linear_blend_skinning
-from mimicbench.transform_estimation import estimate_transforms
-from schemas.weights import as_dense
-
-
-AGREE_DEGREES = 20.0
-"""Children's rotations that agree within this many degrees give a bone without vertices its rotation
-(:func:`source_pose`)."""
 
 
 def source_pose(request: TransferRequest) -> tuple[np.ndarray, np.ndarray]:
     """Global rotations (Ks, 4) and posed keypoint positions (Ks, 3) of the posed source.
 
-    Estimated per keypoint by weighted Kabsch. A keypoint that owns no vertices cannot be read off
-    the mesh: when at least two of its children have vertices at or below them and their global
-    rotations agree within :data:`AGREE_DEGREES`, it takes their average (weighted by the skin
-    weight at and below each child; children are read first), since what it turns is what hangs
-    below it (a rig's ``Body`` that carries a clip's whole-body turn); otherwise it inherits its
-    parent's rotation. Either way it follows its parent rigidly (a root keeps its rest position).
-    Rigs whose every keypoint owns vertices (every zoo character) read exactly as by Kabsch.
+    Read off the posed source vertices by the joint fit of all bones, with the bones the mesh does
+    not determine completed from the skeleton (:func:`mimicbench.pose_readoff.read_pose`, the read-off
+    every skeleton method and the protocols share).
     """
-    s = request.source
-    transforms, owned = estimate_transforms(s.vertices, request.source_posed, s.weights, s.keypoints)
-    q, t = array_to_transforms(transforms)
-    if not owned.all():
-        q = _rotations_from_children(q, owned, s)
-    for k, p in enumerate(s.parents):
-        if not owned[k] and p >= 0:
-            t[k] = t[p] + quat_apply(q[p], s.keypoints[k] - s.keypoints[p])
-    return q, t
-
-
-def _rotations_from_children(q: np.ndarray, owned: np.ndarray, rig: Rig) -> np.ndarray:
-    """Rotations (K, 4) of the keypoints that own no vertices (``owned`` (K,) False), by
-    :func:`source_pose`'s rule, from the read-off ``q`` (K, 4) of the others."""
-    parents = np.asarray(rig.parents)
-    below = as_dense(rig.weights, len(parents)).sum(axis=0).astype(np.float64)  # skin weight at and below
-    for k in range(len(parents) - 1, -1, -1):  # parents come before children
-        if parents[k] >= 0:
-            below[parents[k]] += below[k]
-    q = np.array(q, dtype=np.float64)
-    known, from_children = owned.copy(), np.zeros(len(parents), bool)
-    for k in range(len(parents) - 1, -1, -1):
-        if owned[k]:
-            continue
-        kids = np.flatnonzero((parents == k) & known & (below > 0))
-        if len(kids) >= 2 and np.degrees(quat_angle(q[kids][:, None], q[kids][None])).max() <= AGREE_DEGREES:
-            q[k] = weighted_quaternion_average(q[kids], below[kids][:, None])[0]
-            known[k] = from_children[k] = True
-    for k, p in enumerate(parents):
-        if not owned[k] and not from_children[k] and p >= 0:
-            q[k] = q[p]
-    return q
+    pose = read_rig_pose(request.source, request.source_posed)
+    return pose.rotations, pose.positions
 
 
 def size_ratio(request: TransferRequest) -> float:

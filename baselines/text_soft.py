@@ -10,7 +10,7 @@ the target keeps its own bone lengths, so forward kinematics fixes every joint r
 root and the root is placed where the keypoints best follow those displacements (least squares
 over all keypoints: the mean of what each one is missing).
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from mimicbench.rotation_average import weighted_quaternion_average
 
 class TextSoft(PoseTransferMethod):
     metadata = MethodMetadata(
-        name="text_soft", version="4", licence="MIT",
+        name="text_soft", version="5", licence="MIT",
         description="Sinkhorn soft matching of bone-name embeddings, rotation averaging (Eq. 4)",
         citation="MimiCAT initialisation: S_cos of CLIP/MiniLM bone-name embeddings, Sinkhorn, Eq. 3-4",
     )

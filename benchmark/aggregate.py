@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmark.intervals import DRAWS, LEVEL, SEED, cluster_bootstrap_means, pair_of, paired_difference, tie_ranks
 from benchmark.result_checks import row_problem
 from benchmark.results import method_versions, read_result_records, read_run_info
 from schemas.character import HUMANOID_LIKE
@@ -35,6 +36,14 @@ from schemas.result import ResultRecord
 HEADLINE_PREFERENCE = {"h2h": ("pmd_height", "pmd"), "cct": ("pmd_extent", "pmd")}
 DEFAULT_HEADLINE = ("pmd_extent", "pmd")
 ALL = "all"
+DEFAULT_REFERENCE = "nearest_joint"
+"""The method every paired difference of the ranking is taken against (``--reference``)."""
+VIEW_COLUMNS = {"cct": ("semantic_deg", "{headline}", "out_of_range", "els_forward")}
+"""Columns of a protocol's ranking, the first present one sorting it. cct sorts by the semantic
+score: its cycle round-trips any one-to-one mapping, so a mirrored transfer costs the cycle PMD
+nothing."""
+DEFAULT_VIEW_COLUMNS = ("{headline}", "semantic_deg", "out_of_range", "els_forward", "penetration_share",
+                        "accel_error")
 PROTOCOL_ORDER = ("h2h", "cct", "apparel")  # shown in this order, others after them by name
 
 
@@ -75,6 +84,12 @@ def headline_metric(protocol: str, columns=None) -> str:
 
 def lower_is_better(metric: str) -> bool:
     return not metric.startswith("els")
+
+
+def view_columns(protocol: str, headline: str, present) -> list[str]:
+    """The ranking's columns of a protocol (:data:`VIEW_COLUMNS`) among ``present``, the headline always."""
+    order = [c.format(headline=headline) for c in VIEW_COLUMNS.get(protocol, DEFAULT_VIEW_COLUMNS)]
+    return [c for c in order if c in present or c == headline]
 
 
 def category_column(source_category: str, target_category: str) -> str:
@@ -118,7 +133,7 @@ def method_info(results, method: str, version: str) -> dict:
     ``source`` ``unknown``.
     """
     info = {"method": method, "version": version, "licence": None, "citation": None, "description": None,
-            "protocols": None, "toolkit_version": None, "dataset": None, "fingerprints": {}, "created": None,
+            "protocols": None, "reads_rig": None, "toolkit_version": None, "dataset": None, "fingerprints": {}, "created": None,
             "source": "unknown"}
     path = Path(results) / method / version / "meta.json"
     if path.exists():
@@ -128,7 +143,7 @@ def method_info(results, method: str, version: str) -> dict:
             info["source"] = f"unreadable meta.json ({exc})"
             return info
         md = meta.get("method") or {}
-        info.update({k: md.get(k) for k in ("licence", "citation", "description", "protocols")})
+        info.update({k: md.get(k) for k in ("licence", "citation", "description", "protocols", "reads_rig")})
         info.update({k: meta.get(k) for k in ("toolkit_version", "dataset", "created")})
         info["fingerprints"] = meta.get("fingerprints") or {}
         info["source"] = "meta.json"
@@ -140,7 +155,7 @@ def method_info(results, method: str, version: str) -> dict:
     except Exception:  # an unknown or broken method still gets its results shown
         return info
     info.update(licence=md.licence, citation=md.citation, description=md.description,
-                protocols=getattr(md, "protocols", None), source="registry")
+                protocols=getattr(md, "protocols", None), reads_rig=getattr(md, "reads_rig", None), source="registry")
     return info
 
 
@@ -169,7 +184,122 @@ def _matrix(protocol: str, per_method: list[tuple[dict, list]], headline: str) -
             "rows": out_rows}
 
 
-def aggregate(results) -> dict:
+def _reference_key(reference: str | None, keys: list[str], complete: dict[str, bool]) -> str | None:
+    """``method/version`` of ``reference`` (a name, or ``name/version``) among ``keys``: its
+    complete version with the highest number, else its highest; None when absent."""
+    if not reference:
+        return None
+    if reference in keys:
+        return reference
+    found = [k for k in keys if k.split("/", 1)[0] == reference]
+
+    def version(key):
+        v = key.split("/", 1)[1]
+        return (complete.get(key, False), (0, int(v), "") if v.isdigit() else (1, 0, v))
+
+    return max(found, key=version) if found else None
+
+
+def _cell(values: dict, pairs_of: dict) -> dict:
+    """Mean, 95% pair-clustered bootstrap interval and counts of one method on one column."""
+    keys = sorted(k for k, v in values.items() if v is not None)
+    unscored = len(values) - len(keys)
+    if not keys:
+        return {"mean": None, "lo": None, "hi": None, "cases": 0, "pairs": 0, "unscored": unscored}
+    x = np.array([values[k] for k in keys])
+    pairs = [pairs_of[k] for k in keys]
+    means = cluster_bootstrap_means(x, pairs)
+    lo, hi = np.quantile(means, [(1 - LEVEL) / 2, 1 - (1 - LEVEL) / 2])
+    return {"mean": float(x.mean()), "lo": float(lo), "hi": float(hi), "cases": len(keys),
+            "pairs": len(set(pairs)), "unscored": unscored}
+
+
+def _surely_better(values: dict[str, dict], lower: bool) -> dict[tuple[str, str], bool]:
+    """``(a, b) -> True`` when the 95% interval of the paired difference ``a - b`` (pair-clustered
+    bootstrap over the cases both have a value for) excludes 0 on ``a``'s side.
+
+    Methods with the same cases share one bootstrap (the draws of :func:`cluster_bootstrap_means`
+    on their stacked values: the same as bootstrapping each difference); others are paired one by one.
+    """
+    out = {}
+    by_cases: dict[tuple, list[str]] = {}
+    for key, vals in values.items():
+        by_cases.setdefault(tuple(sorted(k for k, v in vals.items() if v is not None)), []).append(key)
+    lo_q, hi_q = (1 - LEVEL) / 2, 1 - (1 - LEVEL) / 2
+
+    def decide(a, b, lo, hi):
+        out[(a, b)] = hi < 0 if lower else lo > 0
+        out[(b, a)] = lo > 0 if lower else hi < 0
+
+    for cases, group in by_cases.items():
+        if len(group) > 1 and cases:
+            means = cluster_bootstrap_means(np.array([[values[m][k] for m in group] for k in cases]),
+                                            [pair_of(k) for k in cases])
+            for i, a in enumerate(group):
+                for j in range(i + 1, len(group)):
+                    lo, hi = np.quantile(means[:, i] - means[:, j], [lo_q, hi_q])
+                    decide(a, group[j], lo, hi)
+    keys = list(values)
+    for i, a in enumerate(keys):
+        for b in keys[i + 1:]:
+            if (a, b) not in out:
+                d = paired_difference(values[a], values[b])
+                if d is not None:
+                    decide(a, b, d["lo"], d["hi"])
+    return out
+
+
+def _ranking(protocol: str, per_method: list[tuple[dict, list]], headline: str, methods: dict,
+             reference: str | None) -> dict:
+    """A protocol's ranking: per method and column the mean with its interval, the paired
+    difference against the reference, and the rank with ties (see :func:`aggregate`)."""
+    ok_rows = {f"{e['method']}/{e['version']}": (e, [r for r in rows if r.status == "ok"]) for e, rows in per_method}
+    present = {c for _, rows in ok_rows.values() for r in rows for c in metric_columns()
+               if getattr(r, c, None) is not None}
+    columns = view_columns(protocol, headline, present)
+    complete = {k: e["complete"] for k, (e, _) in ok_rows.items()}
+    ref = _reference_key(reference, list(ok_rows), complete)
+    values = {k: {c: {r.case_id: getattr(r, c, None) for r in rows} for c in columns}
+              for k, (_, rows) in ok_rows.items() if complete[k]}
+    pairs_of = {r.case_id: pair_of(r.case_id) for _, rows in ok_rows.values() for r in rows}
+    cells: dict[str, dict] = {k: {} for k in ok_rows}
+    ranks: dict[str, dict] = {}
+    for c in columns:
+        lower = lower_is_better(c)
+        for k in ok_rows:
+            cells[k][c] = _cell(values[k][c], pairs_of) if k in values else \
+                {"mean": None, "lo": None, "hi": None, "cases": 0, "pairs": 0, "unscored": 0}
+            d = paired_difference(values[k][c], values[ref][c]) if k in values and ref in values and k != ref else None
+            cells[k][c].update({"diff": None, "diff_lo": None, "diff_hi": None, "diff_se": None, "diff_cases": None}
+                               if d is None else {"diff": d["diff"], "diff_lo": d["lo"], "diff_hi": d["hi"],
+                                                  "diff_se": d["se"], "diff_cases": d["cases"]})
+        scored = [k for k in values if cells[k][c]["mean"] is not None]
+        sign = 1.0 if lower else -1.0
+        scored.sort(key=lambda k: (sign * cells[k][c]["mean"], k))
+        ranks[c] = tie_ranks(scored, _surely_better({k: values[k][c] for k in scored}, lower))
+    for c in columns:
+        shared = {}
+        for k, r in ranks[c].items():
+            shared[r] = shared.get(r, 0) + 1
+        for k in ok_rows:
+            r = ranks[c].get(k)
+            cells[k][c].update(rank=r, tied=r is not None and shared[r] > 1)
+    sort = columns[0]
+    sign = 1.0 if lower_is_better(sort) else -1.0
+    order = sorted(ok_rows, key=lambda k: (cells[k][sort]["mean"] is None,
+                                           sign * (cells[k][sort]["mean"] or 0.0), k))
+    rows = []
+    for k in order:
+        e = ok_rows[k][0]
+        reads = (methods.get(k) or {}).get("reads_rig")
+        rows.append({"method": e["method"], "version": e["version"], "key": k, "complete": e["complete"],
+                     "reads_rig": True if reads is None else bool(reads), "cells": cells[k]})
+    return {"columns": columns, "sort": sort, "reference": ref, "reference_asked": reference,
+            "lower_is_better": {c: lower_is_better(c) for c in columns}, "level": LEVEL, "draws": DRAWS,
+            "seed": SEED, "rows": rows}
+
+
+def aggregate(results, reference: str | None = DEFAULT_REFERENCE) -> dict:
     """The leaderboard's data.
 
     Returns:
@@ -178,9 +308,23 @@ def aggregate(results) -> dict:
         "columns", "rows"}}, "headline": {protocol: metric}, "titles": {protocol: what it measures},
         "metrics": [metric columns],
         "methods": {"method/version": method_info}, "run": run.json, "refused": [{"method", "version",
-        "protocol", "case_id", "reason"} per row not averaged]}``. Each entry: method, version,
-        cases, ok, failed, missing, not_supported, invalid, complete, every metric (means; null
-        unless complete), seconds_per_case, first_error.
+        "protocol", "case_id", "reason"} per row not averaged], "ranking": {protocol: ranking}}``.
+        Each entry: method, version, cases, ok, failed, missing, not_supported, invalid, complete,
+        every metric (means; null unless complete), seconds_per_case, first_error.
+
+    A ranking (how sure the order is): ``{"columns", "sort", "reference", "reference_asked",
+    "lower_is_better", "level", "draws", "seed", "rows"}``; ``columns`` the protocol's
+    :func:`view_columns` present in the results (the first sorts), ``reference`` the
+    ``method/version`` differences are taken against (None when ``reference`` is not in the
+    results). Each row: method, version, key, complete, reads_rig (True when the method's metadata
+    does not say: its requests carried the rig) and per column ``{"mean", "lo", "hi"`` (95%
+    percentile interval of a bootstrap clustered by (source, target) pair, :mod:`benchmark.intervals`),
+    ``"cases", "pairs"`` (with a value), ``"unscored"`` (ok cases without a value, e.g. no role
+    labels: never counted as zero), ``"diff", "diff_lo", "diff_hi", "diff_se", "diff_cases"``
+    (mean of method - reference over the cases both have a value for, its interval and
+    pair-clustered SE), ``"rank", "tied"}``: the rank is 1 + the number of methods surely better
+    (the interval of their paired difference excludes 0), so methods with the same rank are tied.
+    Only complete methods get values, as in the means.
     """
     info = read_run_info(results)
     expected = info.get("protocols", {})
@@ -188,7 +332,7 @@ def aggregate(results) -> dict:
     checked = metrics + [c.name for c in ResultRecord.COLUMNS if c.kind == "list" and c.dtype.startswith("float")]
     recorded_ids = {p: set(ids) for p, ids in (info.get("case_ids") or {}).items()}
     out = {"protocols": {}, "categories": {}, "matrix": {}, "headline": {}, "titles": {}, "metrics": metrics,
-           "methods": {}, "run": {k: v for k, v in info.items() if k != "case_ids"}, "refused": []}
+           "methods": {}, "run": {k: v for k, v in info.items() if k != "case_ids"}, "refused": [], "ranking": {}}
     grouped: dict[str, list] = {}
     for method, version in method_versions(results):
         minfo = method_info(results, method, version)
@@ -238,4 +382,5 @@ def aggregate(results) -> dict:
         order = [(e["method"], e["version"]) for e in entries]
         pm = sorted(grouped[protocol], key=lambda er: order.index((er[0]["method"], er[0]["version"])))
         out["matrix"][protocol] = _matrix(protocol, pm, head)
+        out["ranking"][protocol] = _ranking(protocol, pm, head, out["methods"], reference)
     return out

@@ -5,12 +5,12 @@
 """
 from __future__ import annotations
 
-from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
+from benchmark.protocols import DEFAULT_PROTOCOLS, answers, get_protocol
 from benchmark.protocols.base import EvalData
-from benchmark.request import MotionRequest, TransferRequest
+from benchmark.request import MotionRequest, TransferRequest, mesh_only
 from benchmark.scoring import check_prediction
 from benchmark.worker import InProcessRunner
-from schemas.result import APPAREL_METRICS, NOT_SUPPORTED, ResultRecord
+from schemas.result import APPAREL_METRICS, FORWARD_METRICS, NOT_SUPPORTED, ResultRecord
 
 
 def _call(method, requests: list[TransferRequest], sizes: list):
@@ -45,12 +45,12 @@ def result_row(case, method, status, error, seconds, metrics=None) -> ResultReco
                         float(seconds), m.get("pmd"), m.get("pmd_squared"), m.get("els"), m.get("els_forward"),
                         case.source_category, case.target_category, pmd_height=m.get("pmd_height"),
                         pmd_extent=m.get("pmd_extent"), pmd_aligned=m.get("pmd_aligned"),
-                        **{k: m.get(k) for k in APPAREL_METRICS})
+                        **{k: m.get(k) for k in APPAREL_METRICS + FORWARD_METRICS})
 
 
 def supports(method, protocol: str) -> bool:
     """Whether the method's metadata lists ``protocol``."""
-    return protocol in getattr(method.metadata, "protocols", DEFAULT_PROTOCOLS)
+    return answers(getattr(method.metadata, "protocols", DEFAULT_PROTOCOLS), protocol)
 
 
 def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> list[ResultRecord]:
@@ -59,7 +59,9 @@ def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> lis
     cases for pictures.
 
     A method whose metadata does not list the protocol gets ``not_supported`` rows and is not
-    called.
+    called. A method whose metadata says ``reads_rig=False`` gets every transfer request through
+    :func:`benchmark.request.mesh_only` (forward and return legs alike); the protocol scores
+    with its own full rigs.
     """
     if isinstance(protocol, str):
         protocol = get_protocol(protocol)
@@ -67,9 +69,12 @@ def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> lis
         reason = f"{method.metadata.name} does not support the {protocol.name} protocol (metadata.protocols)"
         return [result_row(c, method, NOT_SUPPORTED, reason, 0.0) for c in cases]
 
+    strip = not getattr(method.metadata, "reads_rig", True)  # a mesh-only method gets no rig (scores use ours)
+
     def call(requests):
-        return _call(method, list(requests), [r.expected_shape if isinstance(r, MotionRequest) else
-                                              len(r.target.vertices) for r in requests])
+        requests = [mesh_only(r) for r in requests] if strip else list(requests)
+        return _call(method, requests, [r.expected_shape if isinstance(r, MotionRequest) else
+                                        len(r.target.vertices) for r in requests])
 
     call.method_tags = tuple(getattr(method.metadata, "tags", ()))  # e.g. an ablation that reads the GT mask
 

@@ -27,13 +27,15 @@ def build_cases(dataset, split: str = "test", h2h_pairs: int | None = 100, h2h_p
     Args:
         dataset: dataset folder with ``characters`` and ``motions``.
         split: ``train``, ``val``, ``test`` or ``all``; ignored (taken as ``all``) with ``all_pairs``.
-        h2h_pairs, h2h_poses, cct_pairs, cct_poses: pairs to sample (None: all) and poses per pair.
+        h2h_pairs, h2h_poses, cct_pairs, cct_poses: pairs to sample (None: all) and poses per pair
+            (``h2h_xskel`` takes the h2h sizes).
         seed: generator seed.
         all_pairs: every candidate pair, across splits.
         protocols: protocol names to build.
         sizes: ``{protocol: (pairs, poses)}`` for protocols without their own arguments here.
     """
-    per = {"h2h": (h2h_pairs, h2h_poses), "cct": (cct_pairs, cct_poses), **(sizes or {})}
+    per = {"h2h": (h2h_pairs, h2h_poses), "h2h_xskel": (h2h_pairs, h2h_poses), "cct": (cct_pairs, cct_poses),
+           **(sizes or {})}
     pool = CasePool.load(dataset, "all" if all_pairs else split)
     out = {}
     for name in protocols:

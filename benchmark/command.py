@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from pathlib import Path
 
 from mimicbench.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
 from mimicbench.summary import StageSummary
@@ -60,8 +61,9 @@ def register(subparsers) -> None:
     c.add_argument("--cct-pairs", type=nonnegative_int, default=300, help="cross-category pairs (default 300)")
     c.add_argument("--cct-poses", type=positive_int, default=10, help="poses per cct pair (default 10)")
     c.add_argument("--seed", type=nonnegative_int, default=0, help="seed of the pair and pose draws (default 0)")
-    c.add_argument("--protocols", default=("h2h", "cct"), type=_protocol_names,
-                   help="comma-separated protocols to make cases of (default h2h,cct); apparel: windows of "
+    c.add_argument("--protocols", default=("h2h", "h2h_xskel", "cct"), type=_protocol_names,
+                   help="comma-separated protocols to make cases of (default h2h,h2h_xskel,cct; h2h_xskel: "
+                        "humanoids of different skeletons that carry role labels, sized like h2h); apparel: windows of "
                         "16 frames of every clip that `datagen apparel` simulated, 10 per clip")
     c.add_argument("--apparel-windows", type=positive_int, default=None, metavar="N",
                    help="apparel protocol: 16-frame windows per simulated clip, >= 1 (default 10)")
@@ -79,9 +81,10 @@ def register(subparsers) -> None:
     r.add_argument("dataset")
     r.add_argument("--methods", required=True, type=_method_names,
                    help="comma-separated method names (see `mimicbench bench methods`)")
-    r.add_argument("--protocols", default=("h2h", "cct"), type=_protocol_names,
-                   help="comma-separated protocols: h2h (same-skeleton), cct (cross-category cycle), apparel "
-                        "(motion transfer with simulated apparel; needs `datagen apparel` data); default h2h,cct")
+    r.add_argument("--protocols", default=None, type=_protocol_names,
+                   help="comma-separated protocols: h2h (same-skeleton), h2h_xskel (humanoids across skeleton "
+                        "families), cct (cross-category cycle), apparel (motion transfer with simulated apparel; "
+                        "needs `datagen apparel` data); default: those of h2h,h2h_xskel,cct the dataset has cases of")
     r.add_argument("--out", default="results", help="results folder (default results)")
     r.add_argument("--device", default="cpu", help="cpu or cuda[:i] (default cpu)")
     r.add_argument("--batch-size", type=positive_int, default=16, help="requests per transfer call (default 16)")
@@ -112,15 +115,80 @@ def register(subparsers) -> None:
                                                 "results as it left them)")
     lb.add_argument("--no-pictures", action="store_true",
                     help="skip the rendered strips of sampled cases (they need Blender, about 30 s)")
+    lb.add_argument("--reference", default="nearest_joint",
+                    help="method (NAME or NAME/VERSION) every paired difference is taken against (default: "
+                         "nearest_joint); intervals and ties need no reference")
     lb.set_defaults(func=run_leaderboard)
+
+    v = sub.add_parser("validity", help="run the probe corruptions and print which scores detect them",
+                       description="Run the validity probes (a right transfer corrupted in known ways: left/right "
+                       "mirror, fore/hind swap, a frozen limb, 15 degree rotation noise, half the rotation angle, the "
+                       "target at rest; and nearest_joint against a mirrored or front-back reflected target) with "
+                       "their uncorrupted methods on DATA's cases, then print per protocol column and corruption "
+                       "the paired difference, its z (standard error clustered by (source, target) pair) and "
+                       "whether the column detects it (z > 2). Results go to OUT/results (resumable); the table "
+                       "to OUT/validity.md and OUT/validity.json. Example:\n"
+                       "  mimicbench bench validity data/zoo5k --out validity",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    v.add_argument("dataset")
+    v.add_argument("--out", default="validity", help="folder for results and the table (default validity)")
+    v.add_argument("--protocols", default=None, type=_protocol_names,
+                   help="comma-separated protocols (default: those of h2h,h2h_xskel,cct the dataset has cases of)")
+    v.add_argument("--in-process", action="store_true", help="call the probes in this process (faster start)")
+    v.add_argument("--quiet", action="store_true", help="no progress bars")
+    v.set_defaults(func=run_validity)
 
     ls = sub.add_parser("methods", help="list the registered methods")
     ls.set_defaults(func=run_methods)
 
 
+def refuse_flat_characters(dataset, case_ids: bool = False) -> None:
+    """Refuse, naming them, the characters of ``dataset`` whose rest mesh has no height (Y extent 0):
+    every score divides by the target's height, so their cases cannot be scored. ``bench cases`` refuses
+    any such character; ``bench run`` (``case_ids``) those its cases use, with the number of cases.
+
+    Raises:
+        ValueError: one line naming the characters and what to do.
+    """
+    from schemas.integrity import entry_path
+    from schemas.shards import has_table, read_table, shard_entries
+    from schemas.validate import skeleton_and_height_problems
+
+    flat = {cid for entry in shard_entries(dataset, "characters")
+            for cid, kind, _ in skeleton_and_height_problems(entry_path(Path(dataset), entry["path"]))
+            if kind == "height"}
+    if not flat:
+        return
+    used = ""
+    if case_ids and has_table(dataset, "cases"):
+        cases = read_table(dataset, "cases", columns=["source_id", "target_id"])
+        pairs = zip(cases.column("source_id").to_pylist(), cases.column("target_id").to_pylist())
+        counts = {}
+        for source, target in pairs:
+            for cid in {source, target} & set(flat):
+                counts[cid] = counts.get(cid, 0) + 1
+        if not counts:
+            return
+        flat = set(counts)
+        used = f" (used by {sum(counts.values())} cases)"
+    names = ", ".join(sorted(flat)[:5]) + (", ..." if len(flat) > 5 else "")
+    raise ValueError(f"{dataset}: {len(flat)} character(s) whose rest mesh has no height (Y extent 0; every score "
+                     f"divides by it){used}: {names}; remove them from the dataset (or give them a mesh with "
+                     f"height) and run `mimicbench bench cases` again")
+
+
 def run_cases(args) -> int:
+    """``bench cases`` holding the writer's lock of the dataset."""
+    from schemas.folder_lock import hold
+
+    with hold(args.dataset):  # one writer of the dataset at a time (a stage writing it makes this wait)
+        return _run_cases(args)
+
+
+def _run_cases(args):
     from benchmark.cases import build_cases, write_cases
 
+    refuse_flat_characters(args.dataset)
     if args.all_pairs and args.split not in (None, "all"):
         print(f"error: --all-pairs takes every pair across all splits; it cannot be limited to --split {args.split}")
         return 2
@@ -136,12 +204,59 @@ def run_cases(args) -> int:
     return StageSummary(sum(counts.values()), out=str(args.dataset))
 
 
+def _run_protocols(args) -> list[str]:
+    """``--protocols``, or by default each default protocol the dataset has cases of (h2h and cct
+    when it has none: the run then says to build cases)."""
+    from pathlib import Path
+
+    from benchmark.protocols import DEFAULT_PROTOCOLS
+    from schemas.dataset import Dataset
+
+    if args.protocols is not None:
+        return list(args.protocols)
+    if not (Path(args.dataset) / "manifest.json").is_file():
+        return ["h2h", "cct"]  # the run itself says what is wrong with the folder, after checking the methods
+    dataset = Dataset.of(args.dataset)
+    have = [p for p in DEFAULT_PROTOCOLS if dataset.has_table("cases", p)]
+    return have or ["h2h", "cct"]
+
+
+def run_validity(args) -> int:
+    from pathlib import Path
+
+    from benchmark.evaluator import run_benchmark
+    from benchmark.validity import markdown_validity, methods_to_run, validity_table, write_validity
+
+    results = Path(args.out) / "results"
+    summary = run_benchmark(args.dataset, methods_to_run(), _run_protocols(args), results,
+                            progress=not args.quiet, in_process=args.in_process)
+    rows = validity_table(results)
+    path = write_validity(args.out, rows)
+    print(markdown_validity(rows))
+    print(f"validity table: {path}")
+    return StageSummary(summary["computed"] - summary["failed"] - summary["not_supported"], summary["failed"],
+                        out=str(args.out))
+
+
 def run_run(args) -> int:
+    """``bench run`` holding the writer's lock of ``--out`` (of this rank's share under torchrun): a second
+    run into the same results folder waits for the first, then skips the cases it computed."""
+    import os
+
+    from schemas.folder_lock import hold
+
+    rank = os.environ.get("RANK", "0") if os.environ.get("WORLD_SIZE", "1") not in ("", "1") else ""
+    with hold(Path(args.out) if not rank else Path(f"{args.out}.rank-{rank}")):
+        return _run_run(args)
+
+
+def _run_run(args) -> int:
     from benchmark.evaluator import run_benchmark
     from benchmark.leaderboard import markdown_tables
     from mimicbench.engines import get_engine
 
-    summary = run_benchmark(args.dataset, list(args.methods), list(args.protocols), args.out, args.device,
+    refuse_flat_characters(args.dataset, case_ids=True)
+    summary = run_benchmark(args.dataset, list(args.methods), _run_protocols(args), args.out, args.device,
                             args.batch_size, progress=not args.quiet, retry_failed=args.retry_failed,
                             case_timeout=args.case_timeout, in_process=args.in_process,
                             engine=None if args.engine == "local" and not args.ray_address
@@ -163,8 +278,9 @@ def run_leaderboard(args) -> int:
     from benchmark.leaderboard import default_out
 
     out = args.out or default_out(args.results)
-    paths = write_leaderboard(args.results, out, pictures=not args.no_pictures)
-    print(markdown_tables(aggregate(args.results)))
+    reference = getattr(args, "reference", "nearest_joint")
+    paths = write_leaderboard(args.results, out, pictures=not args.no_pictures, reference=reference)
+    print(markdown_tables(aggregate(args.results, reference)))
     print("wrote " + ", ".join(str(p) for p in paths.values()))
     return StageSummary(len(paths), out=str(out))
 

@@ -30,7 +30,7 @@ def _methods(step: str) -> tuple[str, ...]:
     return tuple(next(s for s in tomllib.loads(DEMO_PIPELINE.read_text())["steps"] if s.get("name", s["run"]) == step)["methods"])
 
 
-BUNDLED = _methods("bench")  # identity, name_copy, nearest_joint, text_soft, mimicat, npt, cgt, sfpt (shipped checkpoints)
+BUNDLED = _methods("bench")  # identity, name_copy, nearest_joint, text_soft, mimicat, mimicat_init_only, npt, cgt, sfpt
 BUNDLED_APPAREL = _methods("apparel-bench")  # lbs_kinematic, body_only, mmdmc, sfpt (shipped checkpoints)
 """Methods run on the apparel protocol (motion transfer on simulated apparel)."""
 

@@ -118,6 +118,9 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         ProvenanceError: the cases were built from another state of the dataset, or ``out``
             holds rows made from another dataset state (nothing is written then).
     """
+    from schemas.spawn_guard import leave_if_reimporting_main
+
+    leave_if_reimporting_main("a benchmark run")  # a worker re-running an unguarded script: stop, write nothing
     check_run_options(methods, batch_size, case_timeout)
     check_method_names(methods)  # fail fast on unknown names
     instances, unavailable = [], {}

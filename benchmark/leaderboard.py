@@ -1,11 +1,15 @@
 """Write the leaderboard: Markdown, CSV, JSON and a self-contained HTML page with plots and pictures.
 
-Per protocol: the method x category matrix of the headline metric (with an ``all`` column and a
-"missing / failed / not supported" column), a plot per category (log axis when one category is
+Per protocol: first the ranking (each method's mean of the headline column and of the forward
+scores present, with 95% intervals from a bootstrap clustered by (source, target) pair, the paired
+difference against a reference method, ranks with ties, whether the method reads the rig; cct sorts
+by ``semantic_deg``), then the method x category matrix of the headline metric (with an ``all``
+column and a "missing / failed / not supported" column), a plot per category (log axis when one category is
 far off), the summary of every metric, and rendered strips of a few sampled cases (see
 :mod:`benchmark.leaderboard_strips`). Then each method's licence, citation and provenance.
 Files: ``leaderboard.md``, ``.csv`` (one row per protocol and method), ``leaderboard_matrix.csv``
-(one row per protocol, method and category), ``.json`` (:func:`benchmark.aggregate.aggregate`),
+(one row per protocol, method and category), ``leaderboard_ranking.csv`` (one row per protocol,
+column and method: mean, interval, difference, rank), ``.json`` (:func:`benchmark.aggregate.aggregate`),
 ``.html`` (images embedded), and ``leaderboard_files/`` (the same images as PNG files, which the
 Markdown links to).
 """
@@ -19,7 +23,7 @@ import json
 import math
 from pathlib import Path
 
-from benchmark.aggregate import ALL, aggregate
+from benchmark.aggregate import ALL, DEFAULT_REFERENCE, aggregate
 from benchmark.provenance import check_results_provenance
 from schemas.manifest import atomic_write_bytes
 
@@ -90,6 +94,81 @@ def _title(agg: dict, protocol: str) -> str:
     return f"{protocol}: {title}" if title and title != protocol else protocol
 
 
+def _signed(value) -> str:
+    return "—" if value is None else f"{value:+.3f}"
+
+
+def _interval(cell: dict) -> str:
+    """``mean [lo, hi]``, or ``—``."""
+    if cell.get("mean") is None:
+        return "—"
+    return f"{_fmt(cell['mean'])} [{_fmt(cell['lo'])}, {_fmt(cell['hi'])}]"
+
+
+def _difference(cell: dict, is_reference: bool) -> str:
+    """``+diff [lo, hi]`` against the reference, ``reference`` on its own row, ``—`` without one."""
+    if is_reference:
+        return "reference"
+    if cell.get("diff") is None:
+        return "—"
+    return f"{_signed(cell['diff'])} [{_signed(cell['diff_lo'])}, {_signed(cell['diff_hi'])}]"
+
+
+def _rank(cell: dict) -> str:
+    """``=2`` for a shared (tied) rank, ``2`` for a rank of its own, ``—`` for none."""
+    r = cell.get("rank")
+    return "—" if r is None else f"={r}" if cell.get("tied") else str(r)
+
+
+def _ref_name(ranking: dict) -> str:
+    ref = ranking.get("reference")
+    return ref.replace("/", " v", 1) if ref else "—"
+
+
+def ranking_notes(ranking: dict) -> list[str]:
+    """Plain-text notes under a ranking table: how it is read, the unscored cases, the reference."""
+    sort = ranking["sort"]
+    better = "lower is better" if ranking["lower_is_better"][sort] else "higher is better"
+    notes = [f"Sorted by `{sort}` ({better}). Each value: the mean over the cases with its "
+             f"{ranking['level']:.0%} interval from a bootstrap that resamples (source, target) pairs with all their "
+             f"cases ({ranking['draws']} draws, seed {ranking['seed']}). Δ: the mean paired difference against "
+             f"{_ref_name(ranking)} over the cases both have, with its interval. Rank (by `{sort}`): 1 + the number "
+             "of methods surely better (their paired difference's interval excludes 0); `=` marks a rank that "
+             "methods share: they are tied. Only methods with every case scored get values.",
+             "reads rig: `yes`, the method reads the rig (bones, bone names, skin weights) of its requests; `no`, "
+             "meshes only (`MethodMetadata.reads_rig` False): its transfer requests carried no rig."]
+    if ranking.get("reference") is None and ranking.get("reference_asked"):
+        notes.append(f"No paired differences: the reference `{ranking['reference_asked']}` is not among these "
+                     "results (`bench leaderboard --reference`).")
+    for c in ranking["columns"]:
+        valued = [r for r in ranking["rows"] if r["cells"][c]["cases"] or r["cells"][c]["unscored"]]
+        counts = {f"{r['method']} v{r['version']}": r["cells"][c]["unscored"] for r in valued
+                  if r["cells"][c]["unscored"]}
+        if counts:
+            if len(set(counts.values())) == 1 and len(counts) == len(valued):
+                said = f"{next(iter(counts.values()))} cases"
+            else:
+                said = ", ".join(f"{m}: {n}" for m, n in counts.items())
+            notes.append(f"`{c}`: {said} have no value (e.g. a character without role labels); the means are "
+                         "over the other cases, never with a zero in their place.")
+    return notes
+
+
+def ranking_markdown(ranking: dict) -> list[str]:
+    """The ranking table of one protocol (Markdown lines)."""
+    cols, ref = ranking["columns"], ranking.get("reference")
+    head = ["rank", "method", "reads rig"]
+    for c in cols:
+        head += [f"{c} [95% CI]", f"Δ {c} vs {_ref_name(ranking)}"]
+    lines = ["| " + " | ".join(head) + " |", "|---:|---|---|" + "---:|" * (2 * len(cols))]
+    for r in ranking["rows"]:
+        cells = [_rank(r["cells"][ranking["sort"]]), f"{r['method']} v{r['version']}", "yes" if r["reads_rig"] else "no"]
+        for c in cols:
+            cells += [_interval(r["cells"][c]), _difference(r["cells"][c], r["key"] == ref)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines + [""] + [f"- {n}" for n in ranking_notes(ranking)] + [""]
+
+
 def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str = FILES_DIR) -> str:
     """The leaderboard as Markdown: per protocol the matrix and the summary; then the methods."""
     lines = []
@@ -98,14 +177,17 @@ def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str 
     for protocol, matrix in agg.get("matrix", {}).items():
         head = matrix["headline"]
         better = "lower is better" if matrix["lower_is_better"] else "higher is better"
-        lines += [f"### {_title(agg, protocol)}", "",
-                  f"Mean `{head}` per category ({better}); `—`: no average (failed, missing or unsupported cases).", ""]
+        lines += [f"### {_title(agg, protocol)}", ""]
+        if protocol in agg.get("ranking", {}):
+            lines += ranking_markdown(agg["ranking"][protocol])
+        lines += [f"Mean `{head}` per category ({better}); `—`: no average (failed, missing or unsupported cases).", ""]
         cols = matrix["columns"]
         lines.append("| method | " + " | ".join(cols) + f" | {STATUS_HEADER} |")
         lines.append("|---|" + "---:|" * len(cols) + "---|")
         for row in matrix["rows"]:
             cells = " | ".join(_fmt(row["cells"].get(c)) for c in cols)
             lines.append(f"| {row['method']} v{row['version']} | {cells} | {_status(row)} |")
+        lines.append("| _cases_ | " + " | ".join(_fmt(n) for n in _column_cases(matrix)) + " | |")
         lines += ["", "All metrics (means over the protocol's cases):", ""]
         header = ["method"] + [t for _, t in COUNT_COLUMNS] + metrics + ["s/case"]
         lines.append("| " + " | ".join(header) + " |")
@@ -129,6 +211,19 @@ def markdown_tables(agg: dict, strips: list[dict] | None = None, files_dir: str 
                          f"| {m.get('source')} |")
         lines.append("")
     return "\n".join(lines)
+
+
+def _column_cases(matrix: dict) -> list:
+    """Cases of each matrix column (the most any method has there; ``all``: their sum), None when no row."""
+    out = []
+    for c in matrix["columns"]:
+        if c == ALL:
+            out.append(sum(n for n in out if n is not None) if out else None)
+            continue
+        counts = [r["counts"].get(c, {}).get("cases") for r in matrix["rows"]]
+        counts = [n for n in counts if n is not None]
+        out.append(max(counts) if counts else None)
+    return out
 
 
 def _heat(values: list, lower_is_better: bool) -> list[str]:
@@ -157,6 +252,33 @@ def _img_tag(png: bytes, alt: str) -> str:
     return f"<img alt='{html.escape(alt)}' src='data:image/png;base64,{base64.b64encode(png).decode()}'>"
 
 
+def ranking_html(ranking: dict) -> str:
+    """The ranking table of one protocol (HTML): ``table.ranking``, tied rows ``tr.tied``, the
+    rank cell ``td.rank`` (``=2`` when shared), reads-rig cells ``td.rig-yes`` / ``td.rig-no``."""
+    e = html.escape
+    cols, ref = ranking["columns"], ranking.get("reference")
+    parts = ["<table class='ranking'><tr><th>rank</th><th>method</th><th>reads rig</th>"
+             + "".join(f"<th>{e(c)} [95% CI]</th><th>Δ {e(c)} vs {e(_ref_name(ranking))}</th>" for c in cols)
+             + "</tr>"]
+    for r in ranking["rows"]:
+        sort_cell = r["cells"][ranking["sort"]]
+        rig = "yes" if r["reads_rig"] else "no"
+        tds = "".join(f"<td class='ci' title='{r['cells'][c]['cases']} cases, {r['cells'][c]['pairs']} pairs'>"
+                      f"{e(_interval(r['cells'][c]))}</td><td class='ci'>{e(_difference(r['cells'][c], r['key'] == ref))}"
+                      "</td>" for c in cols)
+        parts.append(f"<tr class='{'tied' if sort_cell.get('tied') else 'ranked'}'><td class='rank'>{e(_rank(sort_cell))}"
+                     f"</td><td>{e(r['method'])} v{e(r['version'])}</td><td class='rig-{rig}'>{rig}</td>{tds}</tr>")
+    parts.append("</table><ul class='notes'>" + "".join(f"<li>{_md_code(n)}</li>" for n in ranking_notes(ranking))
+                 + "</ul>")
+    return "".join(parts)
+
+
+def _md_code(text: str) -> str:
+    """Escaped HTML of a note, its backquoted parts as ``<code>``."""
+    pieces = html.escape(text).split("`")
+    return "".join(f"<code>{p}</code>" if i % 2 else p for i, p in enumerate(pieces))
+
+
 def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dict] | None = None,
               note: str | None = None) -> str:
     """The self-contained HTML page (images embedded as base64 PNG)."""
@@ -168,7 +290,11 @@ def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dic
              "td:first-child,th:first-child{text-align:left}td.status{text-align:left;color:#555}"
              "table.methods td,table.methods th{text-align:left;vertical-align:top}"
              "figure{margin:1em 0}figcaption{font-size:90%;color:#444}img{max-width:100%}"
-             "pre{white-space:pre-wrap;margin:0;font-size:85%;text-align:left}</style></head><body>",
+             "pre{white-space:pre-wrap;margin:0;font-size:85%;text-align:left}"
+             "table.ranking td:nth-child(2),table.ranking td:nth-child(3){text-align:left;white-space:nowrap}"
+             "table.ranking td.rank{text-align:center;font-weight:bold}table.ranking tr.tied td.rank{color:#1f5fa8}"
+             "td.rig-no{color:#2b7a3d}td.rig-yes{color:#555}td.ci{white-space:nowrap}ul.notes{font-size:90%;color:#333}"
+             "</style></head><body>",
              "<h1>mimicbench leaderboard</h1>"]
     run = agg.get("run", {})
     parts.append(f"<p>Dataset: <code>{e(str(run.get('dataset', '—')))}</code>. PMD x100: mean vertex distance in "
@@ -187,6 +313,8 @@ def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dic
         head, cols = matrix["headline"], matrix["columns"]
         better = "lower is better" if matrix["lower_is_better"] else "higher is better"
         parts.append(f"<section class='protocol' id='{e(protocol)}'><h2>{e(_title(agg, protocol))}</h2>")
+        if protocol in agg.get("ranking", {}):
+            parts.append(ranking_html(agg["ranking"][protocol]))
         parts.append(f"<p>Mean <code>{e(head)}</code> per category ({better}).</p>")
         parts.append("<table class='matrix'><tr><th>method</th>" + "".join(f"<th>{e(c)}</th>" for c in cols)
                      + f"<th>{e(STATUS_HEADER)}</th></tr>")
@@ -199,7 +327,9 @@ def html_page(agg: dict, plots: dict[str, bytes] | None = None, strips: list[dic
                 tds.append(f"<td style='{shades[c][i]}'{tip}>{e(_fmt(row['cells'].get(c)))}</td>")
             parts.append(f"<tr><td>{e(row['method'])} v{e(row['version'])}</td>" + "".join(tds)
                          + f"<td class='status'>{e(_status(row))}</td></tr>")
-        parts.append("</table>")
+        parts.append("<tr class='cases'><td><i>cases</i></td>" + "".join(f"<td>{e(_fmt(n))}</td>"
+                                                                       for n in _column_cases(matrix))
+                     + "<td></td></tr></table>")
         if plots and protocol in plots:
             parts.append(f"<figure class='plot'>{_img_tag(plots[protocol], f'{protocol} per category')}"
                          "<figcaption>Per category; a log axis when values span more than 10x.</figcaption></figure>")
@@ -281,19 +411,23 @@ def default_out(results) -> Path:
     return results.with_name(results.name + "-leaderboard")
 
 
-def write_leaderboard(results, out_dir=None, pictures: bool = True) -> dict[str, Path]:
+def write_leaderboard(results, out_dir=None, pictures: bool = True, reference: str | None = DEFAULT_REFERENCE
+                      ) -> dict[str, Path]:
     """Write the leaderboard files into ``out_dir`` (default: the results folder).
 
     Args:
         results: results folder (``<method>/<version>/part-*.parquet``, ``run.json``).
         pictures: render strips of sampled cases through Blender; when Blender is missing or
             fails, the page says why and everything else is still written.
+        reference: the method (name or ``name/version``) every paired difference is taken
+            against; None for none.
 
     Returns:
-        Paths by kind: ``md``, ``csv``, ``matrix_csv``, ``json``, ``html``, ``files`` (folder).
+        Paths by kind: ``md``, ``csv``, ``matrix_csv``, ``ranking_csv``, ``json``, ``html``,
+        ``files`` (folder).
     """
     check_results_provenance(results)  # refuses results of different dataset states
-    agg = aggregate(results)
+    agg = aggregate(results, reference)
     out = Path(out_dir or results)
     try:
         return _write_files(results, agg, out, pictures)
@@ -327,6 +461,7 @@ def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Pat
         note = "pictures not rendered (--no-pictures)"
     paths = {ext: out / f"leaderboard.{ext}" for ext in ("md", "csv", "json", "html")}
     paths["matrix_csv"] = out / "leaderboard_matrix.csv"
+    paths["ranking_csv"] = out / "leaderboard_ranking.csv"
     paths["files"] = files
     md = markdown_tables(agg, strips)
     for protocol in plots:
@@ -335,14 +470,30 @@ def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Pat
     _write_text(paths["md"], "# mimicbench leaderboard\n\n" + (f"_{note}_\n\n" if note else "") + md)
     _write_text(paths["json"], json.dumps(agg, indent=2, default=str) + "\n")
     metrics = agg["metrics"]
+    ranking = agg.get("ranking", {})
     with _CsvFile(paths["csv"]) as f:
         w = csv.writer(f)
         w.writerow(["protocol", "method", "version"] + [k for k, _ in COUNT_COLUMNS] + metrics
-                   + ["seconds_per_case", "complete", "first_error"])
+                   + ["seconds_per_case", "complete", "first_error", "reads_rig", "rank_by", "rank", "tied"])
         for protocol, entries in agg["protocols"].items():
+            rk = ranking.get(protocol, {})
+            by = {r["key"]: r for r in rk.get("rows", [])}
             for x in entries:
+                r = by.get(f"{x['method']}/{x['version']}")
+                cell = r["cells"][rk["sort"]] if r else {}
                 w.writerow([protocol, x["method"], x["version"]] + [x.get(k) for k, _ in COUNT_COLUMNS]
-                           + [x.get(m) for m in metrics] + [x["seconds_per_case"], x["complete"], x["first_error"]])
+                           + [x.get(m) for m in metrics] + [x["seconds_per_case"], x["complete"], x["first_error"]]
+                           + [r["reads_rig"] if r else None, rk.get("sort"), cell.get("rank"), cell.get("tied")])
+    with _CsvFile(paths["ranking_csv"]) as f:
+        w = csv.writer(f)
+        fields = ["mean", "lo", "hi", "cases", "pairs", "unscored", "rank", "tied", "diff", "diff_lo", "diff_hi",
+                  "diff_se", "diff_cases"]
+        w.writerow(["protocol", "column", "method", "version", "reads_rig", "reference"] + fields)
+        for protocol, rk in ranking.items():
+            for c in rk["columns"]:
+                for r in rk["rows"]:
+                    w.writerow([protocol, c, r["method"], r["version"], r["reads_rig"], rk["reference"]]
+                               + [r["cells"][c].get(k) for k in fields])
     with _CsvFile(paths["matrix_csv"]) as f:
         w = csv.writer(f)
         w.writerow(["protocol", "headline", "method", "version", "category", "value", "cases"])

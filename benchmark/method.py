@@ -32,6 +32,13 @@ class MethodMetadata:
             the others and records those cases as ``not_supported``, not failed. The default is
             every protocol whose requests a general pose-transfer method can answer
             (``h2h``, ``cct``); a humanoid-only method would declare ``("h2h",)``.
+        reads_rig: whether :meth:`PoseTransferMethod.transfer` reads the rig (keypoints, parents,
+            skin weights, bone names, or the bone-indexed ``extras`` such as ``m_sink``) or only
+            meshes. The default, True, is safe for any method. A method that declares False gets
+            transfer requests whose rigs carry no rig (:func:`benchmark.request.mesh_only`):
+            reading one raises :class:`benchmark.request.RigWithheld`, so the declaration
+            cannot be wrong. Motion requests (``apparel``) state the motion as bone transforms,
+            so they always carry the rig; the leaderboard marks the methods that read it.
     """
 
     name: str
@@ -42,6 +49,7 @@ class MethodMetadata:
     description: str = ""
     tags: tuple[str, ...] = field(default_factory=tuple)
     protocols: tuple[str, ...] = ("h2h", "cct")
+    reads_rig: bool = True
 
     def __post_init__(self):
         protocols = (self.protocols,) if isinstance(self.protocols, str) else tuple(self.protocols)
@@ -49,6 +57,8 @@ class MethodMetadata:
             raise ValueError(f"MethodMetadata.protocols: expected a non-empty tuple of protocol names, "
                              f"got {self.protocols!r}")
         object.__setattr__(self, "protocols", protocols)
+        if not isinstance(self.reads_rig, bool):
+            raise ValueError(f"MethodMetadata.reads_rig: expected True or False, got {self.reads_rig!r}")
 
 
 @runtime_checkable

@@ -24,6 +24,7 @@ BUILTIN = {
     "mmdmc_no_refine": "baselines.mmdmc.method:MmdmcNoRefine",
     "mmdmc_no_apparel": "baselines.mmdmc.method:MmdmcNoApparel",
     "mmdmc_gt_mask": "baselines.mmdmc.method:MmdmcGtMask",
+    "probe_apparel_jitter": "baselines.mmdmc.probe_jitter:ProbeApparelJitter",
     "mimicat": "baselines.mimicat.method:Mimicat",
     "mimicat_naive_avg": "baselines.mimicat.method:MimicatNaiveAvg",
     "mimicat_no_prior": "baselines.mimicat.method:MimicatNoPrior",
@@ -31,6 +32,18 @@ BUILTIN = {
     "npt": "baselines.npt.method:Npt",
     "cgt": "baselines.cgt.method:Cgt",
     "sfpt": "baselines.sfpt.method:Sfpt",
+    "npt_constant_code": "baselines.npt.method:NptConstantCode",
+    "cgt_no_attention": "baselines.cgt.method:CgtNoAttention",
+    "sfpt_kabsch_only": "baselines.sfpt.method:SfptKabschOnly",
+    "probe_role_transfer": "baselines.probes.methods:ProbeRoleTransfer",
+    "probe_mirror": "baselines.probes.methods:ProbeMirror",
+    "probe_fore_hind": "baselines.probes.methods:ProbeForeHind",
+    "probe_frozen_limb": "baselines.probes.methods:ProbeFrozenLimb",
+    "probe_noise15": "baselines.probes.methods:ProbeNoise15",
+    "probe_half_angle": "baselines.probes.methods:ProbeHalfAngle",
+    "probe_rest": "baselines.probes.methods:ProbeRest",
+    "nearest_joint_mirrored": "baselines.probes.methods:NearestJointMirrored",
+    "nearest_joint_fore_hind": "baselines.probes.methods:NearestJointForeHind",
 }
 
 METHODS = Registry("method", BUILTIN, ENTRY_POINT_GROUP)

@@ -86,15 +86,81 @@ class Rig:
         return largest_extent(self.vertices)
 
 
+class RigWithheld(RuntimeError):
+    """A mesh-only method (``MethodMetadata.reads_rig`` False) read a rig field of its request."""
+
+
+RIG_FIELDS = ("keypoints", "parents", "weights", "bone_names")
+"""The fields of a :class:`Rig` that a mesh-only method's requests do not carry."""
+
+
+def _withheld(name: str) -> property:
+    def get(self):
+        raise RigWithheld(f"{self.character_id}: the request carries no {name}: the method declares "
+                          f"reads_rig=False (meshes only), so its requests carry no rig (keypoints, parents, "
+                          f"weights, bone names); declare reads_rig=True in its MethodMetadata to read them")
+
+    return property(get, doc="Not given to a mesh-only method: reading it raises :class:`RigWithheld`.")
+
+
+@dataclass(frozen=True)
+class MeshOnlyRig:
+    """A character at rest without its rig: what a mesh-only method receives in place of a :class:`Rig`.
+
+    Attributes:
+        character_id: stable ID.
+        category: e.g. ``humanoid``, ``bird``.
+        vertices: (N, 3) float32 rest vertices.
+        faces: (M, 3) int32 triangles.
+
+    ``keypoints``, ``parents``, ``weights`` and ``bone_names`` raise :class:`RigWithheld` (a
+    method that declares meshes only and reads the rig fails the case saying so, never silently).
+    """
+
+    character_id: str
+    category: str
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    keypoints = _withheld("keypoints")
+    parents = _withheld("parents")
+    weights = _withheld("weights")
+    bone_names = _withheld("bone_names")
+
+    def __post_init__(self):
+        for name in ("vertices", "faces"):
+            object.__setattr__(self, name, read_only(getattr(self, name)))
+
+    @classmethod
+    def of(cls, rig: "Rig | MeshOnlyRig") -> "MeshOnlyRig":
+        """The rest mesh of ``rig`` without its rig (the same read-only memory, no copy)."""
+        return cls(rig.character_id, rig.category, rig.vertices, rig.faces)
+
+    def fresh(self) -> "MeshOnlyRig":
+        """A new MeshOnlyRig over the same read-only memory (no copy): one per request."""
+        return dataclasses.replace(self)
+
+    @property
+    def height(self) -> float:
+        """Y extent of the rest mesh, metres."""
+        return float(self.vertices[:, 1].max() - self.vertices[:, 1].min())
+
+    @property
+    def size(self) -> float:
+        """Largest side of the rest mesh's bounding box, metres."""
+        return largest_extent(self.vertices)
+
+
 @dataclass(frozen=True)
 class TransferRequest:
     """Pose the target like the posed source.
 
     Attributes:
-        source: the source rig at rest.
+        source: the source rig at rest (a :class:`MeshOnlyRig` for a method that reads meshes only,
+            see :func:`mesh_only`).
         source_posed: (Ns, 3) float32 posed source vertices (a method that needs transforms
             estimates them, so the cycle's return leg is the same problem as the forward leg).
-        target: the target rig at rest.
+        target: the target rig at rest (a :class:`MeshOnlyRig` likewise).
         case_id: the case this request serves (for logging; methods must not parse it).
         extras: optional precomputed data keyed by name, e.g. ``"m_sink"``: (Ks, Kt) soft
             correspondence from the dataset's ``pairs/`` table.
@@ -114,6 +180,23 @@ class TransferRequest:
         object.__setattr__(self, "target", self.target.fresh())
         object.__setattr__(self, "source_posed", read_only(self.source_posed))
         object.__setattr__(self, "extras", read_only_extras(self.extras))
+
+
+def mesh_only(request: "TransferRequest | MotionRequest") -> "TransferRequest | MotionRequest":
+    """The request as a mesh-only method (``MethodMetadata.reads_rig`` False) receives it.
+
+    A :class:`TransferRequest` gets both rigs replaced by :class:`MeshOnlyRig` (rest vertices and
+    faces, ID and category) and no ``extras`` (they are bone-indexed, e.g. ``m_sink`` (Ks, Kt));
+    the posed source vertices are kept. A :class:`MotionRequest` is returned as it is: its input
+    is the motion as bone transforms, which mean nothing without the bones and skin weights, so
+    every method that answers the ``apparel`` protocol reads the rig there. The evaluator scores
+    with its own full rigs, never with the method's copy.
+    """
+    if isinstance(request, MotionRequest):
+        return request
+    return TransferRequest(MeshOnlyRig.of(request.source), request.source_posed, MeshOnlyRig.of(request.target),
+                           request.case_id, {})
+
 
 @dataclass(frozen=True)
 class MotionRequest:

@@ -93,7 +93,13 @@ def _read_part(path: Path) -> pa.Table | None:
         if path.stat().st_size == 0:
             _report(path, "empty file, 0 bytes")
             return None
-        return pq.read_table(path).cast(schema_of("results"))
+        table, schema = pq.read_table(path), schema_of("results")
+        if set(table.column_names) <= set(schema.names):  # a part written before a nullable column existed
+            for f in schema:
+                if f.name not in table.column_names and f.nullable:
+                    table = table.append_column(f.name, pa.nulls(table.num_rows, f.type))
+            table = table.select([n for n in schema.names if n in table.column_names])
+        return table.cast(schema)
     except Exception as exc:  # pyarrow raises several types for damaged files
         _report(path, f"not a readable result part: {type(exc).__name__}: {exc}")
         return None

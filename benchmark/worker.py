@@ -29,7 +29,11 @@ A class that a fresh process cannot import (defined inside a function, in ``__ma
 ``exec``'d string) cannot run in a worker: :func:`open_runner` then runs it in process and logs a
 warning saying so. A script that calls the evaluator must guard its top level with
 ``if __name__ == "__main__":`` (the usual ``multiprocessing`` rule), because ``spawn`` imports the
-script's ``__main__`` module in the worker.
+script's ``__main__`` module in the worker. A worker is the harness's until it reports ``started``
+(before it imports the method): one that ends before that is a start-up failure of the harness,
+raised as :class:`WorkerStartError` (one line naming the cause and, for an unguarded script, the
+fix: :mod:`schemas.spawn_guard`), never stored as the method's failure, so a re-run computes those
+cases.
 """
 from __future__ import annotations
 
@@ -44,7 +48,9 @@ from typing import Sequence
 import numpy as np
 
 from benchmark.request import MotionRequest, Rig, TransferRequest
+from mimicbench.errors import UserError
 from mimicbench.registry import load_target
+from schemas.spawn_guard import REIMPORT_EXIT, fix_text, leave_if_reimporting_main
 
 log = logging.getLogger("mimicbench")
 
@@ -54,6 +60,10 @@ SETUP_TIMEOUT = 600.0
 CLOSE_TIMEOUT = 30.0
 #: first field of a motion request's item in a ``transfer`` message (the apparel protocol)
 MOTION = "__motion_request__"
+
+
+class WorkerStartError(UserError):
+    """The harness could not start a worker process (before the method was imported): not a method's failure."""
 
 
 @dataclass
@@ -168,9 +178,11 @@ class WorkerRunner:
         self.sent: set[str] = set()  # character IDs whose rigs the current worker holds
         self.setup_error: str | None = None
         self.workers_started = 0
+        self._last_exit: int | None = None  # exit status of the last worker that died
 
     # -- process management --
     def _start(self) -> None:
+        leave_if_reimporting_main(f"the start of a worker for method {self.metadata.name!r}")
         parent, child = self.context.Pipe()
         self.process = self.context.Process(
             target=worker_main, args=(child, self.spec, self.device, self.rank, self.world_size),
@@ -179,12 +191,32 @@ class WorkerRunner:
         child.close()
         self.conn, self.sent = parent, set()
         self.workers_started += 1
+        self._started(max(SETUP_TIMEOUT, self.case_timeout))
         reply, error = self._receive(max(SETUP_TIMEOUT, self.case_timeout))
         if error is None and reply[0] != "ready":
             error = reply[1]
         if error is not None:
             self.setup_error = f"setup failed: {error}"
             self._stop()
+
+    def _started(self, timeout: float) -> None:
+        """Wait for the worker's ``started`` (sent before it imports the method).
+
+        Raises:
+            WorkerStartError: the process ended or hung before that: the harness's start-up failed
+                (an unguarded script re-run by ``spawn``, an interpreter that cannot start).
+        """
+        reply, error = self._receive(timeout)
+        if error is None and reply[0] == "started":
+            return
+        code = self._last_exit
+        if code == REIMPORT_EXIT:
+            why = fix_text()
+        else:
+            why = (f"{error or 'it sent ' + repr(reply[0])} before it ran mimicbench's worker code (its own output "
+                   f"above says why). If the benchmark runs from a script: {fix_text()}")
+        raise WorkerStartError(f"the harness could not start a worker process for method {self.metadata.name!r}: "
+                               f"{why}. No case was run or stored; run again when fixed")
 
     def _stop(self) -> None:
         """Kill the worker (if any) and forget it; the next batch starts a fresh one."""
@@ -199,7 +231,7 @@ class WorkerRunner:
 
     def _died(self) -> str:
         self.process.join(CLOSE_TIMEOUT)
-        code = self.process.exitcode
+        code = self._last_exit = self.process.exitcode
         self._stop()
         if code is None:
             return "worker stopped answering"
@@ -294,6 +326,7 @@ def worker_main(conn, spec: str, device: str, rank: int, world_size: int) -> Non
     Ctrl-C is left to the parent (which kills the worker), so it prints one message, not two.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    conn.send(("started",))  # the harness's part of the start is done: what fails from here is the method's
     try:
         method = load_target(spec)()
         method.setup(device)

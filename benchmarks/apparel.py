@@ -38,7 +38,7 @@ The compiled joint kernels (numba, :mod:`datagen.apparel.joint_kernel`) are impo
 once before any figure is timed; that first call (compiling them, or loading numba's cache of
 them) is printed on its own line and is in no per-clip figure.
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 
 DEFAULT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
@@ -32,8 +33,15 @@ def split_of(character_id: str, fractions: dict[str, float] | None = None, salt:
 def load_split_file(path: str | Path) -> dict[str, str]:
     """Read a split file: JSON mapping split name to a list of character IDs; returns ID -> split."""
     data = json.loads(Path(path).read_text())
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object mapping split names to lists of character IDs")
     out: dict[str, str] = {}
     for split, ids in data.items():
+        if not re.fullmatch(r"[A-Za-z0-9_]+", split):  # it names shard files: never a path
+            raise ValueError(f"{path}: split name {split!r}: expected letters, digits or '_' (it names the shard "
+                             f"files {{split}}-00000-of-00001.parquet)")
+        if not isinstance(ids, list) or not all(isinstance(c, str) for c in ids):
+            raise ValueError(f"{path}: split {split!r}: expected a list of character IDs (strings)")
         for cid in ids:
             if cid in out:
                 raise ValueError(f"{path}: character {cid!r} is in both {out[cid]!r} and {split!r}")

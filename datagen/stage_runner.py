@@ -20,6 +20,7 @@ from tqdm.auto import tqdm
 
 from mimicbench.engines import Engine, LocalEngine, Outcome, TaskResources
 from schemas.errors import DatasetError, UserError
+from schemas.folder_lock import hold
 from schemas.fingerprint import fingerprint_mismatch, stage_config, stale_inputs, tables_fingerprint
 from schemas.integrity import entry_path, verify_shard
 from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_complete,
@@ -114,11 +115,14 @@ class Stage:
 class StageRun:
     """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` with
     ``refuse_foreign=False``: a stage adding tables to its input) into ``out_dir``; refuses at once
-    folders inside one another and an ``out_dir`` holding another stage's dataset."""
+    folders inside one another and an ``out_dir`` holding another stage's dataset. It holds the
+    writer's lock of ``out_dir`` (:mod:`schemas.folder_lock`) from its start until :meth:`finish` or
+    :meth:`abandon`: a second writer of the same folder waits for it."""
 
     def __init__(self, stage: Stage, params, out_dir, in_dir=None, info: dict | None = None,
                  refuse_foreign: bool = True):
         self.stage, self.params, self.out_dir, self.before, self.begun = stage, params, Path(out_dir), None, False
+        self.lock = hold(self.out_dir)  # one writer at a time; released by finish/abandon (or when the run is dropped)
         self.in_dir = None if in_dir is None else Path(in_dir)
         a, b = (self.in_dir or self.out_dir).resolve(), self.out_dir.resolve()
         if refuse_foreign and self.in_dir is not None and (a.is_relative_to(b) or b.is_relative_to(a)):
@@ -185,6 +189,7 @@ class StageRun:
             for folder in [self.out_dir / t for t in self.stage.outputs] + [self.out_dir]:
                 if folder.is_dir() and not any(folder.iterdir()):
                     folder.rmdir()
+        self.lock.release()
         reasons = "; ".join(f"{s.asset}: {s.reason}" for s in statuses[:3]) + ("; ..." if len(statuses) > 3 else "")
         return DatasetError(f"{self.stage.name}: every {what} failed ({reasons}); {self.out_dir} left as it was"
                             + ("" if self.before is not None else " (nothing written)"))
@@ -239,6 +244,7 @@ class StageRun:
         for message in sorted(stale):
             print(f"warning: {message}", file=sys.stderr)
         problems = [p for p in validate_dataset(self.out_dir) if p not in stale]
+        self.lock.release()
         if problems:
             raise RuntimeError(f"{self.stage.name} wrote an invalid dataset:\n" + "\n".join(problems))
 

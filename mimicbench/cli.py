@@ -37,6 +37,7 @@ COMMAND_MODULES = (
     ("datagen", "datagen.correspond.command"),
     ("datagen", "datagen.ingest.command"),
     ("datagen", "datagen.retarget.command"),
+    ("datagen", "datagen.roles.command"),
     ("datagen", "datagen.apparel.command"),
     (None, "benchmark.command"),
     (None, "benchmark.demo"),
@@ -46,8 +47,8 @@ COMMAND_MODULES = (
 )
 
 GROUP_HELP = {
-    "datagen": "dataset stages: ingest real assets, resample meshes, compute correspondences, retarget clips, "
-               "simulate apparel",
+    "datagen": "dataset stages: ingest real assets, attach role labels, resample meshes, compute correspondences, "
+               "retarget clips, simulate apparel",
 }
 
 DESCRIPTION = """\
@@ -58,6 +59,7 @@ Typical flow:
   mimicbench zoo --out data/zoo --characters 40     procedural rigged, animated characters
   mimicbench datagen ingest assets/*.glb --out data/mine    real assets through Blender
   mimicbench datagen retarget data/mine data/mmd data/out   humanoid clips onto other humanoids
+  mimicbench datagen roles data/mine --labels roles.toml    hidden bone roles and categories from a file
   mimicbench datagen resample data/zoo data/zoo5k   5,000-face meshes, weights re-skinned
   mimicbench datagen correspond data/zoo5k          bone-name correspondences (pairs/)
   mimicbench datagen apparel data/zoo data/zoo_sim   apparel chains simulated with Bullet (<clip>@sim)
@@ -142,6 +144,9 @@ def exit_code(result) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from mimicbench.address_space import fit_to_address_space_limit, limit_text
+
+    fit_to_address_space_limit()  # under `ulimit -v`: small reservations, one thread a pool (before numpy loads)
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.no_verify:
@@ -155,6 +160,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted; work already written is kept, re-run to resume", file=sys.stderr)
         return 130
+    except MemoryError:
+        if debug:
+            raise
+        limit = limit_text()
+        print(f"mimicbench: error: out of memory{' under ' + limit if limit else ''}; work already written is "
+              f"kept: raise the limit{' (ulimit -v)' if limit else ''} or give the command less to hold at once, "
+              f"and re-run to resume", file=sys.stderr)
+        return 2
     except USER_ERRORS as exc:
         if debug:
             raise

@@ -59,7 +59,7 @@ class CharacterRecord:
         Column("weight_values", "rows", "float32", MAX_INFLUENCES, doc="(N, 8) skin weight of each influence; unused slots 0; rows sum to 1"),
         Column("apparel_vertex_mask", "list", "bool", doc="(N,) true for vertices driven by apparel bones"),
         Column("apparel_bone_mask", "list", "bool", doc="(K,) true for apparel bones (skirt, hair, cape chains)"),
-        Column("bone_roles", "strings", nullable=True, doc="(K,) hidden semantic role per bone, e.g. `left/upper_arm`, `tail/3`; ground truth only, never a method input; null when unknown"),
+        Column("bone_roles", "strings", nullable=True, doc="(K,) hidden semantic role per bone, e.g. `left/upper_arm`, `tail/3`, or a class such as `left/forelimb` (docs/roles.md); `\"\"` for a bone without a role; ground truth only, never a method input; null when no bone has one (ingested characters get roles from `datagen roles`)"),
         Column("skeleton_id", "scalar", "string", nullable=True, doc="characters with equal skeleton_id share bone names and parents exactly (the H2H family)"),
         Column("height", "scalar", "float32", nullable=True, doc="Y extent of the rest mesh, metres"),
         Column("meta", "json", nullable=True, doc="JSON object: provenance and per-stage reports (e.g. `resample`: faces in/out, Hausdorff %, transfer error %, `weld` when the resampled mesh had near-zero edges or zero-area faces to weld away, and `own_piece_vertices` when some resampled vertices lay closest to another mesh piece than the one they came from and took their weights from their own)"),

@@ -13,11 +13,17 @@ Metric columns (all x100 PMDs are percentages of a rest mesh's length; see FORMA
   own centroids: articulation without global translation.
 - ``pmd_squared``: NPT-style squared PMD, headline normalisation.
 - ``els``, ``els_forward``: edge length scores (scale-free).
+- ``semantic_deg``, ``role_classes_scored``, ``out_of_range``: the forward prediction against hidden
+  ground truth (role classes; the target's own range of motion), see ``benchmark/semantic.py`` and
+  ``benchmark/motion_range.py``.
 - ``apparel`` protocol (means over the window's frames; ``*_frames`` per frame): ``pmd`` and
   ``pmd_height`` over all vertices, ``pmd_apparel`` over the ground truth's apparel vertices,
   ``pmd_body`` over the other vertices (x100 of the target's height), the same in centimetres
   of the character scaled to 1.70 m (``pmd_cm``, ``pmd_apparel_cm``, ``pmd_body_cm``, MMDMC's
-  unit), and ``els``.
+  unit), and ``els``; over the window as a whole, ``accel_error`` (mean |a_pred - a_gt| over apparel
+  vertices and second differences, m/s^2 at 1.70 m height) and ``penetration_share`` (percent of
+  apparel vertices within 1 mm at 1.70 m of the body or inside it, HOOD's measure); see
+  ``benchmark/apparel_metrics.py``.
 
 ``status``: ``ok``, ``failed`` (the method raised, timed out or returned something invalid;
 ``error`` says what) or ``not_supported`` (the method's metadata does not list the protocol; it
@@ -31,8 +37,10 @@ from schemas.columns import Column
 
 TABLE = "results"
 APPAREL_METRICS = ("pmd_apparel", "pmd_body", "pmd_cm", "pmd_apparel_cm", "pmd_body_cm", "pmd_frames",
-                   "pmd_apparel_frames", "pmd_body_frames", "els_frames")
+                   "pmd_apparel_frames", "pmd_body_frames", "els_frames", "accel_error", "penetration_share")
 """Result columns only the ``apparel`` protocol fills."""
+FORWARD_METRICS = ("semantic_deg", "role_classes_scored", "out_of_range")
+"""Result columns that score the forward prediction against hidden ground truth (``h2h``, ``h2h_xskel``, ``cct``)."""
 OK, FAILED, NOT_SUPPORTED = "ok", "failed", "not_supported"
 STATUSES = (OK, FAILED, NOT_SUPPORTED)
 
@@ -66,6 +74,11 @@ class ResultRecord:
     pmd_apparel_frames: list | None = None
     pmd_body_frames: list | None = None
     els_frames: list | None = None
+    accel_error: float | None = None
+    penetration_share: float | None = None
+    semantic_deg: float | None = None
+    role_classes_scored: int | None = None
+    out_of_range: float | None = None
 
     COLUMNS = (
         Column("case_id", "scalar", "string", doc="the case scored"),
@@ -93,4 +106,9 @@ class ResultRecord:
         Column("pmd_apparel_frames", "list", "float64", nullable=True, doc="apparel: (F,) PMD_a x100 of each frame"),
         Column("pmd_body_frames", "list", "float64", nullable=True, doc="apparel: (F,) PMD_b x100 of each frame"),
         Column("els_frames", "list", "float64", nullable=True, doc="apparel: (F,) ELS of each frame"),
+        Column("accel_error", "scalar", "float64", nullable=True, doc="apparel: mean over apparel vertices and the window's second differences of the length of a_pred - a_gt (accelerations at the clip's fps), m/s^2 of the character scaled to 1.70 m height"),
+        Column("penetration_share", "scalar", "float64", nullable=True, doc="apparel: percent of apparel vertices (those clear of the body at rest) within 1 mm (at 1.70 m height) of the ground truth's body pieces or inside them, mean over the window (HOOD)"),
+        Column("semantic_deg", "scalar", "float64", nullable=True, doc="forward leg: mean degrees between how each role class of the target moved and how the source's counterpart moved, in each character's body frame (benchmark/semantic.py); lower is better; null when either character has no role labels"),
+        Column("role_classes_scored", "scalar", "int64", nullable=True, doc="forward leg: how many parts (the body and the role classes both characters have) `semantic_deg` averages; null when it is null"),
+        Column("out_of_range", "scalar", "float64", nullable=True, doc="forward leg: share of the target's bones rotated beyond the range its own clips reach, by more than the margin of benchmark/motion_range.py; lower is better"),
     )

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
@@ -18,6 +19,52 @@ from schemas.tables import RECORD_TYPES, schema_of
 UNIQUE_IDS = {"characters": "character_id", "motions": "motion_id"}  # one row per ID, across splits
 
 
+def parents_problem(parents) -> str | None:
+    """Why ``parents`` (K,) int is not a skeleton in the format's order (``-1 <= parents[k] < k``: roots
+    first, every joint after its parent, so no cycle), or None when it is."""
+    parents = np.asarray(parents).reshape(-1)
+    bad = np.flatnonzero((parents < -1) | (parents >= np.arange(len(parents))))
+    if len(bad) == 0:
+        return None
+    k = int(bad[0])
+    return (f"parents[{k}] = {int(parents[k])} is not below {k} ({len(bad)} joint(s) out of order; the format "
+            f"requires -1 <= parents[k] < k, a skeleton without cycles)")
+
+
+def _row_arrays(column: pa.ChunkedArray, width: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A list column as (offsets (R+1,), flat values (N,) or (N, width) for a list of fixed-size lists)."""
+    array = column.combine_chunks()
+    offsets = array.offsets.to_numpy(zero_copy_only=False)
+    values = array.values.flatten() if width else array.values
+    flat = values.to_numpy(zero_copy_only=False)
+    start = offsets[0] * (width or 1)
+    offsets = offsets - offsets[0]
+    flat = flat[start:start + offsets[-1] * (width or 1)]
+    return offsets, flat.reshape(-1, width) if width else flat
+
+
+def skeleton_and_height_problems(path) -> list[tuple[str, str, str]]:
+    """``(character_id, "parents" or "height", why)`` per problem of a characters shard: a skeleton out
+    of the format's order (:func:`parents_problem`), a rest mesh with no height (Y extent 0 or not
+    finite: every score and the resample's quality divide by it). Reads only the ``character_id``,
+    ``parents`` and ``vertices`` columns."""
+    table = pq.read_table(path, columns=["character_id", "parents", "vertices"])
+    ids = table.column("character_id").to_pylist()
+    p_off, parents = _row_arrays(table.column("parents"))
+    v_off, verts = _row_arrays(table.column("vertices"), 3)
+    problems = []
+    for i, cid in enumerate(ids):
+        why = parents_problem(parents[p_off[i]:p_off[i + 1]])
+        if why:
+            problems.append((cid, "parents", why))
+        y = verts[v_off[i]:v_off[i + 1], 1]
+        extent = float(y.max() - y.min()) if len(y) else None
+        if extent is not None and not (np.isfinite(extent) and extent > 0):
+            problems.append((cid, "height", f"its rest mesh has no height (Y extent {extent:g}): every score "
+                                            f"divides by it"))
+    return problems
+
+
 def validate_dataset(root, values: bool = False) -> list[str]:
     """Problems found in a dataset folder, each naming the file and why; empty when valid.
 
@@ -30,6 +77,8 @@ def validate_dataset(root, values: bool = False) -> list[str]:
     animation value (:data:`schemas.finite.FINITE_COLUMNS`; this decodes those columns, several
     times the cost of the checksums, so the stages' own end-of-run checks leave it out: ingest
     checks every row it adds on the way in);
+    with ``values``, no character whose ``parents`` break the format's order (a cycle) or whose rest
+    mesh has no height (:func:`skeleton_and_height_problems`);
     no character or motion ID held by two rows (:data:`UNIQUE_IDS`); a table derived from other tables of the same dataset (pairs from characters)
     still matches the fingerprints they had when it was made.
     """
@@ -94,6 +143,12 @@ def validate_dataset(root, values: bool = False) -> list[str]:
                         counts[value] = counts.get(value, 0) + 1
                 except Exception as exc:
                     problems.append(f"{path}: column {id_column!r} unreadable ({exc})")
+            if values and table == "characters" and {"parents", "vertices"} <= set(schema.names):
+                try:
+                    problems += [f"{path}: character {cid}: {why}"
+                                 for cid, _, why in skeleton_and_height_problems(path)]
+                except Exception as exc:
+                    problems.append(f"{path}: columns parents, vertices unreadable ({exc})")
             columns = [c for c in FINITE_COLUMNS.get(table, ()) if c in schema.names] if values else []
             if columns:
                 try:

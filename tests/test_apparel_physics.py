@@ -303,7 +303,9 @@ def test_params_file_overrides_and_errors(tmp_path):
     assert p.simulation.max_resettles == 5  # the default
     assert params_from_json({"simulation": {"max_resettles": 0}}).simulation.max_resettles == 0
     assert params_from_json({"simulation": {"max_resettles": 3.0}}).simulation.max_resettles == 3
-    assert p.simulation.file_contact_frequency == 0.0  # an MMD file's rigid contacts by default
+    assert p.simulation.file_contact_frequency == 75.0  # an MMD file's contact springs by default (issue 52)
+    assert (p.simulation.file_step_rate, p.simulation.file_erp, p.simulation.file_solver_iterations,
+            p.simulation.file_sleeping, p.simulation.file_warmup) == (240.0, 0.2, 30, False, True)
     assert params_from_json({"simulation": {"file_contact_frequency": 75}}).simulation.file_contact_frequency == 75.0
     assert p.for_kind("sleeve").link_mass == pytest.approx(0.2)  # unknown kinds use the overridden default
     assert p.for_kind("hair").link_mass == pytest.approx(ApparelParams().for_kind("hair").link_mass)
@@ -313,6 +315,10 @@ def test_params_file_overrides_and_errors(tmp_path):
                      ({"kinds": {"hair": {"collide_body": 1}}}, "expected true or false"),
                      ({"simulation": {"max_resettles": -1}}, r"max_resettles: expected a number >= 0, got -1"),
                      ({"simulation": {"file_contact_frequency": -5}}, r"file_contact_frequency: expected a number >= 0"),
+                     ({"simulation": {"file_step_rate": 0}}, r"file_step_rate: expected a number > 0"),
+                     ({"simulation": {"file_erp": 1.5}}, r"file_erp: expected a number > 0 and <= 1"),
+                     ({"simulation": {"file_solver_iterations": 0}}, r"file_solver_iterations: expected a number >= 1"),
+                     ({"simulation": {"file_warmup": 1}}, "file_warmup: expected true or false"),
                      ({"simulation": {"max_resettles": 2.5}}, r"max_resettles: expected a whole number, got 2.5")):
         f.write_text(json.dumps(bad))
         with pytest.raises(UserError, match=msg):

@@ -7,7 +7,7 @@ from mimicbench.cli import main
 
 
 @pytest.mark.slow
-def test_demo_prints_a_leaderboard_with_eight_methods_and_two_protocols(tmp_path, capsys):
+def test_demo_prints_a_leaderboard_with_nine_methods_and_two_protocols(tmp_path, capsys):
     out = tmp_path / "demo"
     options = ["demo", "--out", str(out), "--characters", "14", "--h2h-poses", "4", "--cct-pairs", "8", "--cct-poses", "2"]
     assert main(options) == 0
@@ -17,7 +17,7 @@ def test_demo_prints_a_leaderboard_with_eight_methods_and_two_protocols(tmp_path
     assert set(board["protocols"]) == {"h2h", "cct"}
     for protocol, entries in board["protocols"].items():
         assert {e["method"] for e in entries} == {"identity", "name_copy", "nearest_joint", "text_soft", "mimicat",
-                                                   "npt", "cgt", "sfpt"}
+                                                   "mimicat_init_only", "npt", "cgt", "sfpt"}
         assert all(e["complete"] for e in entries)
     h2h = {e["method"]: e["pmd"] for e in board["protocols"]["h2h"]}
     assert h2h["identity"] == max(h2h.values()) and h2h["name_copy"] < 1.0

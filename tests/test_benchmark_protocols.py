@@ -53,7 +53,7 @@ class ToyProtocol(BenchmarkProtocol):
 
 
 def test_registry_knows_the_builtin_protocols_and_suggests_names():
-    assert available_protocols()[:2] == ["h2h", "cct"]
+    assert available_protocols()[:3] == ["h2h", "h2h_xskel", "cct"]
     assert get_protocol("h2h").headline == "height" and get_protocol("cct").headline == "extent"
     with pytest.raises(ValueError, match="Did you mean 'cct'"):
         get_protocol("ctt")

@@ -92,7 +92,12 @@ def test_published_baselines_are_registered_with_their_papers_and_protocols():
     expected = {"npt": ("h2h", "cct"), "cgt": ("h2h", "cct"), "sfpt": ("h2h", "cct", "apparel")}
     for name, protocols in expected.items():
         meta = get_method(name).metadata
-        assert meta.name == name and meta.licence == "MIT" and meta.needs_training
+        assert meta.name == name and meta.licence.startswith("MIT") and meta.needs_training
         assert "re-implemented from the paper" in meta.citation and meta.protocols == protocols
         assert name in available_trainables() and [s.name for s in trainable(name).stages] == [name]
-        assert {"small", "paper"} <= set(trainable(name).configs)
+        assert {"cpu", "paper"} <= set(trainable(name).configs)
+    assert "non-commercial" in get_method("sfpt").metadata.licence  # the original code and weights'
+    for name, base in (("npt_constant_code", "npt"), ("cgt_no_attention", "cgt"), ("sfpt_kabsch_only", "sfpt")):
+        meta = get_method(name).metadata  # the ablations: registered, their base's licence and protocols
+        assert meta.name == name and meta.licence == get_method(base).metadata.licence
+        assert meta.protocols == expected[base] and "ablation" in meta.tags

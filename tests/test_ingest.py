@@ -191,8 +191,8 @@ def test_mesh_unit_rescales_a_file_in_another_unit_and_its_size_is_warned(ingest
         ingest_assets([fox], tmp_path / "bad", mesh_unit=0.0, progress=False)
 
 
-# the rule that decides each (datagen/ingest/category.py): the Fox's forelegs come down to the ground, so the
-# bipedal-reptile rule (two legs, a horizontal body, small arms off the ground, a tail) does not take it
+# the rule that decides each (datagen/ingest/category.py): the Fox's forelegs come down to the ground, so it is
+# a quadruped, not the ambiguous biped with small arms off the ground (a T-rex: unknown)
 RULE = {"Fox": "forelegs named as arms, body horizontal", "Quaternius_Horse": "four legs under the body",
         "Quaternius_Husky": "four legs under the body", "Quaternius_Rat": "four legs under the body",
         "Quaternius_Stegosaurus": "four legs under the body", "Quaternius_Triceratops": "four legs under the body",

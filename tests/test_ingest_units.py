@@ -240,21 +240,22 @@ def _biped_skeleton(style, arm_drop: float, upright: bool, tail: bool = True):
 
 
 @pytest.mark.parametrize("style", ["blender", "mixamo"])
-def test_bipedal_reptiles_are_reptiles_not_quadrupeds(style):
-    """A T-rex or a velociraptor (two legs carrying a horizontal body, small arms, a tail) is a
-    reptile; forelegs named as arms that come down to the ground (the Fox) keep it a quadruped;
-    an upright body with the same small arms stays a humanoid, and without a tail nothing says reptile."""
-    table = [(dict(arm_drop=1.45, upright=False), "reptile", "small arms off the ground"),
+def test_bipedal_dinosaurs_are_unknown_not_quadrupeds(style):
+    """A T-rex or a velociraptor (two legs carrying a horizontal body, small arms, a tail) is not
+    a quadruped, and nothing in its bones says reptile rather than bird-like biped: ``unknown``
+    (a role-label file gives the category). Forelegs named as arms that come down to the ground
+    (the Fox) keep it a quadruped; an upright body with the same small arms stays a humanoid."""
+    table = [(dict(arm_drop=1.45, upright=False), "unknown", "arms off the ground"),
              (dict(arm_drop=0.0, upright=False), "quadruped", "forelegs named as arms"),
              (dict(arm_drop=1.45, upright=True), "humanoid", "upright"),
-             (dict(arm_drop=1.45, upright=False, tail=False), "quadruped", "forelegs named as arms")]
+             (dict(arm_drop=1.45, upright=False, tail=False), "unknown", "arms off the ground")]
     for kwargs, want, rule in table:
         names, parents, points = _biped_skeleton(style, **kwargs)
         cat, ev = infer_category(names, parents, points)
         assert cat == want and rule in ev["rule"], (kwargs, ev)
         assert ev["legs"] == 2 and ev["arms"] == 2
     names, parents, points = _biped_skeleton(style, arm_drop=1.45, upright=False)
-    assert infer_category(names, parents, points * 0.2)[0] == "reptile"  # a velociraptor-sized one
+    assert infer_category(names, parents, points * 0.2)[0] == "unknown"  # a velociraptor-sized one
 
 
 BVH_HEAD = """HIERARCHY

@@ -9,6 +9,7 @@ import os
 import re
 import shutil
 import subprocess
+from html.parser import HTMLParser
 
 import numpy as np
 import pytest
@@ -57,6 +58,8 @@ def test_matrix_cells_are_hand_computed_means(hand_results):
     assert flaky["cells"] == {"bird": pytest.approx(2.0), "fish": pytest.approx(5.0), "reptile": None, "all": None}
     assert (flaky["missing"], flaky["failed"], flaky["not_supported"]) == (0, 1, 0)
     assert [r["method"] for r in m["rows"]] == ["good", "flaky"]  # ranked; no average goes last
+    md = write_leaderboard(hand_results, hand_results.parent / "board", pictures=False)["md"].read_text()
+    assert "| _cases_ | 2 | 1 | 2 | 5 | |" in md  # each category's case count under the matrix
 
 
 def test_missing_and_not_supported_cases(hand_results):
@@ -179,22 +182,83 @@ def test_page_shows_matrix_plots_and_rendered_strips(pictured_board):
     assert ((r - b > 60) & (r > g)).sum() > 1000
 
 
-@pytest.mark.slow
-@pytest.mark.blender
-def test_page_in_a_headless_browser(pictured_board, tmp_path):
-    """Needs Debian's chromium: `.ci/run` installs it and sets MIMICBENCH_REQUIRE_CHROMIUM=1, so CI never skips."""
+def _chromium() -> str:
+    """Debian's chromium: `.ci/run` installs it and sets MIMICBENCH_REQUIRE_CHROMIUM=1, so CI never skips."""
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
     if exe is None:
         if os.environ.get("MIMICBENCH_REQUIRE_CHROMIUM") == "1":
             pytest.fail("MIMICBENCH_REQUIRE_CHROMIUM=1 but no chromium on PATH (apt-get install chromium)")
         pytest.skip("chromium is not installed (apt-get install chromium); the page's images are checked above")
+    return exe
+
+
+def _offline(tmp_path) -> list[str]:
+    """A closed network: nothing the browser would fetch on its own, a fresh profile for each run."""
+    return ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+            "--disable-component-update", "--disable-sync", "--no-first-run", "--no-default-browser-check",
+            f"--user-data-dir={tmp_path / 'profile'}"]
+
+
+class _RankingRows(HTMLParser):
+    """The rows of every ``table.ranking`` in a DOM the browser dumped: [(tr class, [(td class, text)])]."""
+
+    def __init__(self):
+        super().__init__()
+        self.tables, self.open, self.row, self.cell = [], [], None, None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "table":
+            self.open.append(a.get("class"))
+            if a.get("class") == "ranking":
+                self.tables.append([])
+        elif tag == "tr" and self.open and self.open[-1] == "ranking":
+            self.row = (a.get("class"), [])
+        elif tag == "td" and self.row is not None:
+            self.cell = [a.get("class"), ""]
+
+    def handle_data(self, data):
+        if self.cell is not None:
+            self.cell[1] += data
+
+    def handle_endtag(self, tag):
+        if tag == "table" and self.open:
+            self.open.pop()
+        elif tag == "td" and self.cell is not None:
+            self.row[1].append(tuple(self.cell))
+            self.cell = None
+        elif tag == "tr" and self.row is not None:
+            if self.row[1]:
+                self.tables[-1].append(self.row)
+            self.row = None
+
+
+def _browser_ranking(exe, page, tmp_path) -> tuple[list, str]:
+    """The ranking tables as the browser built them (its DOM after loading the page), and the DOM."""
+    dom = subprocess.run([exe, *_offline(tmp_path), "--dump-dom", page.as_uri()], check=True, capture_output=True,
+                         text=True, timeout=180).stdout
+    parser = _RankingRows()
+    parser.feed(dom)
+    return parser.tables, dom
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+def test_page_in_a_headless_browser(pictured_board, tmp_path):
+    """Needs Debian's chromium: `.ci/run` installs it and sets MIMICBENCH_REQUIRE_CHROMIUM=1, so CI never skips."""
+    exe = _chromium()
     shot = tmp_path / "page.png"
-    # a closed network: nothing the browser would fetch on its own, a fresh profile for each run
-    offline = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-               "--disable-component-update", "--disable-sync", "--no-first-run", "--no-default-browser-check",
-               f"--user-data-dir={tmp_path / 'profile'}"]
-    subprocess.run([exe, *offline, "--hide-scrollbars", "--window-size=1400,4000", f"--screenshot={shot}",
+    subprocess.run([exe, *_offline(tmp_path), "--hide-scrollbars", "--window-size=1400,4000", f"--screenshot={shot}",
                     pictured_board["html"].as_uri()], check=True, capture_output=True, timeout=180)
+    tables, dom = _browser_ranking(exe, pictured_board["html"], tmp_path)
+    assert len(tables) == 2  # h2h and cct, each opening with its ranking
+    for rows in tables:
+        by_method = {cells[1][1].split(" v")[0]: cells for _, cells in rows}
+        # identity reads meshes only, name_copy the rig: marked so, and explained under the table
+        assert by_method["identity"][2] == ("rig-no", "no") and by_method["name_copy"][2] == ("rig-yes", "yes")
+        for cells in by_method.values():  # every mean with its interval: "m [lo, hi]"
+            assert re.fullmatch(r"[-0-9.]+ \[[-0-9.]+, [-0-9.]+\]", cells[3][1]), cells[3]
+    assert dom.count("reads rig: ") == 2 and "1 + the number of methods surely better" in dom
     from PIL import Image
 
     img = np.asarray(Image.open(shot).convert("RGB")).astype(int)
@@ -202,6 +266,28 @@ def test_page_in_a_headless_browser(pictured_board, tmp_path):
     assert ((r - b > 60) & (r > g)).sum() > 1000  # orange predictions drawn by the browser
     assert ((b - r > 40) & (b > g)).sum() > 500  # blue posed sources
     assert ((np.abs(r - g) < 8) & (np.abs(g - b) < 8) & (r > 180) & (r < 240)).sum() > 200  # table header grey
+
+
+@pytest.mark.slow
+def test_ties_and_intervals_in_a_headless_browser(tmp_path):
+    """A hand-made cct board with a tie by construction, looked at in chromium (no pictures needed)."""
+    exe = _chromium()
+    res = tmp_path / "res"
+    ids = [f"cct/zoo/h{p}->zoo/b{p}/walk#{f}" for p in range(5) for f in range(2)]
+    base = np.linspace(2.0, 6.0, len(ids))
+    # "twin" is +1 on pairs 0, 2, 4 and -1 on pairs 1, 3: its paired interval against the reference spans 0
+    methods = {"nearest_joint": base, "twin": base + np.where([(i // 2) % 2 == 0 for i in range(len(ids))], 1.0, -1.0),
+               "far": base + 40.0}
+    for name, vals in methods.items():
+        append_results(res / name / "1", [row(k, name, "humanoid", "bird", float(v)) for k, v in zip(ids, vals)])
+    write_run_info(res, {"dataset": "nowhere", "protocols": {"cct": len(ids)}, "case_ids": {"cct": ids}})
+    page = write_leaderboard(res, tmp_path / "board", pictures=False)["html"]
+    (rows,), dom = _browser_ranking(exe, page, tmp_path)
+    ranks = {cells[1][1]: (kind, cells[0][1]) for kind, cells in rows}
+    assert ranks == {"nearest_joint v1": ("tied", "=1"), "twin v1": ("tied", "=1"), "far v1": ("ranked", "3")}
+    diff = {cells[1][1]: cells[4][1] for _, cells in rows}  # the paired difference against nearest_joint
+    assert diff["nearest_joint v1"] == "reference" and diff["far v1"] == "+40.000 [+40.000, +40.000]"
+    assert "`=` marks" not in dom and "<code>=</code> marks a rank that methods share" in dom
 
 
 def test_run_dataset_found_from_another_folder(tmp_path, monkeypatch):

@@ -1,4 +1,4 @@
-"""benchmarks/mimicat_ceiling.py's pose surgery: 6D rotations and the return leg with lost bones changed,
+"""analyses/mimicat_ceiling.py's pose surgery: 6D rotations and the return leg with lost bones changed,
 against hand-computed transforms."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from mimicbench.kinematics import array_to_transforms
 from mimicbench.quaternion import quat_from_axis_angle, quat_to_matrix
 
 _spec = importlib.util.spec_from_file_location("mimicat_ceiling",
-                                               Path(__file__).resolve().parents[1] / "benchmarks" / "mimicat_ceiling.py")
+                                               Path(__file__).resolve().parents[1] / "analyses" / "mimicat_ceiling.py")
 ceiling = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(ceiling)
 

@@ -1,4 +1,4 @@
-"""benchmarks/mmdmc_fd_ceiling.py: the damped-oscillator rollout and the per-vertex gain, against values
+"""analyses/mmdmc_fd_ceiling.py: the damped-oscillator rollout and the per-vertex gain, against values
 worked out by hand and a naive loop."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 _spec = importlib.util.spec_from_file_location(
-    "mmdmc_fd_ceiling", Path(__file__).resolve().parents[1] / "benchmarks" / "mmdmc_fd_ceiling.py")
+    "mmdmc_fd_ceiling", Path(__file__).resolve().parents[1] / "analyses" / "mmdmc_fd_ceiling.py")
 ceiling = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(ceiling)
 

@@ -116,13 +116,13 @@ def test_a_few_steps_lower_the_cycle_term_and_the_term_is_off_without_cycle_batc
 
     from baselines.npt.config import CYCLE
 
-    cfg = {**tiny(stage), **CYCLE}  # the small_cycle preset's keys (README: tried, not shipped)
+    cfg = {**tiny(stage), **CYCLE}  # the cycle term (ours, off in every preset)
     st, module, batch, ctx = first_batch(stage, small_zoo, cfg)
     assert batch["cycle_pose"].shape[0] == cfg["cycle_batch"]
     first = {k: float(v.detach()) for k, v in st.loss(module, batch, ctx).items()}
     last = after_steps(st, module, batch, ctx, term="cycle")
     assert last["cycle"] < first["cycle"], (first, last)
-    st, module, batch, ctx = first_batch(stage, small_zoo, tiny(stage))  # small: no cycle keys, no term
+    st, module, batch, ctx = first_batch(stage, small_zoo, tiny(stage))  # cpu preset: no cycle keys, no term
     assert not any(k.startswith("cycle") for k in batch)
     assert "cycle" not in st.loss(module, batch, ctx)
 

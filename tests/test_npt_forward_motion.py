@@ -1,4 +1,4 @@
-"""benchmarks/npt_forward_motion.py: how far an npt/cgt forward answer moves the target, checked on
+"""analyses/npt_forward_motion.py: how far an npt/cgt forward answer moves the target, checked on
 two stand-in models whose answers are known by hand."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 _spec = importlib.util.spec_from_file_location(
-    "npt_forward_motion", Path(__file__).resolve().parents[1] / "benchmarks" / "npt_forward_motion.py")
+    "npt_forward_motion", Path(__file__).resolve().parents[1] / "analyses" / "npt_forward_motion.py")
 forward_motion = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(forward_motion)
 

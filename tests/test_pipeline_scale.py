@@ -1,4 +1,4 @@
-"""benchmarks/scale.py at its reduced size: every step measured, Table 1 in the card, numbers as planned."""
+"""tools/scale.py at its reduced size: every step measured, Table 1 in the card, numbers as planned."""
 from __future__ import annotations
 
 import json
@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.mark.slow
 def test_reduced_scale_build_is_measured_and_carded(tmp_path):
     work = tmp_path / "scale"
-    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "scale.py"), "--size", "reduced", "--workdir",
+    proc = subprocess.run([sys.executable, str(REPO / "tools" / "scale.py"), "--size", "reduced", "--workdir",
                            str(work), "--jobs", "1"], capture_output=True, text=True, cwd=REPO)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     report = json.loads((work / "scale.json").read_text())

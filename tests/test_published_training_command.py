@@ -1,4 +1,4 @@
-"""The README's training commands of the published baselines parse, train every shipped checkpoint,
+"""The training commands of the published baselines' page (docs/methods/published.md) parse, train every shipped checkpoint,
 and carry the settings each shipped checkpoint was trained with (its safetensors header holds the
 model, stage, config, seed, epochs and the dataset's name)."""
 from __future__ import annotations
@@ -9,13 +9,13 @@ from pathlib import Path
 
 from mimicbench.training.checkpoint import read_header
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = Path(__file__).resolve().parents[1] / "docs" / "methods" / "published.md"
 SHIPPED = ("npt", "cgt", "sfpt")
 
 
 def readme_training_block() -> list[list[str]]:
     text = README.read_text()
-    section = text[text.index("## Published baselines"):]
+    section = text[text.index("## Training and the shipped checkpoints"):]
     block = re.search(r"```\n(.*?)```", section, re.S).group(1)
     return [shlex.split(line) for line in block.replace("\\\n", " ").splitlines() if line.strip()]
 

@@ -76,7 +76,7 @@ def test_checkpoint_round_trip_and_header(data, tmp_path):
     assert all(torch.equal(module.state_dict()[k], raw[k]) for k in raw)
     assert not module.training
     # the resume state loads with weights_only=True and holds the optimizer's moments
-    state = checkpoint.load_state(tmp_path / "fit" / "state.pt")
+    state = checkpoint.load_state(checkpoint.find_resume(tmp_path / "fit")[1])
     assert state["epoch"] == 1 and state["optimizer"]["state"]
     # a build of other shapes is refused with a message naming the checkpoint
     with pytest.raises(ValueError, match="do not fit"):
@@ -94,11 +94,11 @@ def test_resume_continues_exactly(data, tmp_path):
         rows_full = list(csv.DictReader(f))
     assert rows == rows_full
     # another config on the same run folder is refused, nothing overwritten
-    before = (tmp_path / "cut" / "fit" / "last.safetensors").read_bytes()
-    with pytest.raises(UserError, match="another config or seed"):
+    before = checkpoint.find_resume(tmp_path / "cut" / "fit")[0].read_bytes()
+    with pytest.raises(UserError, match="with another config; "):
         train_stage("toy", "fit", data, tmp_path / "cut", config(width=16, epochs=3) | {"lr": 0.5}, epochs=5,
                     seed=1, progress=False)
-    assert (tmp_path / "cut" / "fit" / "last.safetensors").read_bytes() == before
+    assert checkpoint.find_resume(tmp_path / "cut" / "fit")[0].read_bytes() == before
 
 
 def test_needs_are_loaded_frozen(data, tmp_path):
@@ -213,7 +213,7 @@ def test_corrupt_checkpoints_are_refused_before_resume(data, tmp_path):
 
     run = tmp_path / "run"
     train_stage("toy", "fit", data, run, config(), epochs=1, seed=1, progress=False)
-    last, state = run / "fit" / "last.safetensors", run / "fit" / "state.pt"
+    last, state = checkpoint.find_resume(run / "fit")
     for path in (last, state, run / "fit" / "model.safetensors"):  # digest files in sha256sum's format
         digest = checkpoint.digest_path(path).read_text()
         assert digest == f"{hashlib.sha256(path.read_bytes()).hexdigest()}  {path.name}\n"
@@ -232,6 +232,9 @@ def test_corrupt_checkpoints_are_refused_before_resume(data, tmp_path):
     offset, size = _zip_member_offset(state, "data.pkl")
     _flip(state, offset + 2)
     checkpoint.digest_path(state).write_text(f"{hashlib.sha256(state.read_bytes()).hexdigest()}  state.pt\n")
+    record = json.loads((run / "fit" / checkpoint.RESUME_FILE).read_text())
+    record["sha256"]["state.pt"] = hashlib.sha256(state.read_bytes()).hexdigest()
+    (run / "fit" / checkpoint.RESUME_FILE).write_text(json.dumps(record))
     with pytest.raises(UserError, match=r"state\.pt: not a readable resume state"):
         train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False)
     garbled = tmp_path / "garbled.safetensors"
@@ -244,6 +247,8 @@ def test_corrupt_checkpoints_are_refused_before_resume(data, tmp_path):
     with pytest.raises(UserError, match=r"no state\.pt\.sha256 beside it"):
         train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False)
     checkpoint.digest_path(state).write_text(f"{hashlib.sha256(pristine[state]).hexdigest()}  state.pt\n")
+    record["sha256"]["state.pt"] = hashlib.sha256(pristine[state]).hexdigest()
+    (run / "fit" / checkpoint.RESUME_FILE).write_text(json.dumps(record))
     resumed = weights(train_stage("toy", "fit", data, run, config(), epochs=2, seed=1, progress=False))
     full = weights(train_stage("toy", "fit", data, tmp_path / "full", config(), epochs=2, seed=1, progress=False))
     assert all(torch.equal(full[k], resumed[k]) for k in full)

@@ -22,8 +22,7 @@ from mimicbench.training.stage import StageContext, TrainStage
 
 
 def build_cgt(config: dict, context: StageContext | None = None) -> Cgt:
-    return Cgt(config["widths"], config["blocks"], config["heads"], config.get("residual", False),
-               config.get("pose_cond", False))
+    return Cgt(config["widths"], config.get("residual", False))
 
 
 def capped_rows(pose: np.ndarray, identity: np.ndarray, cap: int) -> dict:

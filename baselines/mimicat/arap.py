@@ -19,7 +19,7 @@ vertex then takes its cluster's solution plus its own LBS offset from the cluste
 what is shorter than the tolerance deforms exactly as LBS deformed it (resampled real meshes keep
 zero-area triangles whose two sides an unwelded solve pulled apart).
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 

@@ -32,14 +32,18 @@ Sections:
   tenth, a regulariser. ``transfer.init`` is the construction of H's initialisation:
   ``structured`` (root displacement of the source root, carried local bone translations, empty
   columns inheriting the parent's rotation) or ``paper`` (Eq. 3-4 as published; what a config
-  without the key, such as the checkpoints of methods version 3, was trained with), see
+  without the key means), see
   :mod:`baselines.mimicat.initialisation`. ``transfer.m_decode`` is how that initialisation
   reads G's M: ``hungarian_sym`` (the presets: one one-to-one decoding of the pair from G's M of
   both directions, so that a cycle's return leg undoes the forward leg's matches),
-  ``hungarian`` (the one-to-one decoding of G(s, t) alone; the presets of methods version 5;
+  ``hungarian`` (the one-to-one decoding of G(s, t) alone;
   G's Sinkhorn has no dustbin and its soft M blurs the carried translations and rotations, see
   :func:`baselines.mimicat.transfer.decode_correspondence`) or ``soft`` (M as it is; what a
-  config without the key, such as the checkpoints of methods version 4, was trained with).
+  config without the key means).
+
+The shipped checkpoints (``baselines/mimicat/checkpoints``) hold :func:`shipped_config` of their
+stage: ``small`` with the training-budget overrides of :data:`SHIPPED_OVERRIDES`, so every setting
+the method reads is ``small``'s; ``tests/test_mimicat_shipped_config.py`` checks each header.
 """
 from __future__ import annotations
 
@@ -85,9 +89,47 @@ PAPER = {
 
 PRESETS = {"small": SMALL, "paper": PAPER}
 
+SHIPPED_STAGES = ("shape", "prior", "corr", "transfer", "transfer_no_prior")
+"""The stages whose weights ship in ``baselines/mimicat/checkpoints/<stage>.safetensors``."""
+
+SHIPPED_OVERRIDES = {
+    "shape": {"data.split": "all", "shape.epochs": 10},
+    "prior": {"data.split": "all", "prior.epochs": 8, "prior.sampling_weight": 0},
+    "corr": {"data.split": "all"},
+    "transfer": {"data.split": "all"},
+    "transfer_no_prior": {"data.split": "all"},
+}
+"""Per shipped stage, the ``--set`` overrides of ``small`` it was trained with: the training budget
+and data only (every character of the training zoo, fewer epochs, the prior's sampling term off for
+time), never a setting the method reads at inference (sizes, ``m_temperature``, ``init``,
+``m_decode``, ``geometry_weight``); :data:`BUDGET_KEYS` lists what an override may touch."""
+
+BUDGET_KEYS = ("data.split", "shape.epochs", "prior.epochs", "prior.sampling_weight", "corr.epochs",
+               "transfer.epochs", "transfer_no_prior.epochs")
+"""Settings that change how a stage is trained but not what the trained module computes."""
+
+STAGE_SECTIONS = {"shape": ("data", "shape"), "prior": ("data", "shape", "prior"),
+                  "corr": ("data", "shape", "corr"), "transfer": ("data", "shape", "corr", "transfer"),
+                  "transfer_no_prior": ("data", "shape", "corr", "transfer", "transfer_no_prior")}
+"""Config sections each stage reads (its own, the data, E's width; H also reads ``corr`` for G's M
+and A2 takes every setting of ``transfer``), besides the loop's top-level ``lr``, ``weight_decay``
+and ``grad_clip``."""
+
 
 def preset(name: str) -> dict:
     """A deep copy of the preset ``name`` (``small`` or ``paper``)."""
     if name not in PRESETS:
         raise ValueError(f"unknown MimiCAT config {name!r}; expected one of {', '.join(PRESETS)}")
     return copy.deepcopy(PRESETS[name])
+
+
+def shipped_config(stage: str) -> dict:
+    """The documented config of the shipped checkpoint of ``stage``: ``small`` with
+    :data:`SHIPPED_OVERRIDES` applied (each dotted key ``section.key`` or a top-level key)."""
+    if stage not in SHIPPED_OVERRIDES:
+        raise ValueError(f"unknown shipped MimiCAT stage {stage!r}; expected one of {', '.join(SHIPPED_STAGES)}")
+    config = preset("small")
+    for key, value in SHIPPED_OVERRIDES[stage].items():
+        section, _, name = key.rpartition(".")
+        (config.setdefault(section, {}) if section else config)[name] = value
+    return config

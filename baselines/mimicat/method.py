@@ -1,15 +1,16 @@
 """``mimicat`` and its ablations behind the adapter API.
 
-The cascade of MimiCAT: the source's pose is read off its posed vertices (weighted Kabsch per
-bone, :func:`baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
+The cascade of MimiCAT: the source's pose is read off its posed vertices (the joint fit of all
+bones, :func:`baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
 the soft correspondence M (at the Sinkhorn temperature ``transfer.m_temperature`` of the transfer
 checkpoint's config, 1 for checkpoints without it), read as ``transfer.m_decode`` says (``soft``
 for checkpoints without it, ``hungarian``: one to one, ``hungarian_sym``: one to one from G's M
 of both directions, one assignment of the pair); H the target's transforms from its
-initialisation (``transfer.init`` of the transfer checkpoint's config: ``structured`` for runs of
-the current presets, ``paper``, Eq. 3-4 as published, for a config without the key, which is
-what the shipped checkpoint of version 3 was trained with); LBS poses
-the target and ARAP refines it (:mod:`baselines.mimicat.arap`, ``arap=False`` switches it off).
+initialisation (``transfer.init`` of the transfer checkpoint's config: ``structured`` for the
+presets and the shipped checkpoint, ``paper``, Eq. 3-4 as published, for a config without the
+key); LBS poses the target and ARAP refines it (:mod:`baselines.mimicat.arap`, ``arap=False``
+switches it off). The shipped checkpoints' configs are the documented ones
+(:func:`baselines.mimicat.config.shipped_config`): ``structured``, ``hungarian_sym``, temperature 0.1.
 
 Weights: the checkpoint folder given as ``checkpoint=`` or by the environment variable
 ``MIMICAT_CHECKPOINT``, else the bundled one (``baselines/mimicat/checkpoints``). A folder holds
@@ -20,7 +21,9 @@ either ``<stage>.safetensors`` files (the bundled layout) or a training run's
 Registered names:
 - ``mimicat``: the full model.
 - ``mimicat_naive_avg`` (ablation A1): the same weights with Eq. 4's rotation average replaced
-  by the normalised plain weighted sum of quaternions in the initialisation.
+  by the normalised plain weighted sum of quaternions in the initialisation. With a one-to-one M
+  (``hungarian_sym``, the shipped config) every column holds one quaternion, so both give that
+  quaternion and A1 answers exactly as ``mimicat``; it differs only with ``m_decode=soft``.
 - ``mimicat_no_prior`` (ablation A2): H trained without the prior term L_reg.
 - ``mimicat_init_only``: the shipped G, its M of both directions decoded as one one-to-one
   assignment of the pair (``hungarian_sym``) and the structured initialisation, H off (the initialisation is the answer), so that H's own
@@ -57,7 +60,7 @@ class Mimicat(PoseTransferMethod):
         batch_size: requests run through the networks at once.
     """
 
-    metadata = MethodMetadata(name="mimicat", version="7", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mimicat", version="9", licence="MIT", needs_training=True, citation=CITATION,
                               description="MimiCAT cascade: shape encoder, correspondence transformer G, "
                                           "pose-transfer transformer H, LBS + ARAP (bundled checkpoint)")
     transfer_stage = "transfer"
@@ -178,20 +181,20 @@ def _header_config(path: Path) -> dict:
 
 
 class MimicatNaiveAvg(Mimicat):
-    metadata = MethodMetadata(name="mimicat_naive_avg", version="7", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_naive_avg", version="9", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT ablation A1: plain weighted quaternion sum instead of Eq. 4")
     average = "naive"
 
 
 class MimicatNoPrior(Mimicat):
-    metadata = MethodMetadata(name="mimicat_no_prior", version="7", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_no_prior", version="9", licence="MIT", needs_training=True,
                               citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg")
     transfer_stage = "transfer_no_prior"
 
 
 class MimicatInitOnly(Mimicat):
-    metadata = MethodMetadata(name="mimicat_init_only", version="7", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_init_only", version="9", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT without H: G's correspondences of both directions decoded as "
                                           "one one-to-one assignment and the structured initialisation, LBS + ARAP")

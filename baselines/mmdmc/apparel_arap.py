@@ -1,11 +1,11 @@
-"""Soft as-rigid-as-possible restoration of f_d's apparel (ours; config ``history_arap``, methods
-version 9): the predicted vertices pull the apparel where f_d put it, ARAP keeps its edges' lengths.
+"""Soft as-rigid-as-possible restoration of f_d's apparel (ours; config ``history_arap``, on in
+the shipped f_d): the predicted vertices pull the apparel where f_d put it, ARAP keeps its edges' lengths.
 
 The body-history f_d (:mod:`baselines.mmdmc.apparel_history`) predicts each vertex's offset on its
 own. Where the simulated strand could swing one way or the other, the best per-vertex guess is the
 mean of the two, which lies inside the arc: the strand comes out short, and ELS counts every edge
-that shrank. Trained to keep lengths (``w_stretch`` 1.0) f_d gives up most of its offset (version 8,
--11% PMD_a); trained for positions (``w_stretch`` 0.1) it removes 29% of PMD_a but costs 0.0115 ELS.
+that shrank. Trained to keep lengths (``w_stretch`` 1.0) f_d gives up most of its offset (-11%
+PMD_a); trained for positions (``w_stretch`` 0.1) it removes 29% of PMD_a but costs 0.0115 ELS.
 
 This step takes the position-trained prediction P (F, A, 3) and, frame by frame, finds the apparel X
 that minimises the ARAP energy of Sorkine and Alexa (2007) against the rest apparel R, with uniform
@@ -23,7 +23,7 @@ weights need no triangle to be well shaped (resampled meshes keep zero-area ones
 triangle strip, a line of edges or a hair card alike. The energy, and so the result, is the same
 in any length unit (both terms are squared lengths).
 
-Measurements behind the default weight: README, "Issue 33, round 7".
+Measurements behind the default weight: docs/notes/mmdmc.md (the ARAP restoration).
 """
 from __future__ import annotations
 

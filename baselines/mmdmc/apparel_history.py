@@ -1,5 +1,5 @@
 """Apparel deformation from the body's motion history (ours; config ``apparel_model="body_history"``,
-methods version 8): f_d reads the kinematic history the request carries, not its own past states.
+the shipped f_d): f_d reads the kinematic history the request carries, not its own past states.
 
 The simulated apparel at frame t is a function of the body's motion before t (the simulation starts
 at rest on the body at the clip's first frame, as a request does) and of the apparel's own rest
@@ -16,7 +16,7 @@ offsets do not tear where its largest weight changes bone). In that frame it see
   started),
 
 and an MLP maps those 6 + 6 len(LAGS) numbers to an offset in the frame: the vertex's state is
-``s_t + R_t offset``. With ``still_zero`` (config ``history_still_zero``, version 9) the offset is the
+``s_t + R_t offset``. With ``still_zero`` (config ``history_still_zero``) the offset is the
 MLP's answer less its answer for the same rest offset and gravity with the lag inputs zero (the body
 still for a second): a body that does not move keeps its skinned apparel. Without it, the sag the MLP
 learnt from the training simulator's relaxed chains carried over to a real character whose own
@@ -26,13 +26,12 @@ time, and a bad frame cannot derail the next. Training adds the relative stretch
 mesh edges to the vertex loss (config ``w_stretch``), the quantity ELS scores.
 
 Why not the paper's recurrence (:mod:`baselines.mmdmc.apparel`): rolled out from rest as a request
-starts, its learned displacement removed 0.08% of ``mmdmc_no_apparel``'s PMD_a on a held-out zoo
-(methods version 7). On the same data a per-vertex MLP on these inputs, fitted without the stretch
-term, predicts the held-out offsets with 37% less error than a zero displacement; shipped with
-``w_stretch`` 1.0, so that edges keep their lengths (ELS), version 8 is 11.3% below
-``mmdmc_no_apparel`` (README, "Issue 33, round 6"). Version 9 trains for positions (``w_stretch``
-0.1) and gives the edges their lengths back after the MLP, by soft ARAP against the rest apparel
-(:mod:`baselines.mmdmc.apparel_arap`, config ``history_arap``; README, "Issue 33, round 7"). The chains' lag, swing and flare in spins are a
+starts, its learned displacement removes 0.08% of ``mmdmc_no_apparel``'s PMD_a on a held-out zoo.
+On the same data a per-vertex MLP on these inputs, fitted without the stretch term, predicts the
+held-out offsets with 37% less error than a zero displacement. The shipped model trains for
+positions (``w_stretch`` 0.1) and gives the edges their lengths back after the MLP, by soft ARAP
+against the rest apparel (:mod:`baselines.mmdmc.apparel_arap`, config ``history_arap``); the
+measurements are in docs/notes/mmdmc.md. The chains' lag, swing and flare in spins are a
 function of the body's recent turning and acceleration in the vertex's frame, which one frame's
 velocity and acceleration (K = 3 states) do not carry. All positions in the character's unit-height
 frame.

@@ -7,7 +7,7 @@ geodesic attention ``M = softmax_k(f_m(G))`` pools the pair features into a vert
 PointNet over (v_i, context_i) adds local and global shape features; the head scores every pair
 from (pair feature, context, PointNet features, G_ik), the head's score over tau is added to a
 prior -B_ik / tau (tau learnt) and ``W = softmax_k(scores)``. With ``prior="piece"`` (the shipped
-f_s since methods version 6) the vertices of a mesh piece that wraps one bone are scored by the piece
+f_s's) the vertices of a mesh piece that wraps one bone are scored by the piece
 prior of :mod:`baselines.mmdmc.piece_prior` instead, wherever the caller hands it in (the pipeline
 at inference); the learnt scores serve every other vertex, and training (which hands in no piece
 prior) shapes them.
@@ -18,7 +18,7 @@ transforms already carry the character's own bone lengths (t_k is joint k's pose
 is what MMDMC's "translations scaled by the bone lengths" gives when the motion comes from another
 skeleton.
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ PRIOR_TAU = 0.01
 """Initial temperature of the bone-distance prior on the skinning scores (fraction of the height)."""
 
 PRIORS = ("bone", "piece")
-"""Priors on the skinning scores: ``bone`` (-B / tau everywhere, models up to methods version 5) or
+"""Priors on the skinning scores: ``bone`` (-B / tau everywhere; a config without ``body_prior``) or
 ``piece`` (:mod:`baselines.mmdmc.piece_prior` where a mesh piece wraps a bone, -B / tau elsewhere)."""
 
 

@@ -9,7 +9,7 @@ inference the vertex's chain is found geometrically: the apparel bone whose segm
 vertex. Its attachment bone (:func:`baselines.mmdmc.rig.attachment_bones`) then gets the vertex's
 whole weight. f_c's mask says which vertices are apparel; f_s skins the rest.
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 

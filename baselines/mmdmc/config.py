@@ -36,24 +36,24 @@ COMMON = {
                              # piece prior alone where a mesh piece wraps a bone, at inference; piece_prior.py)
     "threshold": 0.5,        # apparel probability above which a vertex is apparel
     "apparel_start": "window",  # ours: f_d's training rollouts, "clip" (from rest on the body at the clip's first
-                              # frame, as the simulation and a request start, through the burn-in; opt-in; shipped v7 with bptt 0) or
+                              # frame, as the simulation and a request start, through the burn-in; opt-in) or
                               # "window" (`window` frames after K ground-truth states, a share `rest_start` of them
-                              # restarted at rest at the window, inside the clip; the default, shipped v6); training.py
+                              # restarted at rest at the window, inside the clip; the default); training.py
     "burn_in": 90,           # "clip": most frames before a scored window (the apparel protocol's BURN_IN)
     "scored_window": 16,     # "clip": frames of a scored window (the apparel protocol's WINDOW)
     "bptt": 3,               # "clip": truncated backpropagation every that many rollout steps (0: none; full
                              # backpropagation through a from-rest rollout did not learn a toy lag, tests)
-    "apparel_model": "rollout",  # ours: f_d, "rollout" (the paper's recurrence on K = 3 apparel states, apparel.py;
-                                 # up to v7) or "body_history" (a per-vertex MLP on the body's motion history in
-                                 # the frame bone's frame, apparel_history.py; shipped v8, v9)
+    "apparel_model": "rollout",  # ours: f_d, "rollout" (the paper's recurrence on K = 3 apparel states, apparel.py)
+                                 # or "body_history" (a per-vertex MLP on the body's motion history in
+                                 # the frame bone's frame, apparel_history.py; the shipped checkpoint's)
     "history_hidden": 256,   # "body_history": MLP width
     "history_layers": 3,     # "body_history": hidden layers
     "history_frames": 8,     # "body_history": scored frames a clip contributes to a step (0: all)
     "history_smoothing": 0,  # "body_history": passes averaging the offsets over each vertex's component neighbours
     "history_still_zero": False,  # "body_history": the offset is the MLP's less its answer for a still body
-                             # (so a body that does not move keeps its skinned apparel; shipped v9: true)
+                             # (so a body that does not move keeps its skinned apparel; the shipped checkpoint: true)
     "history_arap": 0.0,     # "body_history": a request's apparel restored by soft ARAP with this pull towards
-                             # f_d's prediction (apparel_arap.py; 0: not restored; shipped v9: 0.03)
+                             # f_d's prediction (apparel_arap.py; 0: not restored; the shipped checkpoint: 0.03)
     "w_stretch": 1.0,        # "body_history": weight of the apparel mesh edges' relative stretch (what ELS scores)
     "rest_start": 0.5,       # "window" only: share of the windows restarted at rest on the body at the window
 }

@@ -9,7 +9,7 @@ from (its nearest body ancestor; :func:`body_target_weights`): the ground truth 
 vertices, and elsewhere the apparel carried rigidly by the body part it is attached to (what a
 skinning of body joints can reach, and what the apparel module then displaces).
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 

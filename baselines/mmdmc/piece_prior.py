@@ -1,5 +1,5 @@
-"""The piece prior on f_s's skinning scores (ours; config ``body_prior="piece"``, the shipped f_s
-since methods version 6).
+"""The piece prior on f_s's skinning scores (ours; config ``body_prior="piece"``, the shipped
+f_s's).
 
 Many characters are modelled in pieces: a separate head, hands, shoes, or (every zoo character)
 one closed capsule per bone. A piece that wraps one bone is skinned, by artists and by the zoo
@@ -25,7 +25,7 @@ grabs no sharp spot).
   of the anchor. A piece that wraps no bone (a body modelled in one piece) gets no piece prior:
   f_s scores it with its bone-distance prior -B / tau, as before.
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 

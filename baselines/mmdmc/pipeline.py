@@ -1,14 +1,14 @@
 """The MMDMC forward pass at inference (Fig. 2): f_c's apparel mask, f_s's weights and LBS of the
 body motion, f_d's rollout on the apparel vertices, f_j's refinement.
 
-With the body-history f_d (methods version 8, :mod:`baselines.mmdmc.apparel_history`) there is no
-rollout: each frame's apparel is predicted from the body's history in the request, and (version 9,
-config ``history_arap``) restored to its rest edge lengths by soft ARAP
+With the body-history f_d (the shipped one, :mod:`baselines.mmdmc.apparel_history`) there is no
+rollout: each frame's apparel is predicted from the body's history in the request, and (config
+``history_arap``) restored to its rest edge lengths by soft ARAP
 (:mod:`baselines.mmdmc.apparel_arap`).
 
 The rollout starts where a request starts: nothing is known of the apparel before it, so the
 K = 3 history states are the body state of the request's first frame (the apparel at rest on the
-body, not moving). The apparel protocol's requests (cases version 2) start at the clip's first
+body, not moving). The apparel protocol's requests start at the clip's first
 frame, where the simulation started from rest too, or 90 frames before the scored window; the
 apparel stage's training rollouts (``apparel_start="clip"``) start the same way through the same
 function (:func:`rollout_from_rest`). Per-character results (mask, weights, EdgeConv neighbours)

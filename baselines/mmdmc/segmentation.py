@@ -8,7 +8,7 @@ divided by the rest height; :func:`baselines.mmdmc.data.normalise`).
 (never its weights): the distance to the nearest body bone and to the nearest apparel bone (unit
 height, clipped at 1; :func:`segmenter_inputs`).
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 

@@ -19,14 +19,15 @@ end to end on their outputs):
   model did.
 - ``apparel`` (needs seg, body): f_d rolled out on the apparel vertices f_c finds, from f_s's body
   states; L1 vertex, edge length (Eq. 14-15) and an L2 regulariser on the displacements. With
-  ``apparel_start="clip"`` (opt-in; the shipped version 7 with ``bptt`` 0, a hair better than a zero displacement, README) every rollout starts as the simulation
+  ``apparel_start="clip"`` (opt-in; with ``bptt`` 0 a hair better than a zero displacement,
+  docs/notes/mmdmc.md) every rollout starts as the simulation
   and a request of the apparel protocol do: at rest on the body at the clip's first frame (K = 3
   history states of the body at rest, :func:`baselines.mmdmc.pipeline.rest_start`), rolled out
   through the burn-in to the window's end (at most ``burn_in`` + ``scored_window`` frames; a longer
   clip rolls out from a random frame, scored only on its last ``scored_window`` frames, as a request
   that starts a full burn-in before its window is) by the same function inference calls
   (:func:`baselines.mmdmc.pipeline.rollout_from_rest`), with truncated backpropagation every ``bptt``
-  steps (0: none). With ``apparel_start="window"`` (the default; the shipped version 6) a rollout is a window of
+  steps (0: none). With ``apparel_start="window"`` (the default) a rollout is a window of
   ``window`` frames after K ground-truth states (Eq. 11, the paper's), a share ``rest_start`` of
   them restarted at rest on the body at the window, inside the clip: where the simulated apparel
   already lags the body, a target the rest-started rollout's inputs cannot reach.
@@ -36,7 +37,7 @@ end to end on their outputs):
   weights; ``weight_smoothing`` (edge hops) and ``weight_smoothing_radius`` (a distance) smooth
   f_s's weights along the mesh (:mod:`baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
   model's settings) and read at inference from the stages' checkpoints.
-  With ``apparel_model="body_history"`` (ours; the shipped version 8) f_d is
+  With ``apparel_model="body_history"`` (ours; the shipped f_d) f_d is
   :class:`baselines.mmdmc.apparel_history.BodyHistoryApparel`: each batch is a clip read from where a
   request of it starts, with each apparel vertex's frame rotations and rest offset; ``history_frames``
   of its scored frames are predicted, and the loss is vertex L1 plus ``w_stretch`` times the relative
@@ -53,7 +54,7 @@ default and every shipped f_s's: Eq. 9 there is about 1e-5 and does almost nothi
 random mesh edges, and Eq. 9 becomes the mean relative stretch |l_pred / l_truth - 1| (what ELS
 measures) on those real edges whose two ends the weights term covers.
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 
@@ -269,7 +270,7 @@ APPAREL_MODELS = ("rollout", "body_history")
 
 
 def apparel_model(config: dict) -> str:
-    """The config's ``apparel_model`` (absent in configs up to methods version 7: ``"rollout"``)."""
+    """The config's ``apparel_model`` (``"rollout"`` in a config without the key)."""
     return config_choice(config, "apparel_model", APPAREL_MODELS, "rollout")
 
 
@@ -318,7 +319,7 @@ APPAREL_STARTS = ("clip", "window")
 
 
 def apparel_start(config: dict) -> str:
-    """The config's ``apparel_start`` (absent in configs up to methods version 6: ``"window"``)."""
+    """The config's ``apparel_start`` (``"window"`` in a config without the key)."""
     return config_choice(config, "apparel_start", APPAREL_STARTS, "window")
 
 
@@ -369,7 +370,7 @@ def batches_apparel(config: dict, context: StageContext, rng: np.random.Generato
     """One rollout a step (apparel vertex counts differ between characters). ``apparel_start="clip"``:
     a from-rest rollout (:func:`rollout_span`) with the frames a request would score
     (:func:`scored_frames`); ``"window"``: a window of ``window`` frames after K ground-truth states, a
-    share ``rest_start`` of them restarted at rest on the body at the window (version 6's)."""
+    share ``rest_start`` of them restarted at rest on the body at the window."""
     if apparel_model(config) == "body_history" or apparel_start(config) == "clip":
         yield from _batches_apparel_clip(config, context, rng)
         return

@@ -11,7 +11,7 @@ face edges): w <- (w + mean_{j ~ i} w_j) / 2. Rows stay convex combinations (the
 onto their chains' body bones (:func:`baselines.mmdmc.pipeline.mesh_weights`), so a garment hanging
 from two body bones blends between them instead of tearing.
 
-Measurements behind these choices: README, *Measurements behind the defaults*.
+Measurements behind these choices: docs/notes/measurements.md.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A cross-category self-supervised cycle term for NPT and CGT (ours, version 4).
+"""A cross-category self-supervised cycle term for NPT and CGT (ours).
 
 NPT and CGT are supervised on same-skeleton pairs only: no cross-category pair has a ground truth,
 so the transfers the ``cct`` protocol scores are never trained. This term is the analogue of

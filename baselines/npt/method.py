@@ -24,14 +24,18 @@ from benchmark.method import MethodMetadata
 CITATION = ("Jiashun Wang, Chao Wen, Yanwei Fu, Haitao Lin, Tianyun Zou, Xiangyang Xue, Yinda Zhang. Neural Pose "
             "Transfer by Spatially Adaptive Instance Normalization. CVPR 2020 (re-implemented from the paper)")
 
+LICENCE = ("MIT (this re-implementation and its weights, trained here); the authors' code "
+           "(jiashunwang/Neural-Pose-Transfer) carries no licence file, and none of it or of their weights ships")
+
 
 class Npt(CheckpointedMethod):
     """Neural Pose Transfer with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="npt", version="4", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="npt", version="5", licence=LICENCE, needs_training=True, citation=CITATION,
+                              reads_rig=False,
                               tags=("learned", "published", "re-implemented from the paper"),
-                              description="Neural Pose Transfer (SPAdaIN decoder, max-pool pose code), "
-                                          "re-implemented from the paper, trained on the zoo")
+                              description="Neural Pose Transfer (max-pool pose code, SPAdaIN decoder whose first block has "
+                                          "no instance norm), re-implemented from the paper, trained on the zoo")
     stage = "npt"
     env = "MIMICBENCH_NPT_CHECKPOINT"
     shipped = Path(__file__).resolve().parent / "checkpoints"
@@ -46,6 +50,7 @@ class Npt(CheckpointedMethod):
     def _answer(self, pose, identity):
         """The network's centred answer (1, Nt, 3) for pose (1, Ns, 3) and identity (1, Nt, 3) tensors."""
         return self.module(pose, identity)
+
 
     def transfer(self, requests):
         import torch
@@ -63,3 +68,18 @@ class Npt(CheckpointedMethod):
                 answer = self._answer(pose, identity)[0].cpu().numpy()
             out.append(place(answer, r.source.vertices, r.source_posed, r.target.vertices))
         return out
+
+
+class NptConstantCode(Npt):
+    """Ablation of ``npt``: the decoder conditioned on a constant code (zeros) instead of the source's pose
+    code, with the shipped (or a given) weights; what is left is what the identity mesh alone gives."""
+
+    metadata = MethodMetadata(name="npt_constant_code", version="5", licence=LICENCE, needs_training=True,
+                              citation=CITATION, reads_rig=False, tags=("learned", "published", "ablation"),
+                              description="npt with its pose code replaced by a constant (zeros)")
+
+    def _answer(self, pose, identity):
+        import torch
+
+        width = self.module.encoder.features.net[-3].out_channels
+        return self.module(pose, identity, code=torch.zeros(pose.shape[0], width, device=pose.device))

@@ -1,39 +1,27 @@
-"""The Neural Pose Transfer network (Wang et al., CVPR 2020, Fig. 2), re-implemented from the paper.
+"""The Neural Pose Transfer network (Wang et al., CVPR 2020, Fig. 2), max-pool variant, re-implemented
+from the paper and the authors' public code (read, not copied).
 
 - Pose encoder: PointNet-style 1x1 convolutions 3 -> c1 -> c2 -> c3 over the posed source's points,
-  each followed by instance norm and ReLU; a max over the points gives the pose code (the max-pool
-  variant, so source and target vertex counts may differ).
-- Decoder: the pose code repeated at every target point, concatenated with the point's identity
-  coordinates, a 1x1 conv to c3, then SPAdaIN residual blocks c3 -> c3/2 -> c3/4 conditioned on the
-  identity coordinates, and a final SPAdaIN -> 1x1 conv to xyz, squashed by 2 tanh.
+  each followed by instance norm and ReLU; a max over the points gives the pose code (B, c3), so
+  source and target vertex counts may differ.
+- Decoder (``b = c3 + 3`` wide, 1027 in the paper): the code repeated at every target point and
+  concatenated with the point's identity coordinates; then
+  ``conv b->b, block 1 (b), conv b->b/2, block 2 (b/2), conv b/2->b/4, block 3 (b/4), conv -> xyz``,
+  squashed by 2 tanh. Each block is a :class:`baselines.npt.spadain.SPAdaINResBlock` conditioned on
+  the identity coordinates; **block 1 has no instance normalisation** (it would subtract the code,
+  a per-channel constant over the points), blocks 2 and 3 normalise.
 
-Two options of ours (config keys; a config without them is version 1's network):
-
-- ``pose_mix``: the code and the coordinates pass a 1x1 conv, a ReLU and a second 1x1 conv before the
-  first SPAdaIN. Without it the pose is lost: the code is the same at every point, so after the one
-  linear conv it is a constant per channel, which every SPAdaIN's instance norm (each block and its
-  shortcut start with one) subtracts; version 1's answer did not depend on the source's pose
-  (changing the pose moved it by 3e-6). Through the ReLU the code decides which points each channel
-  is active at, which the norm keeps. (NPT's published max-pool variant needs the same care; its
-  per-point variant feeds pose features that differ from point to point.)
-- ``residual``: the answer is the identity point plus the 2 tanh output (the last conv starts at
-  zero, so an untrained network answers the rest pose), so CPU-scale training spends its steps on
-  the pose rather than on reproducing the identity mesh.
-- ``pose_cond`` (tried for a version 3, not in the presets: README): the pose code also enters every SPAdaIN's gamma and beta
-  (:class:`baselines.npt.spadain.SPAdaIN` with ``code``). ``pose_mix`` alone was not enough: trained,
-  version 2's answer still did not follow the pose (its std over 6 poses of one pair 7e-7 against
-  the code's 0.3; validation MSE 0.0029 against 0.0021 for the mean pose of the pair): a ReLU of a
-  code-dominated input is on or off at every point alike, so the norm removed it again.
-
-Paper widths (c1, c2, c3) = (64, 128, 1024); the ``small`` preset narrows them for CPU training.
-Inputs and outputs are in the centred unit-size frames of :mod:`baselines.npt.placement`.
+``residual`` (config key, ours, in the ``cpu`` preset only): the answer is the identity point plus the
+2 tanh output, whose last conv starts at zero, so an untrained network answers the rest pose and
+CPU-scale training spends its steps on the pose. Inputs and outputs are in the centred unit-size
+frames of :mod:`baselines.npt.placement`.
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from baselines.npt.spadain import SPAdaIN, SPAdaINResBlock
+from baselines.npt.spadain import SPAdaINResBlock
 
 
 class PointFeatures(nn.Module):
@@ -62,31 +50,25 @@ class PoseEncoder(nn.Module):
         return self.features(points).max(dim=2).values
 
 
-class SPAdaINDecoder(nn.Module):
-    """Posed target (B, 3, N) from per-point pose features (B, c_pose, N) and identity points (B, 3, N)."""
+class NptDecoder(nn.Module):
+    """Posed target (B, 3, N) from the input (B, b, N) (code and identity coordinates) and identity (B, 3, N)."""
 
-    def __init__(self, c_pose: int, width: int, pose_mix: bool = False, residual: bool = False, code: int = 0):
+    def __init__(self, width: int, residual: bool = False):
         super().__init__()
-        self.inp = nn.Conv1d(c_pose + 3, width, 1)
-        self.mix = nn.Conv1d(width, width, 1) if pose_mix else None
+        w = (width, width // 2, width // 4)
+        self.convs = nn.ModuleList([nn.Conv1d(width, w[0], 1), nn.Conv1d(w[0], w[1], 1), nn.Conv1d(w[1], w[2], 1)])
+        self.blocks = nn.ModuleList([SPAdaINResBlock(w[0], normalise=False), SPAdaINResBlock(w[1]),
+                                     SPAdaINResBlock(w[2])])
+        self.out = nn.Conv1d(w[2], 3, 1)
         self.residual = bool(residual)
-        self.blocks = nn.ModuleList([SPAdaINResBlock(width, width, code=code),
-                                     SPAdaINResBlock(width, width // 2, code=code),
-                                     SPAdaINResBlock(width // 2, width // 4, code=code)])
-        self.out_norm = SPAdaIN(width // 4, code=code)
-        self.out = nn.Conv1d(width // 4, 3, 1)
         if self.residual:
             nn.init.zeros_(self.out.weight)
             nn.init.zeros_(self.out.bias)
 
-    def forward(self, pose_features: torch.Tensor, identity: torch.Tensor, code: torch.Tensor | None = None) -> torch.Tensor:
-        """pose_features (B, c_pose, N), identity (B, 3, N), code (B, code) when built with one -> (B, 3, N)."""
-        h = self.inp(torch.cat([pose_features, identity], dim=1))
-        if self.mix is not None:
-            h = self.mix(torch.relu(h))
-        for block in self.blocks:
-            h = block(h, identity, code)
-        out = 2.0 * torch.tanh(self.out(torch.relu(self.out_norm(h, identity, code))))
+    def forward(self, x: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
+        for conv, block in zip(self.convs, self.blocks):
+            x = block(conv(x), identity)
+        out = 2.0 * torch.tanh(self.out(x))
         return identity + out if self.residual else out
 
 
@@ -94,21 +76,25 @@ class NeuralPoseTransfer(nn.Module):
     """NPT: pose encoder + SPAdaIN decoder.
 
     Args:
-        widths: the pose encoder's (c1, c2, c3); the decoder is c3 wide.
-        pose_mix, residual: the decoder's options (module docstring).
+        widths: the pose encoder's (c1, c2, c3); the decoder is c3 + 3 wide.
+        residual: the decoder answers offsets from the identity points (module docstring).
     """
 
-    def __init__(self, widths=(64, 128, 1024), pose_mix: bool = False, residual: bool = False,
-                 pose_cond: bool = False):
+    def __init__(self, widths=(64, 128, 1024), residual: bool = False):
         super().__init__()
         widths = tuple(int(w) for w in widths)
         self.encoder = PoseEncoder(widths)
-        self.pose_cond = bool(pose_cond)
-        self.decoder = SPAdaINDecoder(widths[-1], widths[-1], pose_mix, residual, widths[-1] if pose_cond else 0)
+        self.decoder = NptDecoder(widths[-1] + 3, residual)
 
-    def forward(self, posed_source: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:
-        """posed_source (B, Ns, 3), identity (B, Nt, 3), centred unit-size frames -> (B, Nt, 3)."""
-        code = self.encoder(posed_source.transpose(1, 2))
-        nt = identity.shape[1]
-        return self.decoder(code[:, :, None].expand(-1, -1, nt), identity.transpose(1, 2),
-                            code if self.pose_cond else None).transpose(1, 2)
+    def forward(self, posed_source: torch.Tensor, identity: torch.Tensor,
+                code: torch.Tensor | None = None) -> torch.Tensor:
+        """posed_source (B, Ns, 3), identity (B, Nt, 3), centred unit-size frames -> (B, Nt, 3).
+
+        ``code`` (B, c3), when given, stands in for the pose code of ``posed_source`` (the
+        ``npt_constant_code`` ablation).
+        """
+        if code is None:
+            code = self.encoder(posed_source.transpose(1, 2))
+        ident = identity.transpose(1, 2)
+        x = torch.cat([code[:, :, None].expand(-1, -1, ident.shape[2]), ident], dim=1)
+        return self.decoder(x, ident).transpose(1, 2)

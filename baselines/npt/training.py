@@ -6,8 +6,8 @@ posed by the h2h ground truth of that pose), plus a share ``self_share`` of self
 character of the dataset, of every category (ours: the paper trains on SMPL pairs; a zoo's
 same-skeleton pairs are all humanoids, and a self-transfer is supervised too); both
 meshes are seen as :mod:`baselines.npt.placement` centres them, on ``points`` vertices drawn per
-mesh. The loss is :func:`baselines.npt.losses.npt_loss`; with ``cycle_batch`` > 0 (the
-``small_cycle`` preset) each step also draws that many cross-category cycle examples, whose terms
+mesh. The loss is :func:`baselines.npt.losses.npt_loss`; with ``cycle_batch`` > 0 (ours, off in
+the presets) each step also draws that many cross-category cycle examples, whose terms
 :func:`baselines.npt.cycle.add_cycle` adds. CGT trains on the very same batches
 (:func:`pair_batches`, :func:`loss_pairs`).
 """
@@ -27,8 +27,7 @@ from mimicbench.training.stage import StageContext, TrainStage
 
 
 def build_npt(config: dict, context: StageContext | None = None) -> NeuralPoseTransfer:
-    return NeuralPoseTransfer(config["widths"], config.get("pose_mix", False), config.get("residual", False),
-                              config.get("pose_cond", False))
+    return NeuralPoseTransfer(config["widths"], config.get("residual", False))
 
 
 def pair_item(pool: PosePool, source: str, target: str, config: dict, rng: np.random.Generator) -> dict:
@@ -51,7 +50,7 @@ def pair_batches(config: dict, context: StageContext, rng: np.random.Generator):
     self_picks = rng.integers(0, len(pool.ids), size=n)
     seeds = rng.integers(0, 2**31 - 1, size=n)
     cycle = int(config.get("cycle_batch", 0)) > 0
-    if cycle:  # drawn only when on, so a config without the term repeats version 3's batches
+    if cycle:  # drawn only when on, so a config without the term draws the same batches as before
         cycle_pairs, cycle_rng = cross_category_pairs(pool), np.random.default_rng(int(rng.integers(2**31 - 1)))
     for idx in rank_batches(n, config["batch_size"], rng, context.rank, context.world_size):
         items = []

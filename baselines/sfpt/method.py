@@ -1,17 +1,24 @@
 """``sfpt`` behind the adapter API: Skeleton-free Pose Transfer, mesh-only at test time.
 
-For a transfer request: the source's and the target's handle weights come from their rest meshes
-alone (:class:`baselines.sfpt.model.SkinningPredictor`), the source's handle transforms from its rest
-and posed meshes (:class:`baselines.sfpt.model.PosePredictor`), and the target is deformed by LBS
-over the handles (:func:`baselines.sfpt.handles.deform`). Each mesh is seen in its unit-height rest
-frame (rest box centre, rest height) and the answer mapped back with the target's. Every vertex is
-used; EdgeConv neighbours are each vertex's ``knn`` nearest rest vertices. No rig is read.
+For a transfer request, each mesh in its unit-height rest frame (rest box centre, rest height), with its
+vertex normals and mesh edges (:mod:`baselines.sfpt.mesh_graph`):
 
-For a motion request (the ``apparel`` protocol, as MMDMC's Table 2 compares SPT there): each frame's
-body pose is the character posed by its body bones alone (every apparel bone's weight moved to the
-nearest body bone, :func:`baselines.body_only.body_weights`: what a body-only motion source shows),
-and SFPT transfers that mesh onto the character's own rest mesh, so apparel moves with the handles
-SFPT assigns it to.
+1. handle weights of the source and of the target from their rest meshes
+   (:class:`baselines.sfpt.model.SkinningPredictor`);
+2. the target's shape code at rest (:class:`baselines.sfpt.model.ShapeEncoder`);
+3. the handle transforms from the source's pose code, the target's shape code and the source handles'
+   Kabsch fit (:meth:`baselines.sfpt.model.SkeletonFreePoseTransfer.predict`);
+4. the target deformed over its handles (:func:`baselines.sfpt.handles.deform`), mapped back to metres;
+5. test-time ARAP (:class:`baselines.mimicat.arap.ArapRefiner`, libigl): vertices whose largest handle
+   weight is at least 0.5 stay where the handles put them, the others are re-solved as rigid as possible
+   from the target's rest mesh.
+
+No rig is read. For a motion request (the ``apparel`` protocol, as MMDMC's Table 2 compares SPT there):
+each frame's body pose is the character posed by its body bones alone (every apparel bone's weight
+moved to the nearest body bone, :func:`baselines.body_only.body_weights`), transferred onto the
+character's own rest mesh.
+
+``sfpt_kabsch_only`` (:class:`SfptKabschOnly`) replaces step 3 by the Kabsch fit itself.
 
 Weights: ``checkpoints/sfpt.safetensors`` next to this file (shipped), or a training run given as
 ``checkpoint=`` or by ``MIMICBENCH_SFPT_CHECKPOINT`` (``RUN/sfpt/model.safetensors``).
@@ -29,73 +36,91 @@ from benchmark.method import MethodMetadata
 CITATION = ("Zhouyingcheng Liao, Jimei Yang, Jun Saito, Gerard Pons-Moll, Yang Zhou. Skeleton-free Pose Transfer "
             "for Stylized 3D Characters. ECCV 2022 (re-implemented from the paper)")
 
+LICENCE = ("MIT for this re-implementation and its weights (trained here, from the paper; the public code read "
+           "to learn, none copied). The original code and its pretrained weights "
+           "(zycliao/skeleton-free-pose-transfer) are under the Adobe Research License: non-commercial use only")
+
 
 class Sfpt(CheckpointedMethod):
-    """Skeleton-free Pose Transfer with the shipped (or a given) checkpoint."""
+    """Skeleton-free Pose Transfer with the shipped (or a given) checkpoint.
 
-    metadata = MethodMetadata(name="sfpt", version="1", licence="MIT", needs_training=True, citation=CITATION,
-                              protocols=("h2h", "cct", "apparel"),
+    Args:
+        checkpoint: a training run or a folder of shipped weights (default: the shipped ones).
+        arap: run the test-time ARAP refinement (step 5).
+    """
+
+    metadata = MethodMetadata(name="sfpt", version="2", licence=LICENCE, needs_training=True, citation=CITATION,
+                              protocols=("h2h", "cct", "apparel"), reads_rig=False,
                               tags=("learned", "published", "re-implemented from the paper"),
-                              description="Skeleton-free Pose Transfer (40 learned handles, EdgeConv skinning and "
-                                          "pose predictors), re-implemented from the paper, trained on the zoo")
+                              description="Skeleton-free Pose Transfer (40 learned handles, EdgeConv over mesh "
+                                          "edges on positions and normals, target-conditioned pose decoder, "
+                                          "test-time ARAP), re-implemented from the paper, trained on the zoo")
     stage = "sfpt"
     env = "MIMICBENCH_SFPT_CHECKPOINT"
     shipped = Path(__file__).resolve().parent / "checkpoints"
+    kabsch_only = False
 
-    def __init__(self, checkpoint: str | os.PathLike | None = None):
+    def __init__(self, checkpoint: str | os.PathLike | None = None, arap: bool = True):
         super().__init__(checkpoint)
-        self.knn = 8
-        self.chunk = 4  # motion frames through the networks at once
+        self.arap = bool(arap)
         self._chars: dict = {}
+        self._refiner = None
 
-    def setup(self, device: str = "cpu") -> None:
-        super().setup(device)
-        self.knn = int(self.config["knn"])
-
-    def _character(self, vertices: np.ndarray, key) -> tuple:
-        """(rest (1, N, 3), neighbours (N, k), handle weights (1, N, H)) tensors of a rest mesh, cached."""
+    def _character(self, vertices: np.ndarray, faces: np.ndarray, key) -> dict:
+        """Cached tensors of a rest mesh in its unit-height frame: ``rest`` (N, 3), ``faces`` (M, 3),
+        ``edges`` (E, 2), ``normals`` (N, 3), ``weights`` (N, H) and its shape ``code`` (H, code)."""
         import torch
 
-        from baselines.pose_pairs import neighbours
+        from baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
         from baselines.sfpt.training import unit_frame
 
         if key not in self._chars:
-            rest = unit_frame(vertices, vertices)
-            nb = torch.as_tensor(neighbours(rest, self.knn), device=self.device)
-            rest_t = torch.as_tensor(rest, device=self.device)[None]
+            rest = torch.as_tensor(unit_frame(vertices, vertices), device=self.device)
+            f = torch.as_tensor(np.asarray(faces, np.int64), device=self.device)
+            edges = torch.as_tensor(mesh_edges(faces, len(vertices)), device=self.device)
             with torch.no_grad():
-                self._chars[key] = (rest_t, nb, self.module.skinning(rest_t, nb))
+                normals = vertex_normals(rest, f)
+                weights = self.module.skinning(rest, normals, edges)
+                code = self.module.encoder(rest, normals, weights, edges)
+            self._chars[key] = {"rest": rest, "faces": f, "edges": edges, "normals": normals, "weights": weights,
+                                "code": code}
         return self._chars[key]
 
-    def _pose_onto(self, source_vertices, source_key, source_posed: np.ndarray, target_vertices, target_key):
-        """(F, Nt, 3) float32 metres: the target posed like each of the source's posed meshes (F, Ns, 3),
-        ``chunk`` frames through the networks at a time."""
+    def _pose_onto(self, source, source_posed: np.ndarray, target) -> np.ndarray:
+        """(Nt, 3) float32 metres: the target rig's mesh posed like the source's posed mesh (Ns, 3)."""
         import torch
 
-        from baselines.sfpt.handles import deform
+        from baselines.sfpt.handles import deform, transform_matrices
+        from baselines.sfpt.mesh_graph import vertex_normals
         from baselines.sfpt.training import unit_frame
         from mimicbench.mesh import unit_height_frame
 
-        rest_s, nb_s, w_s = self._character(source_vertices, source_key)
-        rest_t, _, w_t = self._character(target_vertices, target_key)
-        centre, height = unit_height_frame(target_vertices)
-        out = []
-        for i in range(0, len(source_posed), self.chunk):
-            posed = torch.as_tensor(np.stack([unit_frame(p, source_vertices) for p in source_posed[i:i + self.chunk]]),
-                                    device=self.device)
-            f = len(posed)
-            with torch.no_grad():
-                r, t = self.module.pose(rest_s.expand(f, -1, -1), posed, w_s.expand(f, -1, -1), nb_s)
-                moved = deform(rest_t.expand(f, -1, -1), w_t.expand(f, -1, -1), r, t).cpu().numpy()
-            out.append(moved.astype(np.float64) * height + centre)
-        return np.concatenate(out).astype(np.float32)
+        s = self._character(source.vertices, source.faces, (source.character_id, len(source.vertices)))
+        t = self._character(target.vertices, target.faces, (target.character_id, len(target.vertices)))
+        posed = torch.as_tensor(unit_frame(source_posed, source.vertices), device=self.device)
+        with torch.no_grad():
+            normals = (s["normals"], vertex_normals(posed, s["faces"]))
+            pred = self.module.predict(s["rest"], posed, normals, s["weights"], s["edges"], t["code"],
+                                       kabsch_only=self.kabsch_only)
+            moved = deform(t["rest"], t["weights"], *transform_matrices(pred)).cpu().numpy()
+        centre, height = unit_height_frame(target.vertices)
+        out = (moved.astype(np.float64) * height + centre).astype(np.float32)
+        if self.arap:
+            out = self._refine(target, t["weights"].cpu().numpy(), out)
+        return out
+
+    def _refine(self, target, weights: np.ndarray, posed: np.ndarray) -> np.ndarray:
+        from baselines.mimicat.arap import ArapRefiner
+
+        if self._refiner is None:
+            self._refiner = ArapRefiner()
+        key = f"sfpt/{target.character_id}/{len(target.vertices)}"
+        return self._refiner.refine(key, target.vertices, target.faces, weights, posed)
 
     def transfer(self, requests):
         if self.module is None:
             self.setup(self.device)
-        return [self._pose_onto(r.source.vertices, (r.source.character_id, len(r.source.vertices)),
-                                np.asarray(r.source_posed)[None], r.target.vertices,
-                                (r.target.character_id, len(r.target.vertices)))[0] for r in requests]
+        return [self._pose_onto(r.source, np.asarray(r.source_posed), r.target) for r in requests]
 
     def transfer_motion(self, requests):
         """(F, N, 3) float32 per motion request (see the module docstring)."""
@@ -110,6 +135,16 @@ class Sfpt(CheckpointedMethod):
             rig = r.target
             weights = SparseWeights.from_dense(body_weights(rig, r.body_bones))
             body = linear_blend_skinning(rig.vertices, rig.keypoints, weights, np.asarray(r.transforms, np.float32))
-            key = (rig.character_id, len(rig.vertices))
-            out.append(self._pose_onto(rig.vertices, key, body, rig.vertices, key))
+            out.append(np.stack([self._pose_onto(rig, frame, rig) for frame in body]))
         return out
+
+
+class SfptKabschOnly(Sfpt):
+    """Ablation of ``sfpt``: the pose decoder replaced by the bare Kabsch fit of each source handle (the
+    learned handle weights and test-time ARAP kept)."""
+
+    metadata = MethodMetadata(name="sfpt_kabsch_only", version="2", licence=LICENCE, needs_training=True,
+                              citation=CITATION, protocols=("h2h", "cct", "apparel"), reads_rig=False,
+                              tags=("learned", "published", "ablation"),
+                              description="sfpt with its pose decoder replaced by the handles' Kabsch fit")
+    kabsch_only = True

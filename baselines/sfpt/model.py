@@ -1,102 +1,158 @@
-"""The Skeleton-free Pose Transfer networks (Liao et al., ECCV 2022, Sec. 3), written from the paper.
+"""The Skeleton-free Pose Transfer networks (Liao et al., ECCV 2022, Sec. 3), re-implemented from the paper
+and the authors' public code (read, not copied). One mesh at a time: a mesh is vertices (N, 3) and
+per-vertex normals (N, 3) in its unit-height rest frame, and its directed edges (E, 2)
+(:func:`baselines.sfpt.mesh_graph.mesh_edges`). Widths scale with ``hidden`` (h; 64 in the paper):
 
-- :class:`MeshEncoder`: EdgeConv layers (MMDMC's :class:`baselines.mmdmc.apparel.EdgeConv`, a gather
-  over each vertex's k nearest rest neighbours and a max) whose outputs are concatenated with a
-  global max-pooled feature: per-vertex features of a mesh.
-- :class:`SkinningPredictor`: handle weights W (N, H), a softmax over H handles of per-vertex logits
-  from the encoder on the rest mesh (each row sums to 1). Ours, for CPU-scale training: the logits
-  add a spatial prior, ``-|x - a_k|^2 / (2 s^2)`` with learned anchors a_k (drawn in the unit-height
-  box) and a learned width s, so the handles start as soft regions of the mesh rather than one
-  uniform blend, and the network learns the rest.
-- :class:`PosePredictor`: per-handle transforms from the rest and posed source: per-vertex features of
-  (rest, posed, posed - rest) pooled per handle with the source's W, with the handle's rest and posed
-  centres, decoded to a quaternion and a translation. Ours, for CPU-scale training: both are
-  residuals, the quaternion on the handle's weighted Kabsch rotation (rest onto posed under W,
-  :func:`baselines.sfpt.handles.fitted_rotations`, no gradient), the translation on the handle
-  centre's displacement, so the network starts from the handles' own fitted motion.
+- :class:`MeshEdgeConv`: EdgeConv over the mesh's edges, ``x_i' = MLP(max_j MLP([x_i, x_j - x_i]))``.
+- :class:`SkinningPredictor`: handle weights W (N, H) of a rest mesh: EdgeConvs (6 -> h -> 2h -> 4h),
+  their concatenation through MLPs (7h -> 4h -> 4h -> 2h) and a linear layer to H logits, softmax.
+- :class:`ShapeEncoder`: per-handle codes (H, code) of a mesh (rest or posed) under handle weights W:
+  EdgeConvs as above; a per-vertex MLP (7h -> 4h) beside a global max-pooled MLP (7h -> 4h); their
+  concatenation averaged per handle with W's normalised columns, a linear layer to ``code``, ReLU.
+- :class:`PoseDecoder`: a handle's transform (translation, quaternion wxyz) from the source's pose code
+  (posed minus rest encodings), **the target's shape code** and the source handle's Kabsch fit
+  (translation, quaternion): an MLP (2 code + 7 -> 4h -> 2h -> 2h -> 7).
 
-All positions are in the mesh's unit-height rest frame (rest box centre, divided by the rest height);
-the posed source in its own rest frame, so handle translations carry the global motion.
+The pose is read from the source under the source's handle weights, the shape from the target under
+the target's, and the predicted transforms deform the target about its own handle centres
+(:func:`baselines.sfpt.handles.deform`).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from baselines.mmdmc.apparel import EdgeConv
-from baselines.mmdmc.segmentation import mlp
-from baselines.sfpt.handles import fitted_rotations, handle_centres
-from mimicbench.skinning_torch import quat_to_matrix_torch
+from baselines.sfpt.handles import handle_centres, kabsch_transforms
 
 
-class MeshEncoder(nn.Module):
-    """Per-vertex features (B, N, 3 hidden + glob) of inputs (B, N, c_in) over neighbours (N, k)."""
+def mlp(sizes: list[int], last_act: bool = True) -> nn.Sequential:
+    """Linear layers of ``sizes`` with a ReLU after each (but the last when ``last_act`` is False)."""
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
+        layers.append(nn.Linear(a, b))
+        if last_act or i < len(sizes) - 2:
+            layers.append(nn.ReLU())
+    return nn.Sequential(*layers)
 
-    def __init__(self, c_in: int, hidden: int, glob: int):
+
+class MeshEdgeConv(nn.Module):
+    """x_i' = MLP_out(max over edges (i, j) of MLP_edge([x_i, x_j - x_i])): (N, c_in) -> (N, c_out)."""
+
+    def __init__(self, c_in: int, c_out: int):
         super().__init__()
-        self.convs = nn.ModuleList([EdgeConv(c_in, hidden), EdgeConv(hidden, hidden), EdgeConv(hidden, hidden)])
-        self.glob = mlp([3 * hidden, glob])
+        self.edge = mlp([2 * c_in, c_out, c_out])
+        self.out = mlp([c_out, c_out])
 
-    @property
-    def width(self) -> int:
-        return 3 * self.convs[0].mlp[-2].out_features + self.glob[0].out_features
+    def forward(self, x: torch.Tensor, edges: torch.Tensor) -> torch.Tensor:
+        """x (N, c_in), edges (E, 2) directed (i, j) covering every vertex as an i -> (N, c_out)."""
+        xi, xj = x[edges[:, 0]], x[edges[:, 1]]
+        msg = self.edge(torch.cat([xi, xj - xi], dim=-1))
+        agg = msg.new_full((x.shape[0], msg.shape[1]), float("-inf"))
+        agg = agg.scatter_reduce(0, edges[:, :1].expand(-1, msg.shape[1]), msg, reduce="amax", include_self=True)
+        return self.out(agg)
 
-    def forward(self, x: torch.Tensor, neighbours: torch.Tensor) -> torch.Tensor:
+
+class EdgeFeatures(nn.Module):
+    """Concatenated outputs (N, 7h) of three :class:`MeshEdgeConv` (c_in -> h -> 2h -> 4h)."""
+
+    def __init__(self, c_in: int, hidden: int):
+        super().__init__()
+        self.convs = nn.ModuleList([MeshEdgeConv(c_in, hidden), MeshEdgeConv(hidden, 2 * hidden),
+                                    MeshEdgeConv(2 * hidden, 4 * hidden)])
+
+    def forward(self, x: torch.Tensor, edges: torch.Tensor) -> torch.Tensor:
         feats = []
         for conv in self.convs:
-            x = conv(x, neighbours)
+            x = conv(x, edges)
             feats.append(x)
-        local = torch.cat(feats, -1)
-        g = self.glob(local).max(dim=1, keepdim=True).values.expand(-1, local.shape[1], -1)
-        return torch.cat([local, g], -1)
+        return torch.cat(feats, dim=-1)
 
 
 class SkinningPredictor(nn.Module):
-    """Handle weights (B, N, H) of rest vertices (B, N, 3), rows summing to 1."""
+    """Handle weights (N, H), rows summing to 1, of a rest mesh (vertices, normals (N, 3), edges (E, 2))."""
 
     def __init__(self, hidden: int, handles: int):
         super().__init__()
-        self.encoder = MeshEncoder(3, hidden, 2 * hidden)
-        self.head = mlp([self.encoder.width, 2 * hidden, hidden, handles], last_act=False)
-        self.anchors = nn.Parameter(torch.rand(handles, 3) - 0.5)
-        self.log_width = nn.Parameter(torch.tensor(-2.0))  # s = e^-2 = 0.14 of the height
+        self.features = EdgeFeatures(6, hidden)
+        self.head = nn.Sequential(mlp([7 * hidden, 4 * hidden, 4 * hidden, 2 * hidden]), nn.Linear(2 * hidden, handles))
 
-    def forward(self, rest: torch.Tensor, neighbours: torch.Tensor) -> torch.Tensor:
-        prior = -((rest[..., :, None, :] - self.anchors) ** 2).sum(-1) / (2 * torch.exp(2 * self.log_width))
-        return torch.softmax(self.head(self.encoder(rest, neighbours)) + prior, dim=-1)
+    def forward(self, vertices: torch.Tensor, normals: torch.Tensor, edges: torch.Tensor) -> torch.Tensor:
+        return torch.softmax(self.head(self.features(torch.cat([vertices, normals], -1), edges)), dim=-1)
 
 
-class PosePredictor(nn.Module):
-    """Handle transforms of a posed source: rotations (B, H, 3, 3) and translations (B, H, 3)."""
+class ShapeEncoder(nn.Module):
+    """Per-handle codes (H, code) of a mesh (vertices, normals (N, 3), edges (E, 2)) under weights (N, H)."""
 
-    def __init__(self, hidden: int, handles: int):
+    def __init__(self, hidden: int, code: int):
         super().__init__()
-        self.encoder = MeshEncoder(9, hidden, 2 * hidden)
-        self.head = mlp([self.encoder.width + 6 + handles, 2 * hidden, hidden, 7], last_act=False)
-        self.handles = handles
+        self.features = EdgeFeatures(6, hidden)
+        self.local = mlp([7 * hidden, 4 * hidden])
+        self.glob = mlp([7 * hidden, 4 * hidden])
+        self.out = mlp([8 * hidden, code])
 
-    def forward(self, rest: torch.Tensor, posed: torch.Tensor, weights: torch.Tensor,
-                neighbours: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """rest, posed (B, N, 3), weights (B, N, H), neighbours (N, k)."""
-        f = self.encoder(torch.cat([rest, posed, posed - rest], -1), neighbours)  # (B, N, C)
-        pooled = handle_centres(f, weights)  # weight-averaged features (B, H, C)
-        c_rest, c_posed = handle_centres(rest, weights), handle_centres(posed, weights)
-        onehot = torch.eye(self.handles, dtype=f.dtype, device=f.device).expand(f.shape[0], -1, -1)
-        out = self.head(torch.cat([pooled, c_rest, c_posed, onehot], -1))
-        identity = out.new_tensor([1.0, 0.0, 0.0, 0.0])
-        q = nn.functional.normalize(out[..., :4] + identity, dim=-1)
-        return quat_to_matrix_torch(q) @ fitted_rotations(rest, posed, weights), out[..., 4:] + (c_posed - c_rest)
+    def forward(self, vertices: torch.Tensor, normals: torch.Tensor, weights: torch.Tensor,
+                edges: torch.Tensor) -> torch.Tensor:
+        f = self.features(torch.cat([vertices, normals], -1), edges)  # (N, 7h)
+        g = self.glob(f.max(dim=0).values)  # (4h,)
+        per_vertex = torch.cat([self.local(f), g.expand(f.shape[0], -1)], -1)  # (N, 8h)
+        return self.out(handle_centres(per_vertex, weights))  # (H, code)
+
+
+class PoseDecoder(nn.Module):
+    """(H, 7) handle transforms (translation, quaternion wxyz) from the pose code (H, code), the target's
+    shape code (H, code) and the Kabsch fit (H, 7).
+
+    With ``residual`` (ours, ``cpu`` preset) the output is added to the Kabsch fit (the published decoder's
+    optional ``base``) and the last layer starts at zero, so an untrained decoder answers the fit itself.
+    """
+
+    def __init__(self, hidden: int, code: int, residual: bool = False):
+        super().__init__()
+        self.net = mlp([2 * code + 7, 4 * hidden, 2 * hidden, 2 * hidden, 7], last_act=False)
+        self.residual = bool(residual)
+        if self.residual:
+            nn.init.zeros_(self.net[-1].weight)
+            nn.init.zeros_(self.net[-1].bias)
+
+    def forward(self, pose: torch.Tensor, shape: torch.Tensor, kabsch: torch.Tensor) -> torch.Tensor:
+        out = self.net(torch.cat([pose, shape, kabsch], -1))
+        return out + kabsch if self.residual else out
 
 
 class SkeletonFreePoseTransfer(nn.Module):
-    """SFPT: the skinning and pose predictors.
+    """SFPT: skinning predictor, shape encoder and pose decoder.
 
     Args:
-        hidden: EdgeConv width.
-        handles: H (the paper's 40).
+        hidden: EdgeConv base width h (64 in the paper); code: per-handle code width (128 in the paper);
+        handles: H (40 in the paper); residual: the decoder answers corrections to the Kabsch fit.
     """
 
-    def __init__(self, hidden: int = 64, handles: int = 40):
+    def __init__(self, hidden: int = 64, handles: int = 40, code: int = 128, residual: bool = False):
         super().__init__()
         self.skinning = SkinningPredictor(hidden, handles)
-        self.pose = PosePredictor(hidden, handles)
+        self.encoder = ShapeEncoder(hidden, code)
+        self.decoder = PoseDecoder(hidden, code, residual)
+        self.handles = handles
+
+    def pose_code(self, rest: torch.Tensor, posed: torch.Tensor, normals: tuple, weights: torch.Tensor,
+                  edges: torch.Tensor) -> torch.Tensor:
+        """(H, code) a mesh's pose code: the encoding of its posed mesh minus that of its rest mesh, both
+        under its rest weights (N, H); normals: (rest, posed) normals (N, 3) each; edges (E, 2)."""
+        return self.encoder(posed, normals[1], weights, edges) - self.encoder(rest, normals[0], weights, edges)
+
+    def predict(self, source_rest: torch.Tensor, source_posed: torch.Tensor, source_normals: tuple,
+                source_weights: torch.Tensor, source_edges: torch.Tensor, target_code: torch.Tensor,
+                kabsch_only: bool = False) -> torch.Tensor:
+        """(H, 7) transforms (translation, quaternion wxyz) of the target's handles posing it like the source.
+
+        Args:
+            source_rest, source_posed: (Ns, 3); source_normals: (rest, posed) normals (Ns, 3) each;
+            source_weights: (Ns, H); source_edges: (E, 2); target_code: (H, code) the target's
+            :class:`ShapeEncoder` code at rest; kabsch_only: return the source handles' Kabsch fit itself
+            (the ``sfpt_kabsch_only`` ablation: no pose decoder).
+        """
+        kabsch = kabsch_transforms(source_rest, source_posed, source_weights)
+        if kabsch_only:
+            return kabsch
+        pose = self.pose_code(source_rest, source_posed, source_normals, source_weights, source_edges)
+        return self.decoder(pose, target_code, kabsch)

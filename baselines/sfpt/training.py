@@ -1,25 +1,34 @@
 """SFPT's training stage for the shared trainer (``mimicbench train sfpt DATASET --out RUN``).
 
-One stage, ``sfpt``. Each example is either a same-skeleton pair (share ``cross_share``) or a self
-example of any character, of any category (:class:`baselines.pose_pairs.PosePool`). Per example, on
-``points`` vertices drawn per mesh: the skinning predictor gives the source's and the target's handle
-weights, the pose predictor the source's handle transforms; the loss is
-``w_rec`` reconstruction (the source deformed by its own handles against the posed source)
-+ ``w_cross`` cross-transfer (the target deformed by the source's handles against the ground
-truth, pair examples only) + ``w_skin`` skinning (both meshes, against their rigs' weights)
-+ ``w_edge`` edge (the deformed target's neighbour lengths against its rest), see
-:mod:`baselines.sfpt.losses`. The ground-truth skin weights are read in training only; the method
-reads none.
+One stage, ``sfpt``. Each example has three characters, every vertex of each, in its own unit-height rest
+frame: a source A posed by a frame of its clips, a target B with the ground truth of that pose (a
+same-skeleton pair, share ``cross_share``, else A itself: :class:`baselines.pose_pairs.PosePool`), and a
+third character C of any category (another character than B, unpaired). With the model's handle weights
+W of each rest mesh:
+
+- ``rec``: A's pose onto B (A's pose code, B's shape code, A's Kabsch fit), against B's ground truth; the
+  mean of the L1 of the deformed B and of the deformed B with the ground-truth handle translations;
+- ``cross``: B's ground-truth pose onto C, against C deformed by B's Kabsch fit (as ``rec``, two L1s);
+- ``cycle``: the pose of that answer on C back onto B, against B's ground truth (as ``rec``);
+- ``trans``: both predictions for B against B's own Kabsch fit (rest onto ground truth);
+- ``arap``: :func:`baselines.sfpt.losses.arap_edges` of the three deformed meshes against their rest meshes;
+- ``fps``: Chamfer of B's and C's handle centres to ``fps_per_handle`` x H farthest-point samples;
+- ``skin``: :func:`baselines.sfpt.losses.skinning_contrast` of B's and C's weights against their rigs';
+- ``aug``: KL of the weights of B scaled per axis (up to ``aug_scale``) against B's plain weights.
+
+The rigs' skin weights are read in training only; the method reads none.
 """
 from __future__ import annotations
 
 import numpy as np
 import torch
 
-from baselines.pose_pairs import PosePool, knn_pairs, neighbours, subsample
+from baselines.cgt.sampling import farthest_points
+from baselines.pose_pairs import PosePool
 from baselines.sfpt.config import CONFIGS
-from baselines.sfpt.handles import deform
-from baselines.sfpt.losses import co_skinning, rigid_edges, vertex_distance
+from baselines.sfpt.handles import deform, handle_centres, kabsch_transforms, transform_matrices
+from baselines.sfpt.losses import arap_edges, chamfer, kl, l1, skinning_contrast, transformation_loss
+from baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
 from baselines.sfpt.model import SkeletonFreePoseTransfer
 from mimicbench.mesh import unit_height_frame
 from mimicbench.training.batching import rank_batches
@@ -28,7 +37,8 @@ from mimicbench.training.stage import StageContext, TrainStage
 
 
 def build_sfpt(config: dict, context: StageContext | None = None) -> SkeletonFreePoseTransfer:
-    return SkeletonFreePoseTransfer(config["hidden"], config["handles"])
+    return SkeletonFreePoseTransfer(config["hidden"], config["handles"], config["code"],
+                                    config.get("residual", False))
 
 
 def unit_frame(vertices: np.ndarray, rest: np.ndarray) -> np.ndarray:
@@ -37,49 +47,97 @@ def unit_frame(vertices: np.ndarray, rest: np.ndarray) -> np.ndarray:
     return ((np.asarray(vertices, np.float64) - centre) / height).astype(np.float32)
 
 
-def _item(pool: PosePool, source: str, target: str, config: dict, rng: np.random.Generator) -> dict:
+def _item(pool: PosePool, source: str, target: str, third: str, config: dict, rng: np.random.Generator) -> dict:
     ex = pool.example(source, target, rng)
-    rs = subsample(len(ex.source_rest), config["points"], rng)
-    rt = rs if source == target else subsample(len(ex.target_rest), config["points"], rng)
-    s_rest, t_rest = unit_frame(ex.source_rest, ex.source_rest)[rs], unit_frame(ex.target_rest, ex.target_rest)[rt]
-    skin_s = np.sort(rng.choice(len(rs), size=min(config["skin_points"], len(rs)), replace=False))
-    skin_t = np.sort(rng.choice(len(rt), size=min(config["skin_points"], len(rt)), replace=False))
-    return {"source_rest": s_rest, "source_posed": unit_frame(ex.source_posed, ex.source_rest)[rs],
-            "source_nb": neighbours(s_rest, config["knn"]), "target_rest": t_rest,
-            "target_posed": unit_frame(ex.target_posed, ex.target_rest)[rt], "target_nb": neighbours(t_rest, config["knn"]),
-            "target_edges": knn_pairs(t_rest, 6), "source_skin_rows": skin_s, "target_skin_rows": skin_t,
-            "source_rig": ex.source_weights[rs][skin_s], "target_rig": ex.target_weights[rt][skin_t],
-            "cross": np.float32(source != target)}
+    c = pool.records[third]
+    c_rest = unit_frame(c.vertices, c.vertices)
+    b_rest = unit_frame(ex.target_rest, ex.target_rest)
+    n_fps = int(config["fps_per_handle"]) * int(config["handles"])
+    scale = 1.0 + rng.uniform(-config["aug_scale"], config["aug_scale"], 3)
+    return {"a_rest": unit_frame(ex.source_rest, ex.source_rest), "a_posed": unit_frame(ex.source_posed, ex.source_rest),
+            "a_faces": np.asarray(pool.records[source].faces, np.int64),
+            "a_edges": mesh_edges(pool.records[source].faces, len(ex.source_rest)),
+            "b_rest": b_rest, "b_truth": unit_frame(ex.target_posed, ex.target_rest),
+            "b_aug": (b_rest * scale).astype(np.float32),
+            "b_faces": np.asarray(pool.records[target].faces, np.int64),
+            "b_edges": mesh_edges(pool.records[target].faces, len(b_rest)), "b_rig": ex.target_weights,
+            "b_fps": b_rest[farthest_points(b_rest, n_fps)],
+            "c_rest": c_rest, "c_faces": np.asarray(c.faces, np.int64), "c_edges": mesh_edges(c.faces, len(c_rest)),
+            "c_rig": pool.weights(third), "c_fps": c_rest[farthest_points(c_rest, n_fps)],
+            "seed": np.int64(rng.integers(2**31 - 1))}
 
 
 def batches_sfpt(config: dict, context: StageContext, rng: np.random.Generator):
-    """This rank's batches: lists of examples (vertex and bone counts differ between characters)."""
+    """This rank's batches: lists of examples (vertex counts differ between characters)."""
     pool = PosePool.load(context.dataset, config.get("split", "all"))
+    if len(pool.ids) < 2:
+        raise ValueError(f"{context.dataset}: SFPT trains on at least two characters with a mesh and clips")
     n = config["batches_per_epoch"] * config["batch_size"]
     cross = (rng.random(n) < config["cross_share"]) & bool(pool.pairs)
     pair_picks = rng.integers(0, max(1, len(pool.pairs)), size=n)
     self_picks = rng.integers(0, len(pool.ids), size=n)
+    third_picks = rng.integers(0, len(pool.ids) - 1, size=n)
     seeds = rng.integers(0, 2**31 - 1, size=n)
     for idx in rank_batches(n, config["batch_size"], rng, context.rank, context.world_size):
         items = []
         for i in idx:
             s, t = pool.pairs[int(pair_picks[i])] if cross[i] else (pool.ids[int(self_picks[i])],) * 2
-            items.append(_item(pool, s, t, config, np.random.default_rng(int(seeds[i]))))
+            others = [c for c in pool.ids if c != t]
+            items.append(_item(pool, s, t, others[int(third_picks[i]) % len(others)], config,
+                               np.random.default_rng(int(seeds[i]))))
         yield {"items": items}
 
 
+def _deformed(rest, weights, transforms):
+    """The rest mesh (N, 3) deformed over handle weights (N, H) by (H, 7) ``transforms``."""
+    r, t = transform_matrices(transforms)
+    return deform(rest, weights, r, t)
+
+
+def _with_translations(transforms: torch.Tensor, translations: torch.Tensor) -> torch.Tensor:
+    """(H, 7) ``transforms`` with their translations replaced by ``translations`` (H, 3)."""
+    return torch.cat([translations, transforms[..., 3:]], -1)
+
+
 def example_losses(module: SkeletonFreePoseTransfer, it: dict) -> dict:
-    """The four terms of one example (tensors as :func:`_item` makes them)."""
-    w_s = module.skinning(it["source_rest"][None], it["source_nb"])
-    w_t = w_s if not bool(it["cross"]) else module.skinning(it["target_rest"][None], it["target_nb"])
-    r, t = module.pose(it["source_rest"][None], it["source_posed"][None], w_s, it["source_nb"])
-    rec = vertex_distance(deform(it["source_rest"][None], w_s, r, t), it["source_posed"][None])
-    out_t = deform(it["target_rest"][None], w_t, r, t)[0]
-    cross = vertex_distance(out_t, it["target_posed"]) if bool(it["cross"]) else rec * 0.0
-    skin = 0.5 * (co_skinning(w_s[0][it["source_skin_rows"]], it["source_rig"])
-                  + co_skinning(w_t[0][it["target_skin_rows"]], it["target_rig"]))
-    edge = rigid_edges(out_t, it["target_rest"], it["target_edges"])
-    return {"rec": rec, "cross": cross, "skin": skin, "edge": edge}
+    """The eight terms of one example (tensors as :func:`_item` makes them)."""
+    rng = np.random.default_rng(int(it["seed"]))
+    normals = {k: vertex_normals(it[f"{k}_rest"], it[f"{k}_faces"]) for k in "abc"}
+    w = {k: module.skinning(it[f"{k}_rest"], normals[k], it[f"{k}_edges"]) for k in "abc"}
+    w_aug = module.skinning(it["b_aug"], vertex_normals(it["b_aug"], it["b_faces"]), it["b_edges"])
+    wd = {k: v.detach() for k, v in w.items()}
+    code = {k: module.encoder(it[f"{k}_rest"], normals[k], wd[k], it[f"{k}_edges"]) for k in "bc"}
+    b_rest, b_truth, c_rest = it["b_rest"], it["b_truth"], it["c_rest"]
+    b_shift = (handle_centres(b_truth, wd["b"]) - handle_centres(b_rest, wd["b"])).detach()
+
+    def on_b(pred):
+        """The two deformed B meshes of a prediction and their L1 term against B's ground truth."""
+        out = _deformed(b_rest, w["b"], pred)
+        gtt = _deformed(b_rest, w["b"], _with_translations(pred, b_shift))
+        return out, 0.5 * (l1(out, b_truth) + l1(gtt, b_truth))
+
+    a_normals = (normals["a"], vertex_normals(it["a_posed"], it["a_faces"]))
+    pred1 = module.predict(it["a_rest"], it["a_posed"], a_normals, wd["a"], it["a_edges"], code["b"])
+    pred_v, rec = on_b(pred1)
+    fit_b = kabsch_transforms(b_rest, b_truth, wd["b"])
+    b_normals = (normals["b"], vertex_normals(b_truth, it["b_faces"]))
+    cross_pred = module.decoder(module.pose_code(b_rest, b_truth, b_normals, wd["b"], it["b_edges"]), code["c"], fit_b)
+    cross_v = _deformed(c_rest, w["c"], cross_pred)
+    superv = _deformed(c_rest, w["c"], fit_b).detach()
+    c_shift = (handle_centres(superv, wd["c"]) - handle_centres(c_rest, wd["c"])).detach()
+    cross_gtt = _deformed(c_rest, w["c"], _with_translations(cross_pred, c_shift))
+    cross = 0.5 * (l1(cross_v, superv) + l1(cross_gtt, superv))
+    c_normals = (normals["c"], vertex_normals(cross_v.detach(), it["c_faces"]))
+    pred2 = module.predict(c_rest, cross_v, c_normals, wd["c"], it["c_edges"], code["b"])
+    pred_v2, cycle = on_b(pred2)
+    trans = transformation_loss(pred1, fit_b) + transformation_loss(pred2, fit_b)
+    arap = (arap_edges(b_rest, pred_v, it["b_edges"]) + arap_edges(c_rest, cross_v, it["c_edges"])
+            + arap_edges(b_rest, pred_v2, it["b_edges"]))
+    fps = chamfer(it["b_fps"], handle_centres(b_rest, w["b"])) + chamfer(it["c_fps"], handle_centres(c_rest, w["c"]))
+    skin = (skinning_contrast(w["b"], it["b_rig"].cpu().numpy(), rng)
+            + skinning_contrast(w["c"], it["c_rig"].cpu().numpy(), rng))
+    return {"rec": rec, "cycle": cycle, "trans": trans, "cross": cross, "skin": skin, "aug": kl(w_aug, w["b"]),
+            "fps": fps, "arap": arap}
 
 
 def loss_sfpt(module, batch, context) -> dict:
@@ -91,9 +149,6 @@ def loss_sfpt(module, batch, context) -> dict:
         it = {k: torch.as_tensor(v, device=device) for k, v in it.items()}
         for k, v in example_losses(module, it).items():
             terms[k] = terms.get(k, 0.0) + v / len(items)
-    n_cross = sum(float(it["cross"]) for it in items)
-    if n_cross:
-        terms["cross"] = terms["cross"] * len(items) / n_cross  # a mean over the pair examples
     total = sum(cfg[f"w_{k}"] * v for k, v in terms.items())
     return {"total": total, **terms}
 

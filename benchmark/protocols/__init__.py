@@ -2,6 +2,8 @@
 subclass that builds its cases, its requests and its scores (see :mod:`.base`):
 
 - ``h2h`` (:mod:`.h2h`): same-skeleton transfer against ground truth;
+- ``h2h_xskel`` (:mod:`.h2h_xskel`): humanoid transfer across skeleton families against ground truth
+  retargeted through the hidden roles;
 - ``cct`` (:mod:`.cct`): cross-category transfer scored by cycle consistency;
 - ``apparel`` (:mod:`.apparel`): motion transfer on characters with simulated apparel (PMD,
   PMD_a, PMD_b, ELS over a window of frames).
@@ -17,10 +19,11 @@ from mimicbench.registry import Registry
 
 BUILTIN = {
     "h2h": "benchmark.protocols.h2h:SameSkeleton",
+    "h2h_xskel": "benchmark.protocols.h2h_xskel:CrossSkeleton",
     "cct": "benchmark.protocols.cct:CrossCategoryCycle",
     "apparel": "benchmark.protocols.apparel:ApparelMotion",
 }
-DEFAULT_PROTOCOLS = ("h2h", "cct")
+DEFAULT_PROTOCOLS = ("h2h", "h2h_xskel", "cct")
 """What ``bench cases`` builds and ``bench run`` runs unless told otherwise."""
 
 PROTOCOLS = Registry("protocol", BUILTIN)
@@ -34,6 +37,15 @@ def register_protocol(name: str, target) -> None:
 def available_protocols() -> list[str]:
     """Every protocol name, built-in ones first."""
     return PROTOCOLS.names()
+
+
+def answers(protocol_names, name: str) -> bool:
+    """Whether a method whose metadata lists ``protocol_names`` answers protocol ``name``: listed, or
+    listing the protocol whose requests ``name``'s are (its class's ``counts_as``)."""
+    if name in protocol_names:
+        return True
+    counts_as = getattr(PROTOCOLS.get(name), "counts_as", None) if name in PROTOCOLS.names() else None
+    return counts_as is not None and counts_as in protocol_names
 
 
 def get_protocol(name: str) -> BenchmarkProtocol:

@@ -9,9 +9,8 @@ the character, ``motion_id`` the kinematic clip, ``frame`` the window's first fr
 after frame). B, the burn-in, is the frames before the window: the request starts where the
 simulation started (the clip's first frame, where the apparel hangs at rest after the relaxation
 frames) unless the window starts more than :data:`BURN_IN` frames in, then ``BURN_IN`` frames
-before it; B = rows(source) / K - rows(target) / K. Cases version 1 had B = 0: the kinematic
-window alone, so a method started the apparel at rest where the simulation had it lag the body
-from the motion before the window (about 3 cm); those rows still evaluate (as B = 0).
+before it; B = rows(source) / K - rows(target) / K. Rows with B = 0 (the kinematic window alone,
+written before the burn-in existed; CHANGELOG.md) still evaluate.
 
 Request (:class:`benchmark.request.MotionRequest`): the character at rest with its rig, the
 kinematic frames (B+F, K, 7) with the mask of body bones, and the fps; the apparel vertex mask is
@@ -24,6 +23,11 @@ window (MMDMC): PMD over all vertices, PMD_a over the ground truth's apparel ver
 over the others, x100 of the target's height (``pmd``/``pmd_height``, ``pmd_apparel``,
 ``pmd_body``) and in centimetres of the character scaled to 1.70 m (``*_cm``), and ELS against the
 ground truth's edge lengths; the per-frame values are kept in the ``*_frames`` columns.
+Over the window as a whole (:mod:`benchmark.apparel_metrics`): ``accel_error``, the mean
+``|a_pred - a_gt|`` over apparel vertices and the window's F - 2 second differences at the clip's
+fps (m/s^2 at 1.70 m height), which sees apparel that shakes frame to frame where PMD_a barely
+moves, and ``penetration_share``, the percent of apparel vertices within 1 mm (at 1.70 m) of the
+ground truth's body pieces or inside them (HOOD), mean over the window's frames.
 """
 from __future__ import annotations
 
@@ -31,6 +35,8 @@ from typing import Sequence
 
 import numpy as np
 
+from benchmark.apparel_metrics import (accel_error, character_body_pieces, clear_at_rest, contact_reach,
+                                       penetration_share)
 from benchmark.metrics import els, pmd
 from benchmark.normalisation import RestFrame
 from benchmark.protocols.base import BenchmarkProtocol, Call, CaseDraw, CasePool, EvalData, Outcome
@@ -139,6 +145,32 @@ class ApparelMotion(BenchmarkProtocol):
                           kin.transforms[burn_in_start(frame):end].reshape(-1, 7),
                           sim.transforms[frame:end].reshape(-1, 7), source.category, target.category)
 
+    def body_contact(self, char) -> tuple:
+        """(body pieces, (A,) bool apparel vertices clear of the body at rest, reach in metres) of a
+        character (:class:`~benchmark.rigs.CharacterData`), cached per character."""
+        cache = self.__dict__.setdefault("_contact", {})
+        cid = char.rig.character_id
+        if cid not in cache:
+            r = char.record
+            apparel = np.asarray(r.apparel_vertex_mask, bool)
+            vertices = np.asarray(r.vertices, np.float64)
+            pieces = character_body_pieces(vertices, r.keypoints, r.weights, r.apparel_bone_mask)
+            reach = contact_reach(float(np.ptp(vertices[:, 1])))
+            cache[cid] = (pieces, clear_at_rest(pieces, r.keypoints, vertices[apparel], reach), reach)
+        return cache[cid]
+
+    def motion_scores(self, char, pred: np.ndarray, truth: np.ndarray, transforms: np.ndarray, fps: float,
+                      height: float) -> dict:
+        """``accel_error`` and ``penetration_share`` of a window: ``pred`` and ``truth`` (F, N, 3),
+        ``transforms`` (F, K, 7) the ground truth's bones, ``height`` the target's rest height (m)."""
+        apparel = np.asarray(char.record.apparel_vertex_mask, bool)
+        if not apparel.any():
+            return {"accel_error": None, "penetration_share": None}
+        pieces, counted, reach = self.body_contact(char)
+        return {"accel_error": accel_error(pred, truth, apparel, fps, height),
+                "penetration_share": penetration_share(np.asarray(pred)[:, apparel], pieces, transforms, counted,
+                                                       reach)}
+
     def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
         chars = [data.characters[c.target_id] for c in cases]
         burn = [burn_in_frames(c, len(ch.rig.parents)) for c, ch in zip(cases, chars)]  # bad rows: before any call
@@ -160,5 +192,7 @@ class ApparelMotion(BenchmarkProtocol):
             truth = data.posed(ch, np.asarray(c.target_transforms, np.float32).reshape(-1, k, 7))
             pred = pred[b:]  # the burn-in frames are the method's to use, not scored
             metrics = apparel_scores(pred, truth, ch.record.apparel_vertex_mask, data.frame(ch))
+            metrics |= self.motion_scores(ch, pred, truth, np.asarray(c.target_transforms, np.float64).reshape(-1, k, 7),
+                                          float(data.motion_fps.get(c.motion_id, DEFAULT_FPS)), data.frame(ch).height)
             out.append(Outcome(c, "ok", None, sec, metrics, {"forward": pred[len(pred) // 2]}))
         return out

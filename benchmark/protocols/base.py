@@ -18,6 +18,7 @@ import numpy as np
 from benchmark.normalisation import RestFrame
 from benchmark.request import TransferRequest
 from benchmark.rigs import CharacterData
+from benchmark.semantic import character_role_classes, part_motion, part_regions, semantic_scores
 from mimicbench.skinning import linear_blend_skinning
 from schemas.case import CaseRecord
 from schemas.errors import DatasetError
@@ -25,6 +26,10 @@ from schemas.motion import SIM_SUFFIX
 from schemas.shard_stream import checked_parquet_file, read_row_group
 from schemas.dataset import Dataset
 
+
+HIDDEN_ROLES_TAG = "probe:hidden_roles"
+"""A method tag that makes the protocols put the characters' hidden roles into its requests: only
+the bundled validity probes (:mod:`baselines.probes`) carry it."""
 
 Call = Callable[[Sequence[TransferRequest]], list]
 """The evaluator's call site: requests in, ``[(array | None, error | None, seconds)]`` out."""
@@ -176,6 +181,9 @@ class EvalData:
     pairs: dict = field(default_factory=dict)
     rest_frames: dict = field(default_factory=dict, repr=False)
     motion_fps: dict = field(default_factory=dict)
+    regions: dict = field(default_factory=dict, repr=False)
+    dataset: object = field(default=None, repr=False)
+    ranges: dict | None = field(default=None, repr=False)
 
     @classmethod
     def load(cls, dataset) -> "EvalData":
@@ -190,7 +198,7 @@ class EvalData:
         if dataset.has_table("motions"):  # two scalar columns: the apparel protocol's requests state the fps
             t = dataset.read_table("motions", columns=["motion_id", "fps"])
             fps = dict(zip(t.column("motion_id").to_pylist(), t.column("fps").to_pylist()))
-        return cls(load_characters(dataset), pairs, motion_fps=fps)
+        return cls(load_characters(dataset), pairs, motion_fps=fps, dataset=dataset)
 
     def frame(self, char: CharacterData) -> RestFrame:
         """The character's rest frame (centre, height, largest extent, edges), cached."""
@@ -199,6 +207,45 @@ class EvalData:
             self.rest_frames[cid] = RestFrame.of(char.rig.vertices, char.edges)
         return self.rest_frames[cid]
 
+    def part_regions(self, char: CharacterData):
+        """The character's :class:`benchmark.semantic.PartRegions` from its hidden role classes,
+        cached; None for a character without role labels (it gets no semantic score)."""
+        cid = char.rig.character_id
+        if cid not in self.regions:
+            classes = character_role_classes(char.record)
+            self.regions[cid] = None if classes is None else part_regions(char.rig.weights, char.rig.parents, classes)
+        return self.regions[cid]
+
+    def semantic(self, source: CharacterData, source_posed: np.ndarray, target: CharacterData,
+                 target_posed: np.ndarray) -> dict:
+        """``semantic_deg`` and ``role_classes_scored`` (:mod:`benchmark.semantic`) of a target pose
+        (Nt, 3) against the source pose (Ns, 3); both None when either character has no role labels."""
+        src, tgt = self.part_regions(source), self.part_regions(target)
+        if src is None or tgt is None:
+            return {"semantic_deg": None, "role_classes_scored": None}
+        return semantic_scores(part_motion(source.rig.vertices, source_posed, src),
+                               part_motion(target.rig.vertices, target_posed, tgt))
+
+    def forward_scores(self, source: CharacterData, source_posed: np.ndarray, target: CharacterData,
+                       target_posed: np.ndarray) -> dict:
+        """Every score of a forward prediction (Nt, 3) against hidden ground truth: the semantic
+        columns (:meth:`semantic`) and ``out_of_range``."""
+        scores = self.semantic(source, source_posed, target, target_posed)
+        scores["out_of_range"] = self.out_of_range(target, target_posed)
+        return scores
+
+    def out_of_range(self, char: CharacterData, posed: np.ndarray) -> float | None:
+        """Share of the character's bones that a pose (N, 3) rotates beyond the range its own clips
+        reach (:func:`benchmark.motion_range.out_of_range_share`); None without clips to read a range
+        from. The ranges of every character are read once, from the dataset's motions table."""
+        from benchmark.motion_range import out_of_range_share, ranges_for_dataset
+
+        if self.ranges is None:
+            self.ranges = {} if self.dataset is None else ranges_for_dataset(self.dataset, self.characters)
+        ranges = self.ranges.get(char.rig.character_id)
+        share = None if ranges is None else out_of_range_share(posed, char.rig, ranges)
+        return None if share is None or share != share else share
+
     @staticmethod
     def posed(char: CharacterData, transforms: np.ndarray) -> np.ndarray:
         """(N, 3) vertices of ``char`` posed by transforms (K, 7) through LBS."""
@@ -206,13 +253,29 @@ class EvalData:
         return linear_blend_skinning(r.vertices, r.keypoints, r.weights, transforms)
 
     def request(self, source: CharacterData, source_posed: np.ndarray, target: CharacterData,
-                case_id: str) -> TransferRequest:
-        """A request, with the pair's ``m_sink`` (Ks, Kt) in ``extras`` when the dataset has it."""
+                case_id: str, hidden_roles: bool = False) -> TransferRequest:
+        """A request, with the pair's ``m_sink`` (Ks, Kt) in ``extras`` when the dataset has it.
+
+        ``hidden_roles`` (only for the validity probes, whose metadata carries
+        :data:`HIDDEN_ROLES_TAG`): ``extras["hidden_roles"]`` holds both characters' ground-truth
+        ``source_roles``/``target_roles`` and ``source_classes``/``target_classes`` (K lists, None
+        for an unlabelled bone). No other method ever receives them.
+        """
         extras = {}
+        if hidden_roles:
+            extras["hidden_roles"] = {"source_roles": list(source.record.bone_roles or []),
+                                      "source_classes": character_role_classes(source.record),
+                                      "target_roles": list(target.record.bone_roles or []),
+                                      "target_classes": character_role_classes(target.record)}
         key = (source.rig.character_id, target.rig.character_id)
         if key in self.pairs:
             extras["m_sink"] = np.asarray(self.pairs[key]).reshape(len(source.rig.parents), len(target.rig.parents))
         return TransferRequest(source.rig, source_posed, target.rig, case_id, extras)
+
+
+def wants_hidden_roles(call: Call) -> bool:
+    """Whether the method behind ``call`` is a validity probe (:data:`HIDDEN_ROLES_TAG`)."""
+    return HIDDEN_ROLES_TAG in getattr(call, "method_tags", ())
 
 
 class BenchmarkProtocol(abc.ABC):

@@ -10,13 +10,18 @@ Scores are in the **source's** rest frame with the largest extent as headline: t
 compares two source meshes, and kinds of characters as different as a snake (a few centimetres
 tall) and a bird must share one scale for the category pairs to be comparable. ``els_forward``
 is the forward prediction's ELS against the target's rest edge lengths (no stretching).
+
+The cycle round-trips any one-to-one bone mapping, so a mirrored or fore/hind-swapped transfer
+costs it nothing: the forward prediction is also scored against hidden ground truth
+(:meth:`EvalData.forward_scores`: ``semantic_deg``, which part moved, and ``out_of_range``,
+whether the pose is one the target's own clips reach).
 """
 from __future__ import annotations
 
 from typing import Sequence
 
 from benchmark.metrics import els
-from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome
+from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome, wants_hidden_roles
 from benchmark.scoring import score_pose
 from schemas.case import CaseRecord
 from schemas.character import HUMANOID_LIKE
@@ -40,9 +45,10 @@ class CrossCategoryCycle(BenchmarkProtocol):
         src = [data.characters[c.source_id] for c in cases]
         tgt = [data.characters[c.target_id] for c in cases]
         posed = [data.posed(s, c.source_transforms) for s, c in zip(src, cases)]
-        forward = call([data.request(s, p, t, c.case_id) for s, p, t, c in zip(src, posed, tgt, cases)])
+        hidden = wants_hidden_roles(call)
+        forward = call([data.request(s, p, t, c.case_id, hidden) for s, p, t, c in zip(src, posed, tgt, cases)])
         ok = [i for i, (_, err, _) in enumerate(forward) if err is None]
-        back = call([data.request(tgt[i], forward[i][0], src[i], cases[i].case_id) for i in ok]) if ok else []
+        back = call([data.request(tgt[i], forward[i][0], src[i], cases[i].case_id, hidden) for i in ok]) if ok else []
         back_of = dict(zip(ok, back))
         out = []
         for i, c in enumerate(cases):
@@ -57,5 +63,6 @@ class CrossCategoryCycle(BenchmarkProtocol):
             metrics = score_pose(returned, posed[i], data.frame(src[i]), self.headline)
             t = data.frame(tgt[i])
             metrics["els_forward"] = els(pred, tgt[i].rig.vertices, t.edges)
+            metrics.update(data.forward_scores(src[i], posed[i], tgt[i], pred))
             out.append(Outcome(c, "ok", None, sec + sec2, metrics, {"forward": pred, "returned": returned}))
         return out

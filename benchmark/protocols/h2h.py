@@ -12,7 +12,13 @@ by IK, pole targets) scaled by the size ratio, as is the root's displacement fro
 characters with identical rest skeletons and meshes therefore get the source's own pose.
 
 Scores: PMD (headline by the target's height, the papers' convention), PMD by largest extent,
-aligned PMD, squared PMD and ELS of the prediction against the posed ground truth.
+aligned PMD, squared PMD and ELS of the prediction against the posed ground truth, and the forward
+scores against hidden ground truth (``semantic_deg``, ``out_of_range``).
+
+Placement: the headline ``pmd`` is the PMD after centring prediction and ground truth on their own
+centroids (``pmd_aligned``). How far a character's root travels when a pose moves to a character
+of another size is a convention (scaled by height, by leg length, by the largest extent, or not
+at all) that a method cannot know, and it is not the pose; the placed PMD stays in ``pmd_height``.
 """
 from __future__ import annotations
 
@@ -22,7 +28,7 @@ from typing import Sequence
 import numpy as np
 
 from benchmark.normalisation import size_ratio
-from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome
+from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome, wants_hidden_roles
 from benchmark.scoring import score_pose
 from mimicbench.kinematics import array_to_transforms, forward_kinematics, local_from_global, transforms_to_array
 from mimicbench.quaternion import quat_apply, quat_conjugate
@@ -119,7 +125,8 @@ class SameSkeleton(BenchmarkProtocol):
     def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
         src = [data.characters[c.source_id] for c in cases]
         tgt = [data.characters[c.target_id] for c in cases]
-        answers = call([data.request(s, data.posed(s, c.source_transforms), t, c.case_id)
+        hidden = wants_hidden_roles(call)
+        answers = call([data.request(s, data.posed(s, c.source_transforms), t, c.case_id, hidden)
                         for s, t, c in zip(src, tgt, cases)])
         out = []
         for c, t, (pred, err, sec) in zip(cases, tgt, answers):
@@ -127,6 +134,9 @@ class SameSkeleton(BenchmarkProtocol):
                 out.append(Outcome(c, "failed", err, sec))
                 continue
             truth = data.posed(t, c.target_transforms)
-            out.append(Outcome(c, "ok", None, sec, score_pose(pred, truth, data.frame(t), self.headline),
-                               {"forward": pred}))
+            metrics = score_pose(pred, truth, data.frame(t), self.headline)
+            metrics["pmd"] = metrics["pmd_aligned"]
+            metrics.update(data.forward_scores(data.characters[c.source_id],
+                                               data.posed(data.characters[c.source_id], c.source_transforms), t, pred))
+            out.append(Outcome(c, "ok", None, sec, metrics, {"forward": pred}))
         return out

@@ -22,7 +22,11 @@ def register(subparsers) -> None:
         "multibody of links (colliding as the convex hulls of the vertices their bones own) on spherical joints "
         "with limits, a spring toward the rest pose, damping, and its "
         "root carried by a constraint moved every step. Each clip first relaxes: --relax-frames frames blending "
-        "from rest into the first pose, simulated and dropped. Per-clip quality (apparel inside the body, edge "
+        "from rest into the first pose, simulated and dropped (an MMD model's own bodies instead start as MMD's players start "
+        "them: reset at the clip's first pose where it is, every velocity zeroed, then held there for the relaxation "
+        "frames; their step rate, error reduction, solver iterations and contacts are the simulation.file_* "
+        "fields). The stage writes a section on the apparel's accelerations and penetration into OUT_DATASET/CARD.md, "
+        "with a plot beside it. Per-clip quality (apparel inside the body, edge "
         "stretch, jitter, secondary motion in % of height) goes in the character's meta['apparel']; chains "
         "that escape the speed bound are put back at rest on their anchors (re-settled, up to "
         "simulation.max_resettles frames a clip, counted in the quality), and a clip whose simulation still "
@@ -38,15 +42,18 @@ def register(subparsers) -> None:
         "twist_limit, radius_scale, friction, collide_body, collide_chains, axial_inertia, root_contact_frequency, root_hull_from, "
         "contact_frequency, contact_shell; "
         "simulation: gravity, max_speed, solver_iterations, anchor_force, contact_erp, max_joint_velocity, "
-        "constraint_erp, piece_mass, piece_velocity, max_resettles, file_contact_frequency (datagen/apparel/params.py).",
+        "constraint_erp, piece_mass, piece_velocity, max_resettles, file_contact_frequency, file_step_rate, file_erp, "
+        "file_solver_iterations, file_sleeping, file_warmup (datagen/apparel/params.py).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("in_dataset")
     p.add_argument("out_dataset")
     p.add_argument("--fps", type=float_in(MIN_PHYSICS_FPS, 10000.0), default=240.0,
-                   help=f"physics steps per second, {MIN_PHYSICS_FPS:g} to 10000 (default 240); each clip frame "
-                        "gets ceil(fps / clip fps) steps")
+                   help=f"physics steps per second of the apparel chains, {MIN_PHYSICS_FPS:g} to 10000 (default "
+                        "240); each clip frame gets ceil(fps / clip fps) steps (an MMD model's own bodies step at "
+                        "simulation.file_step_rate)")
     p.add_argument("--relax-frames", type=nonnegative_int, default=30,
-                   help="frames blending from rest into the clip's first pose, simulated and dropped, >= 0 (default 30)")
+                   help="frames blending from rest into the clip's first pose (an MMD model's own bodies: holding the "
+                        "first pose), simulated and dropped, >= 0 (default 30)")
     p.add_argument("--gravity", type=float_in(0.0, 1000.0), default=None, metavar="M_PER_S2",
                    help="gravity along -Y in m/s^2, 0 to 1000 (default 9.8, or the --params file's "
                         "simulation.gravity); MMD's own 98 units/s^2 at 0.08 m a unit would be 7.84")

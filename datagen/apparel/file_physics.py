@@ -1,8 +1,11 @@
 """The pybullet world of a character's own rigid bodies and joints (an MMD file), built from the
 plan of :mod:`datagen.apparel.file_plan` and driven by the clip loop of :mod:`datagen.apparel.simulate`.
 
-Time: fixed steps of ``1 / (clip fps * substeps)``; gravity 9.8 m/s^2 along -Y in metres (MMD
-players use 9.8 x 10 units/s^2, which is 7.84 m/s^2 at 0.08 m per unit).
+Time: fixed steps of ``1 / (clip fps * substeps)``, the substeps a frame from
+:attr:`~datagen.apparel.params.SimParams.file_step_rate`; gravity 9.8 m/s^2 along -Y in metres
+(MMD players use 9.8 x 10 units/s^2, which is 7.84 m/s^2 at 0.08 m per unit). The joints' error
+reduction, the solver's iterations and sleeping are the players' (``SimParams.file_*``), and a clip
+starts with the players' reset and warm-up (:meth:`FileWorld.reset`).
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ from schemas.joint import JointRecord
 from schemas.rigid_body import RigidBodyRecord
 
 FILE_GRAVITY = 9.8  # m/s^2
-FILE_PHYSICS_VERSION = "2"  # 2: escaped chains re-settled (simulation version 11)
+FILE_PHYSICS_VERSION = "3"
 ANCHOR_ACCEL = 500.0  # m/s^2: the anchor constraint's force limit per kilogram of anchor
 
 
@@ -55,6 +58,9 @@ class FileWorld:
             damped contact spring of this frequency (stiffness m w^2, damping 2 m w, m its mass: it
             sinks g / w^2 under its own weight) instead of Bullet's rigid contacts
             (:attr:`~datagen.apparel.params.SimParams.file_contact_frequency`).
+        erp: Bullet's non-contact error reduction (0..1, the share of a joint's error removed each
+            step); None keeps Bullet's default (0.2).
+        sleeping: whether Bullet may deactivate chains that stay still (players never let it).
     Use as a context manager (the client is disconnected on exit).
     """
 
@@ -62,7 +68,8 @@ class FileWorld:
                  parents: np.ndarray, dt: float, solver_iterations: int = 30, metres_per_unit: float = 0.08,
                  gravity: float = FILE_GRAVITY, apparel: np.ndarray | None = None,
                  max_speed: float = SimParams.max_speed,
-                 contact_frequency: float = SimParams.file_contact_frequency):
+                 contact_frequency: float = SimParams.file_contact_frequency, erp: float | None = None,
+                 sleeping: bool = False):
         import pybullet
 
         self.pb, pb = pybullet, pybullet
@@ -77,6 +84,8 @@ class FileWorld:
         pb.setGravity(0.0, -gravity, 0.0, physicsClientId=cid)
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=int(solver_iterations),
                                      deterministicOverlappingPairs=1, collisionFilterMode=0, physicsClientId=cid)
+        if erp is not None:
+            pb.setPhysicsEngineParameter(erp=float(erp), physicsClientId=cid)
         self.static = [i for i, b in enumerate(bodies) if b.mode == "static"]
         self.static_ids = []
         for i in self.static:
@@ -98,9 +107,11 @@ class FileWorld:
                 path.write_text(build.urdf)
                 mb = pb.loadURDF(str(path), basePosition=build.anchor_pos.tolist(),
                                  baseOrientation=rotation_xyzw(build.anchor_rot),
-                                 flags=pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER, physicsClientId=cid)
+                                 flags=pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
+                                 | (pb.URDF_ENABLE_SLEEPING if sleeping else 0), physicsClientId=cid)
                 pb.changeDynamics(mb, -1, linearDamping=build.damping[0], angularDamping=build.damping[1],
-                                  physicsClientId=cid)
+                                  activationState=(pb.ACTIVATION_STATE_ENABLE_SLEEPING if sleeping
+                                                   else pb.ACTIVATION_STATE_DISABLE_SLEEPING), physicsClientId=cid)
                 pb.setCollisionFilterGroupMask(mb, -1, 0, 0, physicsClientId=cid)
                 for li, b in enumerate(plan.links):
                     rb = bodies[b]
@@ -203,6 +214,32 @@ class FileWorld:
             count += 1
         return count
 
+    def zero_velocities(self) -> None:
+        """Set every chain's base and joint velocities to zero, its joints where they are."""
+        pb, cid = self.pb, self.client
+        for plan, build, mb, _ in self.chains:
+            pb.resetBaseVelocity(mb, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], physicsClientId=cid)
+            for li in range(len(plan.links)):
+                if not build.fixed[li]:
+                    q = pb.getJointStateMultiDof(mb, li, physicsClientId=cid)[0]
+                    pb.resetJointStateMultiDof(mb, li, q, targetVelocity=[0.0, 0.0, 0.0], physicsClientId=cid)
+
+    def reset(self, pose: np.ndarray) -> None:
+        """The players' reset at body pose ``pose`` (K, 7): every chain placed rigidly with its static
+        body (:meth:`place_at`), its joints at their rest rotations, one step, then every velocity
+        zeroed (Saba's reset: snap the bodies to their bones, step once, zero velocities and forces;
+        Bullet clears applied forces after each step)."""
+        pb, cid = self.pb, self.client
+        self.place_at(pose)
+        for plan, build, mb, _ in self.chains:
+            for li in range(len(plan.links)):
+                if not build.fixed[li]:
+                    pb.resetJointStateMultiDof(mb, li, build.rest_q[li], targetVelocity=[0.0, 0.0, 0.0],
+                                               physicsClientId=cid)
+        self.zero_velocities()
+        self.step()
+        self.zero_velocities()
+
     def step(self) -> None:
         self.pb.stepSimulation(physicsClientId=self.client)
 
@@ -269,22 +306,26 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     character's own bodies and joints, as a new motion ``<clip>@sim``, and its quality
     (:mod:`datagen.apparel.quality`, plus ``physics: "file"`` and the scene's counts).
 
-    ``sim``: :class:`~datagen.apparel.params.SimParams` (solver iterations, speed bound,
-    re-settles, ``file_contact_frequency``; gravity is :data:`FILE_GRAVITY`).
+    ``sim``: :class:`~datagen.apparel.params.SimParams` (the ``file_*`` settings, speed bound,
+    re-settles; gravity is :data:`FILE_GRAVITY`). ``physics_fps`` (the stage's ``--fps``) is not
+    used: the step rate is ``sim.file_step_rate``.
     """
-    steps = substeps_for(physics_fps, motion.fps)
+    steps = substeps_for(sim.file_step_rate, motion.fps)
     unit = float(((record.meta or {}).get("mmd") or {}).get("metres_per_unit", 0.08))
     apparel_bones = np.asarray(apparel_bones, bool)
     with FileWorld(bodies, joints, record.keypoints, record.parents, 1.0 / (motion.fps * steps),
-                   sim.solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed,
-                   contact_frequency=sim.file_contact_frequency) as world:
-        simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles)
+                   sim.file_solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed,
+                   contact_frequency=sim.file_contact_frequency, erp=sim.file_erp,
+                   sleeping=sim.file_sleeping) as world:
+        simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles, warmup=sim.file_warmup)
         plan = world.plan
     pieces = body_pieces(record.vertices, record.keypoints, dominant_bone(record.weights, record.num_joints),
                          ~apparel_bones)
     physics = CharacterPhysics(pieces, [], apparel_bones, np.asarray(apparel_vertices, bool))
     return simulated_record(record, physics, motion, simulated, f"apparel:pybullet-file@{FILE_PHYSICS_VERSION}", {
         "physics": "file", "substeps": steps, "relax_frames": int(relax), "gravity": FILE_GRAVITY,
+        "step_rate": motion.fps * steps, "erp": sim.file_erp, "solver_iterations": sim.file_solver_iterations,
+        "sleeping": sim.file_sleeping, "warmup": sim.file_warmup,
         "links": sum(len(c.links) for c in plan.chains), "chains": len(plan.chains),
         "static_bodies": sum(b.mode == "static" for b in bodies), "loop_constraints": len(plan.loops),
         "dropped_joints": len(plan.dropped), "unanchored_bodies": len(plan.unanchored)})

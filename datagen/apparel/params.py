@@ -37,8 +37,8 @@ class ChainParams:
     from the bone (the capsule gives the link's inertia; it collides only where the link's
     vertices span no volume, else the link collides as their convex hull). axial_inertia: a
     link's moment of inertia about its bone as a share of the one across it (at least the
-    capsule's own m r^2 / 2; 0 keeps the capsule's, :func:`datagen.apparel.urdf.capsule_inertia`;
-    skirt strips took 0 up to simulation version 9). friction: contact friction. collide_body: links
+    capsule's own m r^2 / 2; 0 keeps the capsule's, :func:`datagen.apparel.urdf.capsule_inertia`).
+    friction: contact friction. collide_body: links
     collide with the body pieces; collide_chains: links collide with other chains that also ask
     for it. root_contact_frequency: rad/s, above 0 a root link's contacts are a critically damped
     spring of that natural frequency on the link's mass instead of Bullet's rigid contact
@@ -47,8 +47,7 @@ class ChainParams:
     it, and a rigid contact throws the strip out within one step. contact_frequency: rad/s, the same
     contact spring on every link but the root (0: Bullet's rigid contact): a hair strand lying in
     the crevice of the neck, shoulder and upper back, each piece placed anew every step, took
-    rigid contact impulses of 150-400 N on a 20 g link and its tip whipped at 10-15 m/s
-    (simulation version 12). A root link keeps ``root_contact_frequency``: it carries the whole
+    rigid contact impulses of 150-400 N on a 20 g link and its tip whipped at 10-15 m/s. A root link keeps ``root_contact_frequency``: it carries the whole
     chain's load, and on a spring sized for its own mass it sank into the neck (a seed-707 jump's
     hair 0.28 -> 0.58 % of apparel vertices inside the body). contact_shell: metres, how far the
     collision hull of each link on a ``contact_frequency`` spring reaches past its vertices: a
@@ -101,23 +100,34 @@ class SimParams:
     share of a joint constraint's error Bullet removes each step (0..1): each chain's anchor
     follows its moved constraint only through it, and at Bullet's 0.2 an anchor trailed a body bone turning 23.6 rad/s by 0.2 rad.
     ``piece_mass`` (kg): 0 places the body pieces at their bones' poses; above 0 they are bodies of that
-    mass carried there by constraints, so contacts see a limb's speed (slower; see the README).
+    mass carried there by constraints, so contacts see a limb's speed (slower; docs/notes/apparel-simulation.md).
     ``piece_velocity``: with ``piece_mass`` 0, each piece placed at its bone's pose every step is also
     given the speed of that motion (linear and angular, from the step before; a body of
-    :data:`datagen.apparel.world.MOVING_PIECE_MASS` kg), so Bullet's contacts see the limb's speed
-    (simulation version 13); False: static pieces, which contacts take as standing still (version 12
-    and before): a contact spring's damping then pulled a link toward the world's rest, not the
-    limb's, and an arm sweeping round in a spin struck the cape it carried (issue 33).
+    :data:`datagen.apparel.world.MOVING_PIECE_MASS` kg), so Bullet's contacts see the limb's speed;
+    False: static pieces, which contacts take as standing still: a contact spring's damping then
+    pulls a link toward the world's rest, not the limb's, and an arm sweeping round in a spin strikes
+    the cape it carries.
     ``max_resettles`` (an integer >= 0): frames of a clip at which chains that escaped the speed
     bound (or went NaN) may be put back at rest on their anchors before the clip fails
-    (:mod:`datagen.apparel.simulate`); 0 fails the clip at its first escape (simulation version 10).
-    ``file_contact_frequency`` (rad/s, >= 0): for a character simulated with its own file's bodies
-    (an MMD model, :mod:`datagen.apparel.file_physics`), 0 keeps Bullet's rigid contacts, as MMD's
-    players do; above 0 each dynamic body touches others through a critically damped contact spring
-    of that frequency (it sinks g / w^2 under its own weight, 1.7 mm at 75). On Gene with motion
-    capture, hair resting on the shoulders' bodies shook under rigid contacts (README, "Real motions
-    on Gene"): 75 took the peaks from 27-39 to 14-17 m/s^2, but Gene's `stand` let 0.8 % more of its
-    apparel into the body, so the default stays 0."""
+    (:mod:`datagen.apparel.simulate`); 0 fails the clip at its first escape.
+    The world of a file's own bodies (an MMD model, :mod:`datagen.apparel.file_physics`) takes the
+    settings MMD's players make explicit, each measured on Gene's motion capture
+    (``docs/physics-mmd.md``): ``file_step_rate`` (Hz, > 0): physics steps a second, rounded up to a
+    whole number of steps a clip frame (Saba and babylon-mmd step at 120 Hz, three.js at 65 Hz; the
+    zoo's chains take the stage's ``--fps``); ``file_erp`` (0..1): the share of a joint's error
+    Bullet removes each step, its non-contact ERP (three.js sets 0.475 on every joint axis;
+    Bullet's default is 0.2); ``file_solver_iterations``: Bullet's solver iterations (mmd_tools sets
+    60); ``file_sleeping``: whether Bullet may put still chains to sleep (no player lets them: a
+    sleeping chain misses its bone's next move); ``file_warmup``: True starts a clip as the players'
+    reset does, every chain placed rigidly with its body at the clip's first pose where it is, its
+    joints at rest, stepped once and every velocity zeroed, then held at that pose for the
+    relaxation frames (three.js's warm-up); False blends the body from the rest pose at the origin
+    into the first pose over the relaxation frames (:mod:`datagen.apparel.relax`), which drags a
+    clip that starts far from the origin. ``file_contact_frequency`` (rad/s, >= 0): 0 keeps Bullet's
+    rigid contacts, as the players do; above 0 each dynamic body touches others through a
+    critically damped contact spring of that frequency (it sinks g / w^2 under its own weight,
+    1.7 mm at 75): under rigid contacts, hair resting on the shoulders' bodies shook frame to frame
+    on motion capture (Gene's `guide`: peak 39.0 m/s^2 against a jitter bound of 10.0; 14.4 at 75)."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -129,7 +139,12 @@ class SimParams:
     piece_mass: float = 0.0
     piece_velocity: bool = True
     max_resettles: int = 5
-    file_contact_frequency: float = 0.0
+    file_contact_frequency: float = 75.0
+    file_step_rate: float = 240.0
+    file_erp: float = 0.2
+    file_solver_iterations: int = 30
+    file_sleeping: bool = False
+    file_warmup: bool = True
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -155,6 +170,7 @@ _RANGES = {  # field: (low, high, low_open)
     "solver_iterations": (1, None, False), "anchor_force": (0.0, None, True), "contact_erp": (0.0, 1.0, True),
     "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True), "max_resettles": (0, None, False),
     "file_contact_frequency": (0.0, None, False),
+    "file_step_rate": (0.0, None, True), "file_erp": (0.0, 1.0, True), "file_solver_iterations": (1, None, False),
 }
 
 

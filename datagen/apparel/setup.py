@@ -17,36 +17,7 @@ from datagen.apparel.world import ApparelWorld
 from schemas.character import CharacterRecord
 from schemas.motion import SIM_SUFFIX, MotionRecord
 
-SIM_VERSION = "14"  # 2: gravity 9.8 m/s^2; 3: root capsules moved clear of the body at rest;
-# 4: links collide as their vertices' hulls, contact ERP 0.5, joint speed bound; 5: joint limits
-# projected every step, constraint ERP 0.8; 6: springs as implicit torques from numpy instead of
-# Bullet's joint motors; 7: springs solved per tree of links (a merged multibody's chains
-# apart), which rounds differently; 8: the per-step joint arithmetic compiled (joint_kernel),
-# its sums in a fixed order (numpy's einsum summed in SIMD lanes), which rounds differently;
-# 9: a link's axial inertia as large as its transverse one but for skirt strips (contacts no
-# longer spin thin hair links past the twist limit and into the body, issue 33); 10: skirt
-# strips' root links touch the body through a critically damped contact spring of 150 rad/s
-# (a thigh, placed anew each step, started it up to 55 mm inside a rigid root contact, which threw
-# the strip out in one step: tips at +-5-10 m/s alternating step by step), and skirt strips take
-# axial inertia 1 like the other kinds (their 0.1 rad twist limit, projected, spun them otherwise);
-# 11: chains that escape the speed bound are re-settled at rest on their anchors, up to
-# SimParams.max_resettles frames a clip, instead of failing the clip (clips without an escape: the
-# same bytes as 10); the quality gains resettles and resettled_frames; 12: the springs' implicit step
-# takes each tree's mass matrix at the joints' present rotations (at rest it overshot a folded
-# chain's light modes), every link below a chain's root but a skirt strip's touches the body
-# through the critically damped contact spring of 150 rad/s with a 3 mm shell (a hair strand in
-# the crevice of neck, shoulder and back took rigid impulses of 150-400 N and whipped its tip),
-# and the spring damping of capes, coat tails, skirts and the default kind is 0.6 (issue 33); 13: body
-# pieces carry their limb's speed (SimParams.piece_velocity: each starts a step where the last one ended
-# with the speed that takes it to its pose), so a contact spring's damping acts on a link's speed against
-# the limb, not in the world: an arm sweeping round in a spin struck the cape it carried (seed-711
-# dynamic zoo: spins above 3x their kinematic peak 16 of 40 -> 0, their worst frame 2.40 -> 1.08 % of
-# apparel vertices inside; jumps 1 -> 3, skirt strips struck by the thighs at landing, as high at 4x
-# the physics rate); 14: a skirt strip's or coat tail's root link collides only with the part of its hull beyond 30 %
-# of its length from the hip pivot (ChainParams.root_hull_from: a thigh pressing next to the pivot,
-# where no turn clears it, fought the twist limit and whipped the strip: seed 0's random poses 117.7 ->
-# 14.3 m/s^2), and chains and body pieces collide only when each one's group is in the other's mask
-# (collide_body false used to have no effect)
+SIM_VERSION = "15"  # recorded in each simulated clip; CHANGELOG.md says what each version changed
 
 
 @dataclass

@@ -4,7 +4,10 @@ One loop for every world (:class:`PhysicsWorld`: the zoo's kinematic chains,
 :class:`datagen.apparel.world.ApparelWorld`, and an MMD file's own bodies,
 :class:`datagen.apparel.file_physics.FileWorld`). Each clip frame is split into ``substeps``
 physics steps; within a frame the body pose is interpolated (slerp, lerp) from the previous
-frame. The relaxation frames (:mod:`datagen.apparel.relax`) run first and are dropped. After each
+frame. The relaxation frames run first and are dropped: either the body blends from the rest
+pose into the clip's first pose (:mod:`datagen.apparel.relax`), or, with ``warmup``, the world is
+reset at the clip's first pose (its chains placed there, stepped once, every velocity zeroed: MMD
+players' reset) and the body holds that pose for the relaxation frames (their warm-up). After each
 frame the world's simulated parts are read and checked; the world turns them into bones at the end.
 
 Re-settling: when after a frame some chain has a link faster than the world's speed bound (or a
@@ -51,6 +54,10 @@ class PhysicsWorld(Protocol):
     def read(self) -> tuple[tuple[np.ndarray, ...], float]:
         """The simulated parts' state now (arrays, checked for NaN) and the fastest link's speed (m/s)."""
 
+    def reset(self, pose: np.ndarray) -> None:
+        """Only for ``warmup``: place the simulated parts at ``pose`` (K, 7) at rest on their anchors,
+        step once and zero every velocity."""
+
     def resettle(self, pose: np.ndarray) -> int:
         """Put each chain with a link faster than ``max_speed`` or a non-finite state back at rest on its
         anchor at body pose ``pose`` (K, 7) (rest joint angles, every velocity zero); the count of chains."""
@@ -80,7 +87,7 @@ def _escape(state: tuple[np.ndarray, ...], speed: float, bound: float, where: st
 
 
 def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, relax: int,
-                  max_resettles: int = SimParams.max_resettles) -> SimulatedClip:
+                  max_resettles: int = SimParams.max_resettles, warmup: bool = False) -> SimulatedClip:
     """The clip with apparel bones simulated.
 
     Args:
@@ -89,6 +96,8 @@ def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, re
         relax: relaxation frames before frame 0 (simulated, dropped).
         max_resettles: frames whose escaped chains may be re-settled (module docstring); 0 raises at
             the first escape.
+        warmup: reset the world at the clip's first pose and hold it for the ``relax`` frames,
+            instead of blending from the rest pose (module docstring).
 
     Returns:
         The clip (F, K, 7) float32 (body rows equal to ``transforms``, apparel rows from the
@@ -99,10 +108,14 @@ def simulate_clip(world: PhysicsWorld, transforms: np.ndarray, substeps: int, re
             after ``max_resettles`` re-settles, or right after a re-settle.
     """
     clip = np.asarray(transforms, np.float64)
-    lead = relax_frames(world.keypoints, clip[0], relax)
+    if warmup:
+        lead = np.repeat(clip[:1], int(relax), axis=0)
+        world.reset(clip[0])
+    else:
+        lead = relax_frames(world.keypoints, clip[0], relax)
     poses = np.concatenate([lead, clip]) if len(lead) else clip
-    previous = rest_transforms(world.keypoints).astype(np.float64) if len(lead) else clip[0]
-    if not len(lead):
+    previous = rest_transforms(world.keypoints).astype(np.float64) if len(lead) and not warmup else clip[0]
+    if not len(lead) and not warmup:
         world.place_at(clip[0])
     world.start()
     states, resettled, driven = [], [], world.driven_bones  # only bones the world reads

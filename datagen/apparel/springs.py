@@ -22,11 +22,10 @@ with ``max_torque`` 0 the joint is free. The gains follow a joint's
 of a speed) on the joint's own diagonal of the rest pose's M0: K = s diag(M0) / dt^2,
 C = v diag(M0) / dt.
 
-M is taken anew every step (simulation version 12; :func:`datagen.apparel.joint_kernel.posed_mass_matrices`).
-Up to version 11 it was the rest pose's: on a folded chain the light modes' true inertia is far
-below the straight chain's, so the damper's torque, sized for the heavier chain, drove them past
-zero and back every step (a strand's kinetic energy grew tenfold in one step in
-tests/test_apparel_whip.py; zoo hair tips whipped at 10-15 m/s). With the present M the step
+M is taken anew every step (:func:`datagen.apparel.joint_kernel.posed_mass_matrices`). The rest
+pose's M would not do: on a folded chain the light modes' true inertia is far below the straight
+chain's, so a damper's torque sized for the heavier chain drives them past zero and back every step
+(a strand's kinetic energy grows tenfold in one step in tests/test_apparel_whip.py). With the present M the step
 w+ = (M + dt D)^-1 M w takes energy out: KE - KE+ = dt w+^T D w+ + dt^2 w+^T D M^-1 D w+ / 2 >= 0.
 
 M treats the chain's anchor as fixed (it outweighs the chain ten times and its constraint holds

@@ -14,9 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
+from datagen.apparel.clip_bounds import check_clip_bounds
 from datagen.apparel.params import ApparelParams
 from datagen.apparel.quality import over_jitter_bound
 from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
+from datagen.apparel.card import write_apparel_card
 from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from datagen.apparel.world_cache import character_world, close_cached_world
 from datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_statuses
@@ -38,9 +40,13 @@ def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
     if file_rows is not None:  # the character's own rigid bodies and joints (an MMD file)
         from datagen.apparel.file_physics import simulate_file_motion
 
-        return simulate_file_motion(record, *file_rows, motion, bones, vertices, physics_fps, relax, params.simulation)
-    physics, world = character_world(record, bones, vertices, params, physics_step(physics_fps, motion.fps))
-    return simulate_motion(record, physics, motion, params, physics_fps, relax, world)
+        sim, quality = simulate_file_motion(record, *file_rows, motion, bones, vertices, physics_fps, relax,
+                                            params.simulation)
+    else:
+        physics, world = character_world(record, bones, vertices, params, physics_step(physics_fps, motion.fps))
+        sim, quality = simulate_motion(record, physics, motion, params, physics_fps, relax, world)
+    check_clip_bounds(sim.transforms, quality)  # a clip out of bounds fails its item with the bound named
+    return sim, quality
 
 
 @dataclass(frozen=True)
@@ -160,6 +166,7 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     close_cached_world()
     run.copy_inputs()  # the physics tables travel with their characters
     run.finish()
+    write_apparel_card(run.out_dir, {k.removesuffix(SIM_SUFFIX): q for k, q in quality.items()})
     qs = list(quality.values())
 
     def mean(key):

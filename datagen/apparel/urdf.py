@@ -61,11 +61,10 @@ def capsule_inertia(mass: float, radius: float, length: float, axial_share: floa
     A thin cylinder's own axial moment m r^2 / 2 is hundreds of times smaller than its transverse
     one, so a contact on the edge of a hair link's hull spun it about its bone past the twist
     limit within a step, and putting it back each step pushed it into the body, step after step
-    (simulation version 8: 282-319 m/s^2 on a zoo walk whose body peaks at 24, issue 33). A link
+    (282-319 m/s^2 on a zoo walk whose body peaks at 24). A link
     stands for a stretch of strand held by its neighbours, which turns about its bone no more
-    easily than across it: hair, capes and the other kinds take ``axial_share`` 1
-    (:class:`datagen.apparel.params.ChainParams` ``axial_inertia``); skirt strips keep the
-    capsule's (at 1 their worst frames sank deeper into the thighs).
+    easily than across it: every kind takes ``axial_share`` 1 by default
+    (:class:`datagen.apparel.params.ChainParams` ``axial_inertia``; 0 keeps the capsule's).
     """
     full = length + 2 * radius
     transverse = mass * (3 * radius ** 2 + full ** 2) / 12.0

@@ -1,7 +1,7 @@
 """The pybullet world of one character: body pieces that follow the clip and dynamic apparel chains.
 
 Each body piece is a convex hull placed every substep where it ended the last one and given the
-speed that carries it to its bone's pose by the step's end (``piece_velocity``, simulation version 13;
+speed that carries it to its bone's pose by the step's end (``piece_velocity``,
 :func:`piece_velocities`), so that Bullet's contacts see a limb's speed; with ``piece_velocity`` off, a
 mass-0 hull placed at its bone's pose (Bullet takes it as standing still); with ``piece_mass`` > 0
 (:class:`~datagen.apparel.params.SimParams`), a body of that mass carried there by a fixed constraint
@@ -394,8 +394,7 @@ class ApparelWorld:
         tests/test_apparel_zoo.py check it). Bullet keeps its overlapping pairs and their contacts
         (with the impulses it warm-starts from) across restoreState: moving pieces (dynamic bodies,
         ``piece_velocity``) join the chains they touch into one solver island, whose contacts' order
-        and warm start then came from the clip before (other bytes in a reused world, simulation
-        version 13). So first every body is moved a kilometre from every other and collision
+        and warm start would then come from the clip before (other bytes in a reused world). So first every body is moved a kilometre from every other and collision
         detection run, which drops every pair; restoreState then puts the bodies back.
         """
         pb, cid = self.pb, self.client

@@ -62,7 +62,25 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+MIN_ADDRESS_SPACE = 1.75 * 2**30
+"""Bytes of address space below which ``datagen correspond`` refuses to start: with the reservations
+of :func:`mimicbench.address_space.fit_to_address_space_limit` it peaked at 1.5 GiB on a 4-character
+zoo (the encoder, torch and pyarrow loaded), and at 1 GiB torch's own start aborts in C++."""
+
+
 def run(args) -> int:
+    from mimicbench.address_space import address_space_limit, limit_text
+    from mimicbench.errors import UserError
+
+    limit = address_space_limit()
+    if limit is not None and limit < MIN_ADDRESS_SPACE:
+        raise UserError(f"{limit_text(limit)} is below the {MIN_ADDRESS_SPACE / 2**30:.2f} GiB datagen correspond "
+                        f"needs to load its text encoder, torch and pyarrow; raise it (ulimit -v "
+                        f"{int(MIN_ADDRESS_SPACE) // 1024} or more) and run again")
+    return _run(args)
+
+
+def _run(args) -> int:
     from datagen.correspond.stage import correspond_dataset
     from mimicbench.engines import engine_from_args
 

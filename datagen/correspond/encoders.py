@@ -51,6 +51,39 @@ class MiniLMEncoder(TextEncoder):
         return np.asarray(e, dtype=np.float32)
 
 
+def _clip_state(path: str, model: str, clip) -> dict:
+    """The state dict in ``path`` (read with ``weights_only=True``: no code in it runs) that fits
+    ``clip``, the open_clip ``model`` just built.
+
+    Raises:
+        UserError: one line naming the file and what was expected: not a torch file, a pickle
+            ``weights_only`` refuses, not a state dict, or weights of another network.
+    """
+    import torch
+
+    from mimicbench.errors import UserError
+    from mimicbench.training.checkpoint import state_dict_mismatch
+
+    expected = f"expected a state dict of open_clip model {model!r} saved with torch.save"
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # UnpicklingError (a refused pickle), RuntimeError (not a zip), EOFError, ...
+        lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()] or [type(exc).__name__]
+        at = next((i for i, ln in enumerate(lines) if "WeightsUnpickler error" in ln), None)
+        first = (f"a pickle that loading without running code refuses: {lines[at + 1]}"
+                 if at is not None and at + 1 < len(lines) else lines[0])[:160]
+        raise UserError(f"--clip-pretrained {path}: not a readable checkpoint ({type(exc).__name__}: {first}); "
+                        f"{expected}") from None
+    state = state.get("state_dict", state) if isinstance(state, dict) else state
+    if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
+        raise UserError(f"--clip-pretrained {path}: holds a {type(state).__name__}, not a state dict of tensors; "
+                        f"{expected}")
+    why = state_dict_mismatch(clip, state)
+    if why:
+        raise UserError(f"--clip-pretrained {path}: weights of another network ({why}); {expected}")
+    return state
+
+
 class ClipEncoder(TextEncoder):
     @classmethod
     def from_options(cls, clip_model: str, clip_pretrained: str | None, device: str) -> "ClipEncoder":
@@ -59,13 +92,10 @@ class ClipEncoder(TextEncoder):
     def __init__(self, model: str = "ViT-B-32", pretrained: str | None = None, device: str = "cpu"):
         ensure_torchvision_importable()
         import open_clip
-        import torch
 
         if pretrained and os.path.exists(pretrained):
-            state = torch.load(pretrained, map_location="cpu", weights_only=True)
-            state = state.get("state_dict", state) if isinstance(state, dict) else state
             clip = open_clip.create_model(model, pretrained=None)
-            clip.load_state_dict(state)
+            clip.load_state_dict(_clip_state(pretrained, model, clip))
         else:
             clip = open_clip.create_model(model, pretrained=pretrained)
         self.model = clip.eval().to(device)

@@ -46,7 +46,8 @@ def pair_scores(source, target, hungarian, cache: dict | None = None) -> dict | 
     rb, cb, count_rb, count_cb = _roles_of(target, cache)
     if ra is None or rb is None:
         return None
-    h = np.asarray(hungarian, dtype=np.int64).reshape(-1, 2)
+    matched = np.asarray(hungarian, dtype=np.int64).reshape(-1, 2)
+    h = matched[(ca[matched[:, 0]] != None) & (cb[matched[:, 1]] != None)]  # noqa: E711  a bone without a role: nothing to agree on
     exact = ra[h[:, 0]] == rb[h[:, 1]]
     mapped = ca[h[:, 0]] == cb[h[:, 1]]
     same_category = source.category == target.category
@@ -57,7 +58,7 @@ def pair_scores(source, target, hungarian, cache: dict | None = None) -> dict | 
         return float(np.mean(xs)) if len(xs) else None
 
     return {"agreement": share(right), "exact": share(exact), "role_map": share(mapped),
-            "matched": len(h) / min(len(ra), len(rb)), "recall": (int(right.sum()) / possible) if possible else 1.0}
+            "matched": len(matched) / min(len(ra), len(rb)), "recall": (int(right.sum()) / possible) if possible else 1.0}
 
 
 def _roles_of(record, cache: dict | None) -> tuple:
@@ -66,12 +67,13 @@ def _roles_of(record, cache: dict | None) -> tuple:
     if cache is not None and key in cache:
         return cache[key]
     roles = record.bone_roles
-    if roles is None or not len(roles):
+    if roles is None or not any(roles):
         out = (None, None, None, None)
     else:
         roles = list(roles)
         classes = role_classes(roles, record.category)
-        out = (np.array(roles, dtype=object), np.array(classes, dtype=object), Counter(roles), Counter(classes))
+        out = (np.array(roles, dtype=object), np.array(classes, dtype=object), Counter(r for r in roles if r),
+               Counter(c for c in classes if c is not None))
     if cache is not None:
         cache[key] = out
     return out

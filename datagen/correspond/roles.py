@@ -24,6 +24,10 @@ So arm ~ front leg ~ wing ~ pectoral fin ~ an insect's first legs, leg ~ hind le
 its last legs, and an insect's abdomen, the segments behind the thorax where no leg attaches,
 counts as its tail. A snake's body chain is its ``spine``. Sided classes are written
 ``left/forelimb``; the others have no side.
+
+A role may also name its class directly (``left/forelimb``, ``hindlimb/2``, ``dorsal``,
+``apparel``), as a role-label file for a real character does (:mod:`datagen.roles`). An empty
+role (``""``, or None) marks a bone without a role: its class is None.
 """
 from __future__ import annotations
 
@@ -41,26 +45,40 @@ _CLASS = {
     "tail": "tail", "tail_fin": "tail", "abdomen": "tail",
     "dorsal_fin": "dorsal",
     **{f: "forelimb" for f in FINGERS},
+    "forelimb": "forelimb", "midlimb": "midlimb", "hindlimb": "hindlimb", "dorsal": "dorsal",
 }
 ROLE_CLASSES = ("root", "spine", "neck", "head", "jaw", "ear", "forelimb", "midlimb", "hindlimb", "tail", "dorsal",
                 "apparel")
 
 
-def role_classes(roles: list[str], category: str) -> list[str]:
+def role_classes(roles: list[str | None], category: str) -> list[str | None]:
     """The class of every role of one skeleton (the map in the module docstring).
 
-    ``category`` tells a bird's or an insect's ``leg`` (hind limbs; an insect's by pair) from the
-    others. Raises on a role the map does not know, so a new template cannot go unscored.
+    Args:
+        roles: K roles: zoo roles (``left/upper_arm``, ``tail/3``), class names (``left/forelimb``,
+            ``spine``), or ``""`` / None for a bone without a role.
+        category: the character's category; it tells a bird's or an insect's ``leg`` (hind limbs;
+            an insect's by pair) from the others.
+
+    Returns:
+        K classes (``left/forelimb``, ``tail``, ...), None where the bone has no role.
+
+    Raises:
+        ValueError: a role the map does not know, so a new template cannot go unscored.
     """
-    parsed = [parse_role(r) for r in roles]
-    insect_pairs = max((nums[0] for _, part, nums in parsed if part == "leg" and category == "insect"), default=0)
-    out = []
+    parsed = [parse_role(r) if r else (None, "", []) for r in roles]
+    insect_pairs = max((nums[0] for _, part, nums in parsed if part == "leg" and nums and category == "insect"),
+                       default=0)
+    out: list[str | None] = []
     for role, (side, part, nums) in zip(roles, parsed):
-        if role.startswith("apparel/"):
+        if not role:
+            out.append(None)
+            continue
+        if role == "apparel" or role.startswith("apparel/"):
             out.append("apparel")
             continue
         if part == "leg":
-            if category == "insect":
+            if category == "insect" and nums:
                 cls = "forelimb" if nums[0] == 1 else "hindlimb" if nums[0] == insect_pairs else "midlimb"
             else:
                 cls = "hindlimb"
@@ -70,3 +88,21 @@ def role_classes(roles: list[str], category: str) -> list[str]:
             raise ValueError(f"role {role!r} ({category}): not in the cross-category role map")
         out.append(f"{side}/{cls}" if side else cls)
     return out
+
+
+def record_role_classes(record) -> list[str | None] | None:
+    """The role classes of a character record's bones (:func:`role_classes` of its hidden
+    ``bone_roles`` and its ``category``), or None when it has no role at all (no ``bone_roles``, or
+    every entry empty): such a character gets no semantic score.
+
+    Args:
+        record: a :class:`schemas.character.CharacterRecord` (or anything with ``bone_roles``
+            and ``category``).
+
+    Returns:
+        K classes, None for each bone without a role; or None.
+    """
+    roles = record.bone_roles
+    if roles is None or not any(roles):
+        return None
+    return role_classes(list(roles), record.category)

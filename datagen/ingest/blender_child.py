@@ -39,7 +39,9 @@ reproduction error, comes from a second import of the file (each clip from the f
 
 Unweighted vertices (no deform-bone weight) of a mesh hung from a bone follow that bone; those of
 a mesh hung from no bone follow an object no joint carries, and are left out with their faces
-(``left_out_vertices``).
+(``left_out_vertices``); an asset whose every vertex is left out so fails, with the reason.
+A mesh whose world transform mirrors (negative scale, determinant below 0) has its triangles'
+winding turned, so faces point outward as Blender shows them.
 """
 from __future__ import annotations
 
@@ -230,6 +232,8 @@ def _rest_mesh(objs, bone_names, arm):
         me.calc_loop_triangles()
         tri = np.empty(len(me.loop_triangles) * 3, dtype=np.int64)
         me.loop_triangles.foreach_get("vertices", tri)
+        if np.linalg.det(mw[:3, :3]) < 0:  # a mirroring transform (negative scale): Blender shows the faces
+            tri = tri.reshape(-1, 3)[:, ::-1].reshape(-1)  # outward, so the winding turns with the vertices
         w = np.zeros((len(me.vertices), len(bone_names)), np.float32)
         attached = _attached_bone(obj, arm)
         while attached is not None and attached not in index:  # a non-deform bone: its deform ancestor
@@ -610,6 +614,11 @@ def ingest_one(path: str, out_npz: str, options: dict | None = None) -> dict:
     # vertices with no deform weight whose mesh hangs from no bone follow the mesh's object, which
     # no joint carries: they are left out of the stored mesh, with every face that uses them
     keep = weights.sum(axis=1) > 0
+    if len(keep) and not keep.any():  # Blender shows such meshes unskinned: no joint moves them
+        return {"status": "failed", "reason": f"no vertex of its {len(meshes)} skinned mesh(es) ({len(keep)} "
+                                              f"vertices) has a skin weight above 0 on a bone: Blender shows the "
+                                              f"mesh unskinned and no joint moves it, so no character can be "
+                                              f"stored (weight the mesh, or parent it to a bone)"}
     source_vertex = np.concatenate([np.arange(c) for c in counts]) if counts else np.zeros(0, np.int64)
     owner = np.repeat(np.arange(len(counts)), counts)
     left_out = int((~keep).sum())

@@ -28,8 +28,9 @@ rigid bodies and joints in the tables rigid_bodies and joints, and each <stem>.v
 <stem>_<clip>.vmd beside a model (or given with it) played on it with MMD's IK and grants
 (see schemas/FORMAT.md).
 
-Categories come from --category-map, or are inferred from bone names and the skeleton
-(meta.category says how). Characters with equal bone names and parents share a skeleton_id.
+Categories come from --category-map, or a role-label file (--roles), or are inferred from bone
+names and the skeleton, which says unknown where the body plan is ambiguous (meta.category says how;
+the summary lists the inferred ones). Characters with equal bone names and parents share a skeleton_id.
 
 A folder stands for every asset file under it (.glb .gltf .fbx .bvh .obj .blend .pmx .pmd; a model's
 own .vmd motions are found beside it by name); hidden folders and OUT itself are not walked.
@@ -85,6 +86,9 @@ def register(subparsers) -> None:
                         f"{MAX_CLIP_FRAMES}: 20 minutes at 30 fps); a longer clip becomes a failed status row")
     p.add_argument("--motions", default=None, metavar="DIR",
                    help="folder of .vmd motions to play on every MMD model of the run (besides <stem>_<clip>.vmd)")
+    p.add_argument("--roles", nargs="+", default=None, metavar="FILE",
+                   help="role-label files (.toml/.json, docs/roles.md) attached after the ingest, as "
+                        "`mimicbench datagen roles OUT --labels FILE` does: hidden bone roles and categories")
     add_engine_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -118,4 +122,14 @@ def run(args) -> int:
         print(f"warning: {w}")
     print(f"{s['characters']} characters and {s['motions']} clips in {args.out} ({s['skipped']} already done, "
           f"{s['failed']} failed, {s['failed_clips']} clips unreadable) in {s['seconds']:.1f} s")
+    if args.roles:
+        from datagen.roles.attach import attach_roles, print_warnings, summary_lines
+
+        labels = attach_roles(args.out, args.roles)
+        print_warnings(labels)
+        print("\n".join(summary_lines(labels)))
+    from datagen.roles.categories import inferred_lines
+
+    for line in inferred_lines(args.out):
+        print(line)
     return StageSummary(s["characters"], s["failed"], s["seconds"], str(args.out))

@@ -36,6 +36,7 @@ from mimicbench.skinning import linear_blend_skinning
 from mimicbench.validation import expect, is_whole
 from schemas.character import CATEGORIES, CharacterRecord
 from schemas.finite import nonfinite_arrays
+from schemas.folder_lock import hold
 from schemas.manifest import MANIFEST
 from schemas.motion import MotionRecord
 from schemas.status import StatusRecord
@@ -297,6 +298,7 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
 
     start = time.perf_counter()
     out_dir = Path(out_dir)
+    writer = hold(out_dir)  # noqa: F841 -- one writer at a time, from before the checks; released on return
     check_output_folder(out_dir)
     run = StageRun(STAGE, opts, out_dir, info={"cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"})
     cache = out_dir / CACHE
@@ -391,6 +393,9 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
         if extent is not None and not PLAUSIBLE_EXTENT_M[0] <= extent <= PLAUSIBLE_EXTENT_M[1]:
             warnings.append(f"{c.character_id}: {extent:.3g} m across at rest at {unit:g} m per file unit; if the file "
                             f"is authored in another unit, pass --mesh-unit (metres per unit: 0.01 for centimetres)")
+    from datagen.roles.attach import carry_labels
+
+    chars = carry_labels(old_chars, chars)  # labels of `datagen roles` survive a re-ingest of the same bones
     new_ids = {c.character_id for c in chars}
     chars = [c for c in old_chars if c.character_id not in new_ids] + chars
     motions = [m for m in old_motions if m.character_id not in new_ids] + motions

@@ -135,8 +135,11 @@ def character_from_mmd(model: MMDModel, character_id: str, source: str, split: s
         ch["root"] = int(new_index[ch["root"]])
         ch["bones"] = sorted(int(new_index[j]) for j in ch["bones"])
 
+    how = {"value": category, "source": "map"} if category != "unknown" else \
+        {"value": category, "source": "inferred", "evidence": {"rule": "no rule fits"}}
     if category == "unknown" and all(n in set(names) for n in HUMANOID_BONES):
         category = "humanoid"
+        how = {"value": category, "source": "inferred", "evidence": {"rule": "the MMD standard bone set"}}
     english, english_how = zip(*[english_name(model.bones[i].name, model.bones[i].name_en) for i in order]) \
         if len(order) else ((), ())
     roles_file = bone_roles(model)
@@ -176,7 +179,7 @@ def character_from_mmd(model: MMDModel, character_id: str, source: str, split: s
         "sdef": sdef_meta(model, scale),
         "materials": model.num_materials, "morphs": model.num_morphs,
         "rigid_bodies": len(model.rigid_bodies), "joints": len(model.joints),
-    }}
+    }, "category": how}
     height = float(np.ptp(vertices[:, 1])) if len(vertices) else None
     return CharacterRecord(
         character_id=character_id, category=category, source=source, split=split, vertices=vertices, faces=faces,

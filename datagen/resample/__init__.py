@@ -20,10 +20,8 @@ import importlib
 # the stage's face-count limits (checked by the stage, offered by the CLI); here so neither imports the other
 MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
 MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
-# in the stage's fingerprint, so a re-run redoes rows an older resample made; 2: the resampled mesh
-# is welded (datagen.resample.clean.weld_short_edges: no near-zero edges, no zero-area faces); 3: apparel
-# vertices of different bones are never welded before decimation (clean.apparel_owners: hair strands stay apart);
-# 4: a new vertex takes its weights from the piece it came from only (pieces.own_piece_points)
+# in the stage's fingerprint, so a re-run redoes rows an older resample made; CHANGELOG.md says what each
+# version changed
 RESAMPLE_VERSION = "4"
 
 _LAZY = {

@@ -5,13 +5,14 @@ import dataclasses
 
 import numpy as np
 
-from datagen.resample.clean import clean_mesh
+from datagen.resample.clean import BadMesh, clean_mesh
 from datagen.resample.closest_point import closest_points
 from datagen.resample.pieces import own_piece_points
 from datagen.resample.quality import hausdorff_percent, transfer_error_percent
 from datagen.resample.reskin import interpolate_mask, interpolate_weights
 from datagen.resample.simplify import resample_to
 from schemas.character import CharacterRecord
+from schemas.validate import parents_problem
 
 SAMPLED_FRAMES = 8
 
@@ -39,8 +40,17 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
     :func:`datagen.resample.pieces.own_piece_points`).
 
     Raises:
-        datagen.resample.clean.BadMesh: the input mesh cannot be resampled (the reason says why).
+        datagen.resample.clean.BadMesh: the input mesh cannot be resampled (the reason says why): a
+            skeleton out of the format's order (a cycle), a rest mesh with no height, a quality value
+            that is not finite.
     """
+    cycle = parents_problem(record.parents)
+    if cycle:
+        raise BadMesh(f"skeleton out of order: {cycle}")
+    rest_height = float(np.ptp(np.asarray(record.vertices, np.float64)[:, 1])) if len(record.vertices) else 0.0
+    if not (np.isfinite(rest_height) and rest_height > 0):
+        raise BadMesh(f"the rest mesh has no height (Y extent {rest_height:g}): the resample's quality (percent "
+                      f"of height) and every score divide by it")
     clean = clean_mesh(record.vertices, record.faces, record.weights, record.apparel_vertex_mask)
     welded: dict = {}
     new_v, new_f, refined, pieces = resample_to(clean.vertices, clean.faces, faces, backend, report=welded)
@@ -58,6 +68,9 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
                                                      record.keypoints, surface, frames, height),
         "frames_measured": int(len(frames)),
     }
+    for key in ("hausdorff_pct", "transfer_error_pct"):
+        if not np.isfinite(quality[key]):
+            raise BadMesh(f"{key} is {quality[key]}: expected a finite percent of the height {height:g} m")
     if welded["welded_vertices"] or welded["zero_area_faces"]:
         quality["weld"] = welded  # only when the resampled mesh needed it, so clean meshes keep their bytes
     moved = int((surface.faces != anywhere.faces).sum())

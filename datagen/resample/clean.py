@@ -86,9 +86,9 @@ def apparel_owners(weights: SparseWeights, apparel) -> np.ndarray:
     """(N,) int: each apparel vertex's dominant bone (:meth:`SparseWeights.dominant`),
     -1 for the body's. :func:`clean_mesh` never welds vertices with different owners: a zoo's hair
     strands, skirt strips and cape links are separate pieces whose ends touch (same positions,
-    other bones), and welded they were decimated into one piece whose edges then stretched up to
-    7x between strands once the physics moved them apart (the demo's apparel characters at resample
-    version 2). Seams of one surface (the same weights on both sides) still weld."""
+    other bones), and welded they would be decimated into one piece whose edges stretch up to 7x
+    between strands once the physics moves them apart. Seams of one surface (the same weights on both
+    sides) still weld."""
     return np.where(np.asarray(apparel, np.float64) > 0.5, weights.dominant(), -1)
 
 

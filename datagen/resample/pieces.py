@@ -2,9 +2,9 @@
 
 A piece is a connected component along faces (:func:`mimicbench.mesh.mesh_pieces`). Re-skinning
 takes a new vertex's weights at its closest point on the original surface. Taken on any piece, that
-point gave vertices of the zoo's thin hair strands, which decimation leaves a few millimetres off
-their own surface (a strand's link collapsed to a handful of vertices), the weights of the cape or
-of the next link lying nearer (up to resample version 3). :func:`datagen.resample.simplify.resample_to`
+point would give vertices of the zoo's thin hair strands, which decimation leaves a few millimetres
+off their own surface (a strand's link collapsed to a handful of vertices), the weights of the cape
+or of the next link lying nearer. :func:`datagen.resample.simplify.resample_to`
 says which piece each new vertex came from, and the closest point is taken on that piece alone.
 """
 from __future__ import annotations

@@ -23,6 +23,7 @@ from datagen.retarget.roles import direction_children, humanoid_roles
 from mimicbench.kinematics import array_to_transforms, transforms_to_array
 from mimicbench.quaternion import quat_apply, quat_multiply, quat_normalize
 from schemas.motion import MotionRecord
+from schemas.validate import parents_problem
 
 
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -60,7 +61,12 @@ def retarget_clip(source, motion, target, name: str | None = None) -> tuple[Moti
     """The clip ``motion`` of character ``source`` on character ``target`` (records), and a
     report: ``mapped`` roles, ``source_unmapped`` / ``target_unmapped`` bone names, ``scale``.
 
-    Raises ValueError when the two skeletons share fewer than 4 roles."""
+    Raises ValueError when a skeleton is out of the format's order (``parents[k] < k``: a cycle), the
+    two skeletons share fewer than 4 roles, or a stored value (transforms, scale) is not finite."""
+    for role, rec in (("source", source), ("target", target)):
+        cycle = parents_problem(rec.parents)
+        if cycle:
+            raise ValueError(f"{role} {rec.character_id}: skeleton out of order: {cycle}")
     rs, rt = humanoid_roles(source.bone_names), humanoid_roles(target.bone_names)
     mapped = [r for r in rt if r in rs]
     if len(mapped) < 4:
@@ -105,6 +111,9 @@ def retarget_clip(source, motion, target, name: str | None = None) -> tuple[Moti
     rec = MotionRecord(f"{target.character_id}/{clip}", target.character_id, clip, target.split, motion.fps, f,
                        len(parents), transforms_to_array(quat_normalize(q), p),
                        f"retarget:{motion.motion_id}")
+    if not (np.isfinite(scale) and np.all(np.isfinite(rec.transforms))):
+        raise ValueError(f"{source.character_id} -> {target.character_id}: the clip's transforms or its scale "
+                         f"{scale:g} are not finite (a skeleton with no leg length or height)")
     used_src = {rs[r] for r in mapped}
     report = {"source": source.character_id, "target": target.character_id, "motion": motion.motion_id,
               "mapped": mapped, "scale": scale,

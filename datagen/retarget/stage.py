@@ -43,6 +43,20 @@ def _write_physics(run: StageRun, characters_dir, targets: list) -> None:
             run.write(table, [r for r in rows if split[r.character_id] == sp], sp)
 
 
+def _refuse_empty(motions_dir, characters_dir, sources: tuple, targets: tuple, clips: list) -> None:
+    """Refuse a run with nothing to retarget, before anything is written (an empty dataset with exit
+    status 0 would look like a finished run): ``sources``/``targets`` are ``(option, glob, every
+    character, the matching ones)``; ``clips`` the matching sources' clips."""
+    for (option, glob, every, matched), folder in ((sources, motions_dir), (targets, characters_dir)):
+        if not matched:
+            ids = ", ".join(repr(c.character_id) for c in every[:3]) + (", ..." if len(every) > 3 else "")
+            raise ValueError(f"{option} {glob!r} matches none of the {len(every)} characters of {folder}"
+                             + (f" ({ids})" if every else "") + "; expected a glob on character IDs")
+    if not clips:
+        raise ValueError(f"{motions_dir}: the {len(sources[3])} character(s) matching --sources {sources[1]!r} have "
+                         f"no clips; nothing to retarget")
+
+
 def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", targets: str = "*",
                       progress: bool = True) -> dict:
     """Retarget the clips of ``motions_dir``'s characters matching the glob ``sources`` onto those of
@@ -55,10 +69,13 @@ def retarget_datasets(motions_dir, characters_dir, out_dir, sources: str = "*", 
     start = time.perf_counter()
     run = StageRun(STAGE, RetargetParams(sources, targets), out_dir, motions_dir,  # fingerprints: the clips' dataset
                    info={"motions": str(motions_dir), "characters": str(characters_dir)})
-    src_chars = {c.character_id: c for c in read_records(motions_dir, "characters")
-                 if fnmatch.fnmatch(c.character_id, sources)}
+    all_sources = read_records(motions_dir, "characters")
+    src_chars = {c.character_id: c for c in all_sources if fnmatch.fnmatch(c.character_id, sources)}
     clips = [m for m in read_records(motions_dir, "motions") if m.character_id in src_chars]
-    tgts = [c for c in read_records(characters_dir, "characters") if fnmatch.fnmatch(c.character_id, targets)]
+    all_targets = read_records(characters_dir, "characters")
+    tgts = [c for c in all_targets if fnmatch.fnmatch(c.character_id, targets)]
+    _refuse_empty(motions_dir, characters_dir, ("--sources", sources, all_sources, src_chars),
+                  ("--targets", targets, all_targets, tgts), clips)
     statuses, reports, out_motions, used = [], [], [], {}
     humanoid = [t for t in tgts if len(humanoid_roles(t.bone_names)) >= MIN_ROLES]
     for t in tgts:

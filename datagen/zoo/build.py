@@ -17,7 +17,7 @@ from datagen.zoo.templates.humanoid import H2H_SKELETON_ID, H2H_TOPOLOGY, build_
 from schemas.character import HUMANOID_LIKE, CharacterRecord
 from schemas.motion import MotionRecord
 
-ZOO_VERSION = "2"  # 2: the fourth apparel variant (up to 241 joints)
+ZOO_VERSION = "2"  # recorded in the zoo config; CHANGELOG.md says what each version changed
 TARGET_FACES = 8000
 
 

@@ -89,6 +89,8 @@ STEP_KINDS = {
                       versions=("benchmark.protocols.apparel:CASES_VERSION",)),
     "bench": StepKind(("bench", "run"), positional=("dataset",), folders=("dataset", "out"),
                       reads=(("dataset", ("characters", "motions", "cases")),), writes=(("out", None),), engine=True),
+    "validity": StepKind(("bench", "validity"), positional=("dataset",), folders=("dataset", "out"),
+                         reads=(("dataset", ("characters", "motions", "cases")),), writes=(("out", None),)),
     "leaderboard": StepKind(("bench", "leaderboard"), positional=("results",), folders=("results", "out"),
                             reads=(("results", None),), writes=(("out", None),)),
 }
@@ -193,15 +195,79 @@ def load_pipeline(path, workdir=None) -> Pipeline:
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ValueError(f"{path}: [pipeline] jobs = {jobs!r}; expected an integer >= 1")
     root = Path(workdir if workdir is not None else head.get("workdir", "."))
+    name = check_record_name(head.get("name", path.stem), f"{path}: [pipeline] name")
     for i, step in enumerate(steps, 1):
         _check_step_folders(path, i, step, root)
-    pipeline = Pipeline(str(head.get("name", path.stem)), root, steps, engine, head.get("ray_address"), jobs, path)
+    _check_shared_outputs(path, steps, root)
+    pipeline = Pipeline(name, root, steps, engine, head.get("ray_address"), jobs, path)
     from mimicbench.cli import build_parser
 
     parser = build_parser()
     for step in steps:
-        step_options(step, pipeline, parser)  # every option typed and checked before anything runs
+        _, options = step_options(step, pipeline, parser)  # every option typed and checked before anything runs
+        if step.kind == "bench":
+            _check_methods(step, pipeline, options)
     return pipeline
+
+
+def check_record_name(name, where: str) -> str:
+    """``name`` when it is a plain file name (a non-empty string, no path separator, not ``.``/``..``,
+    no NUL): it names the record ``WORKDIR/.pipeline/<name>.json`` and must stay in that folder.
+
+    Raises:
+        ValueError: starting with ``where``, saying what a name may hold.
+    """
+    if (not isinstance(name, str) or not name.strip() or name in (".", "..") or "/" in name or "\\" in name
+            or "\0" in name or Path(name).is_absolute() or Path(name).name != name):
+        raise ValueError(f"{where} = {name!r}: expected a plain name (letters, digits, '-', '_', '.'; no '/', "
+                         f"'\\', '..' or absolute path): it names the record WORKDIR/.pipeline/<name>.json")
+    return name
+
+
+def _writes_overlap(a: tuple[Path, tuple[str, ...] | None], b: tuple[Path, tuple[str, ...] | None]) -> bool:
+    """Whether two writes ``(folder, tables)`` (None: the whole folder) can touch the same file."""
+    (pa, ta), (pb, tb) = a, b
+    if ta is None and tb is None:
+        return pa.is_relative_to(pb) or pb.is_relative_to(pa)
+    if ta is None or tb is None:
+        (whole, _), (part, tables) = (a, b) if ta is None else (b, a)
+        return part.is_relative_to(whole) or any(whole.is_relative_to(part / t) for t in tables)
+    return pa == pb and bool(set(ta) & set(tb))
+
+
+def _check_shared_outputs(path: Path, steps: list[Step], workdir: Path) -> None:
+    """Refuse two steps that write the same tables of one folder (or one folder inside the other's
+    whole-folder output): the second would replace the first's output, and each re-run would redo both."""
+    writes = [(i, step, key, (folder.resolve(), tables)) for i, step in enumerate(steps, 1)
+              for key, tables in step.spec.writes for folder in step.folder(key, workdir)]
+    for n, (i, a, key_a, wa) in enumerate(writes):
+        for j, b, key_b, wb in writes[n + 1:]:
+            if a is not b and _writes_overlap(wa, wb):
+                what = "the folder" if wa[1] is None or wb[1] is None else \
+                    f"the tables {sorted(set(wa[1]) & set(wb[1]))} of"
+                raise ValueError(f"{path}: step {j} ({b.name}) {key_b} = {str(b.options.get(key_b, wb[0]))!r} writes "
+                                 f"{what} {wb[0]}, which step {i} ({a.name}) {key_a} = "
+                                 f"{str(a.options.get(key_a, wa[0]))!r} writes too; give each step its own output "
+                                 f"folder")
+
+
+def _check_methods(step: Step, pipeline: Pipeline, options) -> None:
+    """Refuse a bench step naming a method the registry does not know (checked before any step runs;
+    the method's module is imported only when the step runs)."""
+    from benchmark.registry import METHODS
+    from mimicbench.registry import NameCollision, UnknownName
+
+    index = pipeline.steps.index(step) + 1
+    raw = step.options.get("methods")
+    if not (isinstance(raw, str) or isinstance(raw, list) and all(isinstance(m, str) for m in raw)):
+        raise ValueError(f"{pipeline.source}: step {index} ({step.name}): methods = {raw!r}; expected method names: "
+                         f"a string \"a,b\" or a list [\"a\", \"b\"] (see `mimicbench bench methods`)")
+    for name in options.methods:
+        try:
+            METHODS.target(name)
+        except (UnknownName, NameCollision) as exc:
+            raise ValueError(f"{pipeline.source}: step {index} ({step.name}): methods = "
+                             f"{step.options.get('methods')!r}: {exc}") from None
 
 
 def _check_step_folders(path: Path, i: int, step: Step, workdir: Path) -> None:

@@ -52,7 +52,8 @@ def code_versions(step: Step) -> dict:
         from benchmark.registry import METHODS, NameCollision, UnknownName
 
         names = step.options.get("methods") or []
-        for name in names.split(",") if isinstance(names, str) else names:
+        names = names if isinstance(names, list) else str(names).split(",")  # as the option's type reads it
+        for name in (str(n).strip() for n in names):
             try:
                 versions[f"method:{name}"] = str(METHODS.get(name).metadata.version)
             except (UnknownName, NameCollision, AttributeError, ImportError):

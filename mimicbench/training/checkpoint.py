@@ -11,6 +11,12 @@ Every file written here gets a digest file beside it, ``<name>.sha256`` (``sha25
 checkpoint and the resume state before resuming, so a flipped byte is refused, never trained on.
 Any checkpoint or resume state that cannot be read is a :class:`~mimicbench.errors.UserError`
 naming the file (one line, no traceback).
+
+The resume point of a stage is one unit (:func:`save_resume`): the weights (``last.safetensors``)
+and the loop's state (``state.pt``) go into a new folder ``resume-<epoch>-<id>/``, and only then
+does ``resume.json`` (written atomically) name that folder and both files' sha256. A kill or a full
+disk at any moment leaves ``resume.json`` naming the previous, complete pair; older folders are
+removed after the commit.
 """
 from __future__ import annotations
 
@@ -26,18 +32,30 @@ from mimicbench.errors import UserError
 
 HEADER_KEY = "mimicbench"
 DIGEST_SUFFIX = ".sha256"
+RESUME_FILE = "resume.json"
+
+
+class CheckpointMismatch(UserError, ValueError):
+    """A readable checkpoint of another network than the one being loaded (the message names both)."""
+
+WEIGHTS_FILE, STATE_FILE = "last.safetensors", "state.pt"
 
 
 def dataset_provenance(dataset: str | os.PathLike) -> dict:
-    """``{"name", "schema_version", "tables": {table: fingerprint}}`` of a dataset folder (what is known)."""
+    """``{"name", "schema_version", "tables": {table: fingerprint}}`` of a dataset folder (what is known);
+    for a folder without a manifest, ``"error"`` and ``"tables"``: ``{relative path: sha256}`` of its files."""
     from schemas.fingerprint import table_fingerprint
-    from schemas.manifest import load_manifest
+    from schemas.manifest import load_manifest, sha256_of
 
     info: dict = {"name": Path(dataset).name}
     try:
         manifest = load_manifest(dataset)
     except Exception as exc:  # a dataset without a manifest still trains if the stage can read it
         info["error"] = str(exc)
+        root = Path(dataset)
+        if root.is_dir():
+            info["tables"] = {str(f.relative_to(root)): sha256_of(f) for f in sorted(root.rglob("*"))
+                              if f.is_file() and not any(part.startswith(".") for part in f.relative_to(root).parts)}
         return info
     info["schema_version"] = manifest.get("schema_version")
     info["tables"] = {t: table_fingerprint(dataset, t, manifest) for t in sorted(manifest.get("tables", {}))
@@ -160,8 +178,23 @@ def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu")
         raise _unreadable(path, "safetensors checkpoint", exc) from None
 
 
+def state_dict_mismatch(module: torch.nn.Module, state: dict) -> str | None:
+    """Why ``state`` (name -> tensor) does not fit ``module``'s parameters and buffers, in one line
+    (missing, unexpected and other-shaped keys, counted, with the first of each), or None when it fits."""
+    own = module.state_dict()
+    missing = [k for k in own if k not in state]
+    unexpected = [k for k in state if k not in own]
+    shaped = [k for k in own if k in state and hasattr(state[k], "shape") and tuple(state[k].shape) != tuple(own[k].shape)]
+    parts = [f"{len(keys)} {what} (e.g. {keys[0]!r}{extra(keys[0]) if extra else ''})"
+             for keys, what, extra in ((missing, "missing", None), (unexpected, "unexpected", None),
+                                       (shaped, "of another shape",
+                                        lambda k: f": {tuple(state[k].shape)}, expected {tuple(own[k].shape)}"))
+             if keys]
+    return None if not parts else "; ".join(parts)
+
+
 def load_module(path: str | os.PathLike, build: Callable[[dict], torch.nn.Module],
-                device: str | torch.device = "cpu") -> torch.nn.Module:
+                device: str | torch.device = "cpu", expect: tuple[str, str] | None = None) -> torch.nn.Module:
     """Rebuild a module from a checkpoint.
 
     Args:
@@ -169,17 +202,30 @@ def load_module(path: str | os.PathLike, build: Callable[[dict], torch.nn.Module
         build: ``config -> module``; called with the config stored in the header, so the module
             has the shapes it was trained with (e.g. ``lambda cfg: stage.build(cfg, context)``).
         device: where to put the module.
+        expect: ``(model, stage)`` the checkpoint must be of (its header says), or None.
 
     Returns:
         The module with the stored weights (strict load), in eval() mode, on ``device``.
+
+    Raises:
+        UserError: one line naming the file and what it holds: a checkpoint of another model or
+            stage than ``expect``, a config ``build`` cannot build, weights that do not fit.
     """
     state, header = load_checkpoint(path)
-    module = build(header["config"])
+    what = f"a checkpoint of model {header.get('model')!r}, stage {header.get('stage')!r}"
+    if expect is not None and (header.get("model"), header.get("stage")) != tuple(expect):
+        raise CheckpointMismatch(f"{path}: {what}; expected one of model {expect[0]!r}, stage {expect[1]!r}")
     try:
-        module.load_state_dict(state, strict=True)
-    except RuntimeError as exc:
-        raise ValueError(f"{path}: weights do not fit the module built from its own config "
-                         f"(model {header.get('model')!r}, stage {header.get('stage')!r}): {exc}") from exc
+        module = build(header.get("config"))
+    except Exception as exc:
+        first = (str(exc).strip().splitlines() or [""])[0][:200]
+        raise CheckpointMismatch(f"{path}: {what} whose config does not build this network ({type(exc).__name__}: "
+                        f"{first}); expected a checkpoint of the network being loaded") from None
+    why = state_dict_mismatch(module, state)
+    if why:
+        raise CheckpointMismatch(f"{path}: {what} whose weights do not fit the network built from its config ({why}); "
+                        f"expected a checkpoint of the network being loaded")
+    module.load_state_dict(state, strict=True)
     return module.to(device).eval()
 
 
@@ -209,3 +255,83 @@ def load_state(path: str | os.PathLike) -> dict:
         return torch.load(str(path), map_location="cpu", weights_only=True)
     except Exception as exc:  # UnpicklingError, RuntimeError from the zip reader, EOFError, ...
         raise _unreadable(path, "resume state", exc) from None
+
+
+def _confined_name(stage_dir: Path, name, what: str) -> Path:
+    """``stage_dir / name`` for a plain folder or file name read from ``resume.json`` (never a path elsewhere)."""
+    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or "\\" in name \
+            or Path(name).name != name:
+        raise UserError(f"{stage_dir / RESUME_FILE}: {what} {name!r} is not a plain name inside {stage_dir}; "
+                        f"use --no-resume to start this stage over")
+    return stage_dir / name
+
+
+def save_resume(stage_dir: str | os.PathLike, weights: dict[str, torch.Tensor], header: dict, state: dict) -> Path:
+    """Write a stage's resume point as one unit: ``resume-<epoch>-<id>/last.safetensors`` (``weights``
+    with ``header``) and ``state.pt`` (``state``, plus the weights' sha256), each with its digest file,
+    then commit by writing ``resume.json`` atomically; then remove older resume folders (and the
+    ``last.safetensors``/``state.pt`` pair an older layout kept beside them). Returns the new folder."""
+    import hashlib
+    import shutil
+    import uuid
+
+    from schemas.manifest import atomic_write_bytes
+
+    stage_dir = Path(stage_dir)
+    epoch = int(state["epoch"])
+    folder = stage_dir / f"resume-{epoch:06d}-{uuid.uuid4().hex[:8]}"
+    folder.mkdir(parents=True)
+    weights_path = save_checkpoint(folder / WEIGHTS_FILE, weights, header)
+    weights_sha = hashlib.sha256(weights_path.read_bytes()).hexdigest()
+    state_path = save_state(folder / STATE_FILE, {**state, "weights_sha256": weights_sha})
+    pointer = {"epoch": epoch, "folder": folder.name,
+               "sha256": {WEIGHTS_FILE: weights_sha, STATE_FILE: hashlib.sha256(state_path.read_bytes()).hexdigest()}}
+    atomic_write_bytes(stage_dir / RESUME_FILE, (json.dumps(pointer, indent=1, sort_keys=True) + "\n").encode())
+    for old in stage_dir.glob("resume-*"):
+        if old.is_dir() and old.name != folder.name:
+            shutil.rmtree(old, ignore_errors=True)
+    for name in (WEIGHTS_FILE, STATE_FILE):
+        for legacy in (stage_dir / name, digest_path(stage_dir / name)):
+            legacy.unlink(missing_ok=True)
+    return folder
+
+
+def find_resume(stage_dir: str | os.PathLike) -> tuple[Path, Path] | None:
+    """``(weights, state)`` of the stage's committed resume point, both verified (sha256), or None
+    when there is none. Reads ``resume.json`` (:func:`save_resume`); a stage folder of the older
+    layout (``last.safetensors`` and ``state.pt`` beside each other) is read through their digest files.
+
+    Raises:
+        UserError: ``resume.json`` unreadable or naming a path outside the stage folder, or a file
+            that is missing or does not match its recorded sha256 (one line, saying how to start over).
+    """
+    from schemas.manifest import sha256_of
+
+    stage_dir = Path(stage_dir)
+    pointer_path = stage_dir / RESUME_FILE
+    again = "use --no-resume to start this stage over"
+    if not pointer_path.is_file():
+        weights, state = stage_dir / WEIGHTS_FILE, stage_dir / STATE_FILE
+        if not (weights.is_file() and state.is_file()):
+            return None
+        verify_digest(state, again)
+        verify_digest(weights, again)
+        return weights, state
+    try:
+        pointer = json.loads(pointer_path.read_text())
+        folder = _confined_name(stage_dir, pointer["folder"], "folder")
+        digests = {name: str(pointer["sha256"][name]) for name in (WEIGHTS_FILE, STATE_FILE)}
+    except UserError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise UserError(f"{pointer_path}: not a readable resume record ({type(exc).__name__}: {exc}); {again}") from None
+    for name, want in digests.items():
+        path = folder / name
+        if not path.is_file():
+            raise UserError(f"{path}: missing (named by {RESUME_FILE}); {again}")
+        verify_digest(path, again)
+        have = sha256_of(path)
+        if have != want:
+            raise UserError(f"{path}: sha256 {have[:12]}... does not match {RESUME_FILE} ({want[:12]}...): the file "
+                            f"changed or is corrupt; {again}")
+    return folder / WEIGHTS_FILE, folder / STATE_FILE

@@ -2,14 +2,18 @@
 
 Files under ``OUT`` (rank 0 writes):
 
-- ``OUT/<stage>/last.safetensors`` + ``OUT/<stage>/state.pt``: after every epoch (weights with
-  header; optimizer state and epoch count, read back with ``weights_only=True``); a re-run with
-  the same config and seed resumes from them and ends with the weights an uninterrupted run has.
+- ``OUT/<stage>/resume.json`` naming ``OUT/<stage>/resume-<epoch>-<id>/`` with ``last.safetensors``
+  and ``state.pt``: after every epoch, written as one unit (:func:`~.checkpoint.save_resume`; a kill
+  leaves the previous pair): weights with header; optimizer state, epoch count, seed, config and the
+  dataset's table fingerprints, read back with ``weights_only=True``. A re-run with the same config,
+  seed and dataset resumes from them and ends with the weights an uninterrupted run has; a resume
+  point of another config, seed or dataset is refused with one line.
 - ``OUT/<stage>/loss.csv`` (one row a step: epoch, step, every loss key, averaged over ranks) and
   ``OUT/<stage>/loss.png``.
 - ``OUT/<stage>/model.safetensors``: the final weights; ``OUT/config.json``: the config.
 - ``<file>.sha256`` beside each checkpoint and resume state; both are verified before a resume
-  (a changed byte is refused with a one-line error, never trained on).
+  (a changed byte is refused with a one-line error, never trained on), and so is every trained
+  stage a stage needs before it is loaded (a missing digest file is refused too).
 
 Repeatability: torch, numpy and ``random`` are seeded from ``seed`` before the module is built,
 and again from (seed, epoch, rank) at the start of every epoch; each epoch's batch order comes
@@ -104,13 +108,48 @@ def load_frozen(model_name: str, stage: TrainStage, out: Path, context: StageCon
         need_stage = model.stage(need)
         ctx = StageContext(context.dataset, context.device, context.config, dict(frozen), context.rank,
                            context.world_size)
-        if checkpoint.digest_path(path).is_file():  # written by this version: verified before use
-            checkpoint.verify_digest(path, f"train stage {need!r} again (--stage {need} --no-resume)")
-        module = checkpoint.load_module(path, lambda cfg, s=need_stage, c=ctx: s.build(cfg, c), context.device)
+        checkpoint.verify_digest(path, f"train stage {need!r} again (--stage {need} --no-resume), or write "
+                                 f"its digest with `sha256sum model.safetensors > model.safetensors.sha256` in "
+                                 f"{path.parent} if you trust the file")
+        module = checkpoint.load_module(path, lambda cfg, s=need_stage, c=ctx: s.build(cfg, c), context.device,
+                                        expect=(model_name, need))
         for p in module.parameters():
             p.requires_grad_(False)
         frozen[need] = module.eval()
     return frozen
+
+
+def check_same_run(stage_dir: Path, stage: str, state: dict, header: dict, config_json: str, seed: int,
+                   tables: dict | None, weights_path: Path) -> None:
+    """Refuse, in one line, a resume point that is not this run's: another config or seed (in the
+    state or in the weights' header), another dataset (table fingerprints), weights and state of
+    two different epochs or runs.
+
+    Raises:
+        UserError: naming what differs and how to go on (a new --out, the same options, --no-resume).
+    """
+    how = "pick a new --out, the same --config/--set/--seed and dataset, or --no-resume to start this stage over"
+    head_config = json.dumps(header.get("config"), sort_keys=True)
+    for what, mine, theirs in (("seed", seed, state.get("seed")), ("seed", seed, header.get("seed")),
+                               ("config", config_json, state.get("config_json")), ("config", config_json, head_config)):
+        if theirs != mine:
+            shown = f" (seed {theirs}, this run's {mine})" if what == "seed" else ""
+            raise UserError(f"{stage_dir} holds a run of stage {stage!r} with another {what}{shown}; {how}")
+    theirs = state.get("dataset_tables", (header.get("dataset") or {}).get("tables"))
+    if tables is not None and theirs is not None and theirs != tables:
+        differ = sorted(t for t in set(tables) | set(theirs) if tables.get(t) != theirs.get(t))
+        name = (header.get("dataset") or {}).get("name", "?")
+        raise UserError(f"{stage_dir} holds a run of stage {stage!r} on another dataset ({name!r}; tables "
+                        f"{', '.join(differ)} differ from this one's); {how}")
+    if header.get("epoch") != state.get("epoch"):
+        raise UserError(f"{weights_path} (epoch {header.get('epoch')}) and its state (epoch {state.get('epoch')}) "
+                        f"disagree; use --no-resume to start this stage over")
+    if "weights_sha256" in state:
+        from schemas.manifest import sha256_of
+
+        if sha256_of(weights_path) != state["weights_sha256"]:
+            raise UserError(f"{weights_path}: not the weights its state was saved with; use --no-resume to start "
+                            f"this stage over")
 
 
 def train_stage(model_name: str, stage_name: str, dataset, out, config: dict, device="cpu",
@@ -158,7 +197,6 @@ def train_stage_result(model_name: str, stage_name: str, dataset, out, config: d
         weight_decay = float(stage_setting(config, stage.name, "weight_decay", DEFAULT_WEIGHT_DECAY))
         grad_clip = stage_setting(config, stage.name, "grad_clip", None)
         stage_dir = out / stage.name
-        last_path, state_path = stage_dir / "last.safetensors", stage_dir / "state.pt"
         csv_path, png_path, final_path = stage_dir / "loss.csv", stage_dir / "loss.png", stage_dir / "model.safetensors"
         config_json = json.dumps(config, sort_keys=True)
 
@@ -173,18 +211,13 @@ def train_stage_result(model_name: str, stage_name: str, dataset, out, config: d
         optimizer = torch.optim.AdamW(params, lr=lr, weight_decay=weight_decay)
 
         start_epoch = 0
-        if resume and state_path.is_file() and last_path.is_file():
-            checkpoint.verify_digest(state_path)  # a flipped byte is refused, never resumed from
-            checkpoint.verify_digest(last_path)
+        data_tables = checkpoint.dataset_provenance(dataset).get("tables")
+        found = checkpoint.find_resume(stage_dir) if resume else None  # verified: a flipped byte is refused
+        if found is not None:
+            last_path, state_path = found
             state = checkpoint.load_state(state_path)
-            if state.get("config_json") != config_json or state.get("seed") != seed:
-                raise UserError(f"{stage_dir} holds a run of stage {stage.name!r} with another config or seed "
-                                f"(seed {state.get('seed')}); pick a new --out, the same --config/--set/--seed, "
-                                f"or --no-resume to start this stage over")
             weights, header = checkpoint.load_checkpoint(last_path, device)
-            if header.get("epoch") != state["epoch"]:
-                raise UserError(f"{last_path} (epoch {header.get('epoch')}) and {state_path} (epoch "
-                                f"{state['epoch']}) disagree; use --no-resume to start this stage over")
+            check_same_run(stage_dir, stage.name, state, header, config_json, seed, data_tables, last_path)
             module.load_state_dict(weights)
             optimizer.load_state_dict(state["optimizer"])
             start_epoch = int(state["epoch"])
@@ -200,6 +233,7 @@ def train_stage_result(model_name: str, stage_name: str, dataset, out, config: d
 
         header = {"model": model_name, "stage": stage.name, "config": config, "seed": seed,
                   "dataset": checkpoint.dataset_provenance(dataset) if rank == 0 else {}}
+        run_state = {"seed": seed, "config_json": config_json, "dataset_tables": data_tables}
         final: dict = {}
         for epoch in range(start_epoch, epochs):
             seed_everything(_epoch_seed(seed, epoch, rank))
@@ -218,10 +252,9 @@ def train_stage_result(model_name: str, stage_name: str, dataset, out, config: d
                 stage_dir.mkdir(parents=True, exist_ok=True)
                 loss_log.write_rows(csv_path, rows)
                 loss_log.plot(rows, png_path, f"{model_name} / {stage.name}")
-                checkpoint.save_checkpoint(last_path, module.state_dict(), {**header, "epoch": epoch + 1,
-                                                                             **checkpoint.provenance()})
-                checkpoint.save_state(state_path, {"epoch": epoch + 1, "seed": seed, "config_json": config_json,
-                                                   "optimizer": optimizer.state_dict()})
+                checkpoint.save_resume(stage_dir, module.state_dict(),
+                                       {**header, "epoch": epoch + 1, **checkpoint.provenance()},
+                                       {**run_state, "epoch": epoch + 1, "optimizer": optimizer.state_dict()})
             barrier(world)
         if not final and rows:
             last_epoch = max(r["epoch"] for r in rows)

@@ -1,0 +1,135 @@
+"""The file-physics world as MMD's players run it (datagen/apparel/file_physics.py with the
+``SimParams.file_*`` settings): a pendulum at the chosen step rate against its analytic period,
+the reset that zeroes velocities, a warm-up that leaves a resting model at rest, a clip that starts
+far from the origin not dragged there, and chains that never sleep."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+from datagen.apparel.file_physics import FileWorld
+from datagen.apparel.params import SimParams
+from datagen.apparel.simulate import simulate_clip
+from mimicbench.kinematics import rest_transforms
+from schemas.joint import JointRecord
+from schemas.rigid_body import RigidBodyRecord
+
+PIVOT = np.array([0.0, 1.0, 0.0])
+ARM = 0.5  # metres from the pivot to the bob's centre
+RADIUS = 0.05  # the bob, a solid sphere
+FREE = (np.ones(3), -np.ones(3))  # lower above upper: a free axis (Bullet's convention)
+G = 9.8
+PARAMS = SimParams()
+
+
+def _body(i, shape, size, pos, mode, group=0, mask=0xFFFF, bone=0, damping=0.0):
+    return RigidBodyRecord("toy", i, f"b{i}", "", bone, shape, np.float32(size), np.float32(pos),
+                           np.float32([1, 0, 0, 0]), 1.0, damping, damping, 0.0, 0.5, group, mask, mode)
+
+
+def _pendulum(bob_offset, damping=0.0):
+    """A static sphere at the pivot (bone 0) and a dynamic sphere bob (bone 1) at ``bob_offset``
+    from it on a free spherical joint; no spring, the given damping."""
+    z = np.zeros(3, np.float32)
+    bodies = [_body(0, "sphere", [0.02, 0, 0], PIVOT, "static", group=3),
+              _body(1, "sphere", [RADIUS, 0, 0], PIVOT + bob_offset, "dynamic", group=1, mask=0xFFFF & ~(1 << 3),
+                    bone=1, damping=damping)]
+    joint = JointRecord("toy", 0, "j", "", "spring_6dof", 0, 1, np.float32(PIVOT), np.float32([1, 0, 0, 0]), z, z,
+                        np.float32(FREE[0]), np.float32(FREE[1]), z, z)
+    return bodies, [joint], np.array([PIVOT, PIVOT + bob_offset])
+
+
+def _world(bodies, joints, keypoints, dt, **kw):
+    return FileWorld(bodies, joints, keypoints, np.array([-1, 0]), dt, PARAMS.file_solver_iterations, 0.08,
+                     apparel=np.array([False, True]), erp=PARAMS.file_erp, sleeping=PARAMS.file_sleeping, **kw)
+
+
+def _bottom_crossings(times, x):
+    """Times (linearly interpolated) at which the bob's x goes from positive to negative."""
+    i = np.nonzero((x[:-1] > 0) & (x[1:] <= 0))[0]
+    return times[i] + (times[i + 1] - times[i]) * x[i] / (x[i] - x[i + 1])
+
+
+def test_pendulum_at_the_chosen_step_rate_keeps_its_analytic_period():
+    # released 45 degrees from the vertical (its rest, so it swings at most 90 degrees from rest, well
+    # inside the free joint's 3.1 rad cone): a physical pendulum's period is 4 sqrt(I / (m g L)) K(k),
+    # k = sin(22.5 degrees), I = m L^2 + 2/5 m r^2 about the pivot (K: the complete elliptic integral)
+    rate = PARAMS.file_step_rate
+    start = np.pi / 4
+    bodies, joints, keypoints = _pendulum(ARM * np.array([np.sin(start), -np.cos(start), 0.0]))
+    inertia = ARM ** 2 + 0.4 * RADIUS ** 2
+    period = 4.0 * np.sqrt(inertia / (G * ARM)) * ellipk(np.sin(start / 2) ** 2)  # scipy's K takes m = k^2
+    rest = rest_transforms(keypoints).astype(np.float64)
+    steps = int(4 * period * rate)
+    xs = np.zeros(steps)
+    with _world(bodies, joints, keypoints, 1.0 / rate, gravity=G) as world:
+        for s in range(steps):
+            world.set_body_pose(rest)
+            world.step()
+            xs[s] = world.body_poses()[0][1][0] - PIVOT[0]
+    crossings = _bottom_crossings(np.arange(1, steps + 1) / rate, xs)
+    assert len(crossings) >= 3
+    measured = np.diff(crossings).mean()
+    assert measured == pytest.approx(period, rel=1e-3), (measured, period)
+
+
+def test_reset_zeroes_every_velocity_and_puts_the_chain_at_rest_on_its_anchor():
+    bodies, joints, keypoints = _pendulum(np.array([ARM, 0.0, 0.0]))
+    rest = rest_transforms(keypoints).astype(np.float64)
+    with _world(bodies, joints, keypoints, 1.0 / PARAMS.file_step_rate, gravity=G) as world:
+        for _ in range(40):  # swinging down fast
+            world.set_body_pose(rest)
+            world.step()
+        assert world.read()[1] > 1.0
+        moved = rest.copy()
+        moved[:, 4:] += [2.0, 0.0, -3.0]  # the body somewhere else
+        world.reset(moved)
+        state, speed = world.read()
+        assert speed == 0.0
+        # one step from rest under gravity: the bob has fallen at most g dt^2, still at its rest offset
+        np.testing.assert_allclose(state[0][0], moved[1, 4:], atol=2 * G / PARAMS.file_step_rate ** 2)
+
+
+def test_warm_up_leaves_a_resting_model_at_rest_where_its_clip_starts():
+    # a bob hanging straight down (its rest is its equilibrium) and a still clip 30 m from the origin,
+    # turned half round: with the players' reset and warm-up the bob hangs still below the pivot from
+    # frame 0; blended from the rest pose at the origin, it is dragged there and swings
+    bodies, joints, keypoints = _pendulum(np.array([0.0, -ARM, 0.0]), damping=0.5)
+    clip = np.repeat(rest_transforms(keypoints)[None], 20, axis=0).astype(np.float64)
+    turn = np.array([np.cos(np.pi / 2), 0.0, np.sin(np.pi / 2), 0.0])  # half a turn about Y
+    clip[:, :, :4] = turn
+    clip[:, 0, 4:] = PIVOT + [30.0, 0.0, 0.0]
+    clip[:, 1, 4:] = PIVOT + [30.0, -ARM, 0.0]
+    rate = PARAMS.file_step_rate
+    substeps = int(round(rate / 30))
+
+    def run(warmup):
+        with _world(bodies, joints, keypoints, 1.0 / (30 * substeps), gravity=G, max_speed=1e6) as world:
+            return simulate_clip(world, clip, substeps, 30, warmup=warmup).transforms
+
+    warm = run(True)
+    np.testing.assert_allclose(warm[:, 1, 4:], clip[:, 1, 4:], atol=1e-4)
+    dragged = run(False)
+    assert np.abs(dragged[:, 1, 4:] - clip[:, 1, 4:]).max() > 0.01
+
+
+def test_chains_never_sleep():
+    # a hanging bob left still for 3 s (longer than Bullet's 2 s deactivation time), then its pivot
+    # moves 0.2 m along X in a tenth of a second: the bob follows
+    bodies, joints, keypoints = _pendulum(np.array([0.0, -ARM, 0.0]), damping=0.5)
+    rest = rest_transforms(keypoints).astype(np.float64)
+    rate = PARAMS.file_step_rate
+    assert not PARAMS.file_sleeping
+    with _world(bodies, joints, keypoints, 1.0 / rate, gravity=G) as world:
+        world.reset(rest)
+        for _ in range(int(3 * rate)):
+            world.set_body_pose(rest)
+            world.step()
+        start = world.body_poses()[0][1].copy()
+        pose = rest.copy()
+        for s in range(int(0.5 * rate)):
+            pose[:, 4] = rest[:, 4] + 0.2 * min(1.0, s / (0.1 * rate))
+            world.set_body_pose(pose)
+            world.step()
+        assert world.body_poses()[0][1][0] - start[0] > 0.1
