@@ -146,6 +146,12 @@ def accuracy(args) -> None:
             se = pair_clustered_se(d, pair_ids)
             line += f"   {n} - {ref}: {d.mean():+.3f} +- {se:.3f} (z {d.mean() / se:+.1f})"
         print(line)
+    first = list(methods)[0]
+    for n in list(methods)[1:]:
+        for suffix in ("", " argmax"):
+            d = arr[n + suffix] - arr[first + suffix]
+            se = pair_clustered_se(d, pair_ids)
+            print(f"  {n + suffix} - {first + suffix}: {d.mean():+.3f} +- {se:.3f} (z {d.mean() / se:+.1f})")
 
 
 def main() -> None:

@@ -44,7 +44,7 @@ score: its cycle round-trips any one-to-one mapping, so a mirrored transfer cost
 nothing."""
 DEFAULT_VIEW_COLUMNS = ("{headline}", "semantic_deg", "out_of_range", "els_forward", "penetration_share",
                         "accel_error")
-PROTOCOL_ORDER = ("h2h", "cct", "apparel")  # shown in this order, others after them by name
+PROTOCOL_ORDER = ("h2h", "h2h_xskel", "cct", "apparel")  # shown in this order, others after them by name
 
 
 def _protocol_order(protocol: str):
@@ -68,12 +68,16 @@ def _protocol(name: str):
 
 
 def headline_metric(protocol: str, columns=None) -> str:
-    """The metric a protocol ranks by: ``pmd_<headline>`` for a registered protocol that names its
+    """The metric a protocol ranks by: its ``headline_column`` when it names one (``pmd_aligned`` for
+    the h2h protocols), else ``pmd_<headline>`` for a registered protocol that names its
     headline normalisation (``height`` or ``extent``), else the first of
     :data:`HEADLINE_PREFERENCE` present in the results table, else ``pmd``."""
     columns = list(columns or metric_columns())
     proto = _protocol(protocol)
-    declared = f"pmd_{proto.headline}" if proto is not None and getattr(proto, "headline", None) else None
+    declared = None
+    if proto is not None:
+        declared = getattr(proto, "headline_column", None) or (
+            f"pmd_{proto.headline}" if getattr(proto, "headline", None) else None)
     if declared in columns:
         return declared
     for name in HEADLINE_PREFERENCE.get(protocol, DEFAULT_HEADLINE):

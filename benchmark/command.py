@@ -255,6 +255,9 @@ def _run_run(args) -> int:
     from benchmark.leaderboard import markdown_tables
     from mimicbench.engines import get_engine
 
+    from benchmark.registry import check_method_names
+
+    check_method_names(args.methods)  # a typo is named before anything about the dataset
     refuse_flat_characters(args.dataset, case_ids=True)
     summary = run_benchmark(args.dataset, list(args.methods), _run_protocols(args), args.out, args.device,
                             args.batch_size, progress=not args.quiet, retry_failed=args.retry_failed,

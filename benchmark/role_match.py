@@ -7,9 +7,8 @@ known way.
 A target bone's match is the source bone with the same role (``left/upper_arm``; a role that may
 label many bones, such as a role-label file's ``left/forelimb``, is not matched this way); failing that, a
 source bone of the same role class (``left/forelimb``, :func:`benchmark.semantic.character_role_classes`)
-at the nearest relative depth along the class (a bone's depth is the number of its ancestors of
-the same class, divided by the class's largest depth), the bone with the most skin weight winning a
-tie; failing that, none (-1).
+at the nearest position along the class by skin-weight mass (:func:`class_mass_position`), the bone
+with the most skin weight winning a tie; failing that, none (-1).
 """
 from __future__ import annotations
 
@@ -27,9 +26,9 @@ def bone_mass(rig) -> np.ndarray:
     return out
 
 
-def class_depth_fraction(classes: list, parents: np.ndarray) -> np.ndarray:
-    """(K,) each labelled bone's depth along its class divided by the class's largest depth
-    (0 at the class's first bone, 1 at its deepest; 0 for a class of one depth); NaN when unlabelled."""
+def class_depths(classes: list, parents) -> np.ndarray:
+    """(K,) each labelled bone's depth along its class (how many of its ancestors share its class);
+    NaN when unlabelled."""
     parents = np.asarray(parents)
     depth = np.full(len(parents), np.nan)
     for k, cls in enumerate(classes):
@@ -40,16 +39,32 @@ def class_depth_fraction(classes: list, parents: np.ndarray) -> np.ndarray:
             d += classes[p] == cls
             p = parents[p]
         depth[k] = d
-    out = depth.copy()
+    return depth
+
+
+def class_mass_position(classes: list, parents, mass) -> np.ndarray:
+    """(K,) where each labelled bone lies along its class, in [0, 1], by skin-weight mass: the mass of
+    the class's shallower depths plus half the mass of the bone's own depth, over the class's mass
+    (depth by depth when the class has no mass). A humanoid's small clavicle sits near 0 and its
+    upper arm near 0.3, as a dog's upper foreleg does; NaN when unlabelled."""
+    depth = class_depths(classes, parents)
+    mass = np.asarray(mass, np.float64)
+    out = np.full(len(depth), np.nan)
     for cls in {c for c in classes if c is not None}:
         members = np.array([c == cls for c in classes])
-        top = np.nanmax(depth[members])
-        out[members] = depth[members] / top if top > 0 else 0.0
+        levels = np.arange(int(np.nanmax(depth[members])) + 1)
+        level_mass = np.array([mass[members & (depth == d)].sum() for d in levels])
+        if level_mass.sum() <= 0:
+            level_mass = np.ones(len(levels))
+        before = np.concatenate([[0.0], np.cumsum(level_mass)[:-1]])
+        position = (before + 0.5 * level_mass) / level_mass.sum()
+        out[members] = position[depth[members].astype(int)]
     return out
 
 
 def match_by_role(source_roles: list, source_classes: list, source_parents, source_mass,
-                  target_roles: list, target_classes: list, target_parents, class_map=None) -> np.ndarray:
+                  target_roles: list, target_classes: list, target_parents, target_mass,
+                  class_map=None) -> np.ndarray:
     """(Kt,) int: each target bone's source bone, or -1 (see the module docstring).
 
     Args:
@@ -57,7 +72,8 @@ def match_by_role(source_roles: list, source_classes: list, source_parents, sour
             matches are only used when ``class_map`` is None.
         source_classes, target_classes: K role classes (None for an unlabelled bone).
         source_parents, target_parents: (K,) parents, -1 for roots.
-        source_mass: (Ks,) each source bone's total skin weight (breaks ties).
+        source_mass, target_mass: (K,) each bone's total skin weight (:func:`bone_mass`): where a
+            bone lies along its class (:func:`class_mass_position`), and the source's breaks ties.
         class_map: optional function target class -> the source class that drives it (a
             corruption such as left <-> right); None keeps classes.
     """
@@ -66,9 +82,9 @@ def match_by_role(source_roles: list, source_classes: list, source_parents, sour
         for i, r in enumerate(source_roles):
             if r and not is_class_role(r) and r not in by_role:
                 by_role[r] = i
-    s_frac = class_depth_fraction(source_classes, source_parents)
-    t_frac = class_depth_fraction(target_classes, target_parents)
     mass = np.asarray(source_mass, np.float64)
+    s_frac = class_mass_position(source_classes, source_parents, mass)
+    t_frac = class_mass_position(target_classes, target_parents, target_mass)
     out = np.full(len(target_classes), -1)
     for j, cls in enumerate(target_classes):
         if cls is None:

@@ -3,10 +3,9 @@
 Bump the major number for a change that old readers cannot read (a column removed, renamed or
 retyped); bump the minor number for an added nullable column or table.
 
-History: 1.2 result columns of the apparel protocol; 1.3 the tables ``rigid_bodies`` and
-``joints`` (an MMD character's physics, read by the apparel stage).
+Each version and what it added: CHANGELOG.md.
 """
-SCHEMA_VERSION = "1.3"
+SCHEMA_VERSION = "1.4"
 METADATA_KEY = b"mimicbench.schema_version"
 TABLE_KEY = b"mimicbench.table"
 

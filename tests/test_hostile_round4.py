@@ -748,3 +748,16 @@ def test_a_split_file_cannot_name_a_path(tmp_path, capsys, content, needle):
                  str(tmp_path / "splits.json"), "--quiet"]) == 2
     _one_line(capsys, needle)
     assert not (tmp_path / "evil-00000-of-00001.parquet").exists() and not out.exists()
+
+
+def test_an_ingest_where_every_asset_fails_ends_with_its_summary_not_an_error(tmp_path, capsys):
+    """The category report after ingest reads the characters table: when no asset made one, the
+    summary is the last word and the exit status says some items failed."""
+    from mimicbench.cli import main
+
+    bad = tmp_path / "x.glb"
+    bad.write_text("garbage")
+    code = main(["datagen", "ingest", str(bad), "--out", str(tmp_path / "out")])
+    out = capsys.readouterr()
+    assert code == 1
+    assert "0 characters and 0 clips" in out.out and "error" not in out.err

@@ -38,12 +38,13 @@ def test_class_maps_by_hand():
 def test_role_match_exact_roles_then_class_and_depth():
     a, b = t_pose_humanoid(), t_pose_humanoid("b", extra_spine=True)
     ca, cb = character_role_classes(a.record), character_role_classes(b.record)
-    m = match_by_role(a.record.bone_roles, ca, a.rig.parents, bone_mass(a.rig), b.record.bone_roles, cb, b.rig.parents)
+    m = match_by_role(a.record.bone_roles, ca, a.rig.parents, bone_mass(a.rig), b.record.bone_roles, cb, b.rig.parents,
+                      bone_mass(b.rig))
     for bone in ("l_arm", "r_fore", "head", "l_shin"):
         assert a.names[m[b.names.index(bone)]] == bone
-    assert a.names[m[b.names.index("chest")]] == "spine"  # spine/2: no such role in a; same class, nearest depth
+    assert a.names[m[b.names.index("chest")]] == "spine"  # spine/2: no such role in a; same class, nearest mass position
     mirrored = match_by_role(a.record.bone_roles, ca, a.rig.parents, bone_mass(a.rig), b.record.bone_roles, cb,
-                             b.rig.parents, class_map=corruptions.swap_sides)
+                             b.rig.parents, bone_mass(b.rig), class_map=corruptions.swap_sides)
     assert a.names[mirrored[b.names.index("l_arm")]] == "r_arm"
     assert a.names[mirrored[b.names.index("r_shin")]] == "l_shin"
 
@@ -101,3 +102,13 @@ def test_nearest_joint_mirrored_matches_across_sides():
     match = dict((int(t), int(s)) for s, t in pairs)
     assert h.names[match[h.names.index("l_arm")]] == "r_arm"
     assert h.names[match[h.names.index("head")]] == "head"
+
+
+def test_class_mass_position_by_hand():
+    from benchmark.role_match import class_mass_position
+
+    # one class of three depths (masses 1, 4, 5) under an unlabelled root
+    classes = [None, "left/forelimb", "left/forelimb", "left/forelimb"]
+    pos = class_mass_position(classes, np.array([-1, 0, 1, 2]), np.array([9.0, 1.0, 4.0, 5.0]))
+    assert np.isnan(pos[0])
+    np.testing.assert_allclose(pos[1:], [0.05, 0.3, 0.75])

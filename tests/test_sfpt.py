@@ -74,7 +74,7 @@ def test_handle_weights_are_rows_summing_to_one_and_read_normals():
     w = pred(rest, normals, edges)
     assert w.shape == (len(v), 12) and float(w.detach().min()) >= 0
     np.testing.assert_allclose(w.sum(-1).detach().numpy(), 1.0, atol=1e-5)
-    assert float((pred(rest, -normals, edges) - w).abs().max()) > 1e-6  # the normals are an input
+    assert float((pred(rest, -normals, edges) - w).detach().abs().max()) > 1e-6  # the normals are an input
 
 
 @pytest.mark.parametrize("hidden,code,convs", [(64, 128, [(6, 64), (64, 128), (128, 256)]),

@@ -35,7 +35,7 @@ from mimicbench.mesh import normalize_unit_height
 PROBE_TAGS = ("probe", HIDDEN_ROLES_TAG)
 
 
-def _probe_metadata(name: str, description: str, tags=PROBE_TAGS, version: str = "1") -> MethodMetadata:
+def _probe_metadata(name: str, description: str, tags=PROBE_TAGS, version: str = "2") -> MethodMetadata:
     return MethodMetadata(name=name, version=version, licence="MIT", description=description, tags=tags,
                           protocols=("h2h", "cct"))
 

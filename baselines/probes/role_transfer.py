@@ -47,7 +47,7 @@ def role_transfer_rotations(request, class_map=None, mirror: bool = False) -> tu
     src, tgt = request.source, request.target
     s_cls, t_cls = roles["source_classes"], roles["target_classes"]
     match = match_by_role(roles["source_roles"], s_cls, src.parents, bone_mass(src), roles["target_roles"], t_cls,
-                          tgt.parents, class_map=class_map)
+                          tgt.parents, bone_mass(tgt), class_map=class_map)
     q_src, t_src = source_pose(request)
     r_src = quat_to_matrix(q_src)
     s_motion = part_motion(src.vertices, request.source_posed, part_regions(src.weights, src.parents, s_cls))

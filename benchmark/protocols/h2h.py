@@ -108,6 +108,8 @@ class SameSkeleton(BenchmarkProtocol):
     name = "h2h"
     title = "same-skeleton transfer, scored against ground truth"
     headline = "height"
+    headline_column = "pmd_aligned"
+    """The leaderboard ranks by the placement-free PMD (see the module docstring), which ``pmd`` also holds."""
 
     def candidate_pairs(self, pool: CasePool) -> list[tuple]:
         families = defaultdict(list)

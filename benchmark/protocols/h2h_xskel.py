@@ -9,7 +9,7 @@ so it is not.
 Ground truth (:func:`cross_skeleton_ground_truth`): the source's pose carried over through the
 hidden roles, by the same rule as ``h2h``: each target bone takes the local rotation of its
 role match (:func:`benchmark.role_match.match_by_role`: same role, else same role class at the
-nearest relative depth along the class), a bone without a match (an extra spine bone, a finger
+nearest position along the class by skin-weight mass), a bone without a match (an extra spine bone, a finger
 the source lacks, apparel) keeps its rest rotation relative to its parent, and the root's
 displacement from rest is scaled by the size ratio.
 
@@ -42,7 +42,7 @@ def cross_skeleton_ground_truth(source, target, source_transforms: np.ndarray) -
         raise ValueError(f"cross-skeleton ground truth: {source.character_id} or {target.character_id} has no "
                          "role labels (bone_roles)")
     match = match_by_role(list(source.bone_roles), s_cls, source.parents, bone_mass(source),
-                          list(target.bone_roles), t_cls, target.parents)
+                          list(target.bone_roles), t_cls, target.parents, bone_mass(target))
     t_parents = np.asarray(target.parents)
     q, _ = array_to_transforms(source_transforms)
     src_local = local_from_global(q, np.asarray(source.parents))

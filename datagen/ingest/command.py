@@ -122,6 +122,10 @@ def run(args) -> int:
         print(f"warning: {w}")
     print(f"{s['characters']} characters and {s['motions']} clips in {args.out} ({s['skipped']} already done, "
           f"{s['failed']} failed, {s['failed_clips']} clips unreadable) in {s['seconds']:.1f} s")
+    from schemas.dataset import Dataset
+
+    if not Dataset.of(args.out).has_table("characters"):  # every asset failed: nothing to label or report
+        return StageSummary(s["characters"], s["failed"], s["seconds"], str(args.out))
     if args.roles:
         from datagen.roles.attach import attach_roles, print_warnings, summary_lines
 

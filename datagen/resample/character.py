@@ -47,11 +47,11 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
     cycle = parents_problem(record.parents)
     if cycle:
         raise BadMesh(f"skeleton out of order: {cycle}")
-    rest_height = float(np.ptp(np.asarray(record.vertices, np.float64)[:, 1])) if len(record.vertices) else 0.0
+    clean = clean_mesh(record.vertices, record.faces, record.weights, record.apparel_vertex_mask)
+    rest_height = float(np.ptp(np.asarray(clean.vertices, np.float64)[:, 1])) if len(clean.vertices) else 0.0
     if not (np.isfinite(rest_height) and rest_height > 0):
         raise BadMesh(f"the rest mesh has no height (Y extent {rest_height:g}): the resample's quality (percent "
                       f"of height) and every score divide by it")
-    clean = clean_mesh(record.vertices, record.faces, record.weights, record.apparel_vertex_mask)
     welded: dict = {}
     new_v, new_f, refined, pieces = resample_to(clean.vertices, clean.faces, faces, backend, report=welded)
     anywhere = closest_points(clean.vertices, clean.faces, new_v)

@@ -11,9 +11,10 @@ examples:
   torchrun --nproc-per-node 4 -m mimicbench train mimicat data/zoo --out runs/m1 --device cuda
   mimicbench train mmdmc data/app --out runs/d1 --threads 1                  one CPU thread (a busy machine)
 
-Each stage writes RUN/<stage>/: model.safetensors (final weights with a JSON header), last.safetensors
-and state.pt (after every epoch, for resume), loss.csv and loss.png; RUN/config.json holds the config.
-Re-running the same command resumes a stage where it stopped (same config and seed required);
+Each stage writes RUN/<stage>/: model.safetensors (final weights with a JSON header), resume.json naming
+resume-<epoch>-<id>/ with last.safetensors and state.pt (after every epoch, written as one unit, for
+resume), loss.csv and loss.png; RUN/config.json holds the config. Re-running the same command resumes
+a stage where it stopped (same config, seed and dataset required, else refused);
 --epochs higher than before trains on. `batch_size` is the global batch: under torchrun each of the
 W processes takes a W-th of every batch, and the weights match a one-process run's.
 """
