@@ -7,11 +7,14 @@ reference (the first one listed) the mean of the per-case difference ``method - 
 its pair-clustered standard error (:func:`benchmark.intervals.pair_clustered_se`: the cases of one
 pair share a correspondence, so the pair is the unit sampled), the difference in standard errors
 (``z``), the relative difference and the share of pairs on which the method is lower. A metric
-that no stored row has (an older results folder) is reported as missing.
+that no stored row has (an older results folder) is reported as missing. An entry of ``--methods``
+may be ``LABEL=FOLDER:METHOD``: that method's rows from another results folder (the same method
+run with other weights, e.g. ``MIMICAT_CHECKPOINT=RUN bench run ... --out FOLDER``).
 
     python analyses/mimicat_paired.py RESULTS --methods mimicat,mimicat_init_only,text_soft,nearest_joint \
         [--metrics cct:pmd_extent,cct:semantic_deg,cct:out_of_range,h2h:pmd_height,h2h_xskel:pmd_height] \
         [--versions mimicat=9]
+    python analyses/mimicat_paired.py RES --methods mimicat,a3=RES_A3:mimicat,nearest_joint
 """
 from __future__ import annotations
 
@@ -71,7 +74,12 @@ def paired_table(results, methods: list[str], protocol: str, metric: str, versio
     from benchmark.intervals import pair_clustered_se
 
     versions = versions or {}
-    values = {m: per_case(results, m, protocol, metric, versions.get(m)) for m in methods}
+    values = {}
+    for m in methods:
+        label, _, where = m.partition("=")
+        folder, _, name = where.rpartition(":") if where else (results, None, label)
+        values[label] = per_case(folder or results, name, protocol, metric, versions.get(label))
+    methods = list(values)
     if not all(values.values()):
         missing = [m for m, v in values.items() if not v]
         return f"{protocol} {metric}: no value for {', '.join(missing)}"

@@ -119,8 +119,9 @@ def build_strips(results, agg: dict, per_protocol: int = STRIPS_PER_PROTOCOL) ->
                 continue
             src, tgt = chars[case.source_id], chars[case.target_id]
             cycle = case.target_transforms is None
+            windowed = len(np.asarray(case.source_transforms).reshape(-1, 7)) > len(src.parents)
             # apparel: the source rows hold burn-in frames before the window; its last rows are the window
-            shown = case.source_transforms if cycle else case.source_transforms[-len(case.target_transforms):]
+            shown = case.source_transforms[-len(case.target_transforms):] if windowed else case.source_transforms
             items = [Panel(_posed(src, shown), src.faces,
                            f"posed source\n{src.character_id}", "source", frame=f"{cid}/source")]
             if not cycle:
@@ -144,7 +145,6 @@ def build_strips(results, agg: dict, per_protocol: int = STRIPS_PER_PROTOCOL) ->
                 else:
                     items.append(Panel(fwd, tgt.faces, f"{method}\n{head} {_fmt(value)}", "prediction",
                                        frame=f"{cid}/target") if fwd is not None else f"{method}: no prediction ({status})")
-            windowed = len(np.asarray(case.source_transforms).reshape(-1, 7)) > len(src.parents)
             title = f"{protocol}: {cid}" + ("   (middle frame of the window)" if windowed else "") + ("   (top: forward leg on the target; bottom: the cycle's return on "
                                             "the source)" if cycle else "")
             strips.append(Strip(protocol, cid, title, len(items), items + returned))

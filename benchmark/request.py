@@ -39,8 +39,25 @@ def read_only_extras(extras: dict) -> dict:
     return {k: read_only(v) if isinstance(v, np.ndarray) else v for k, v in extras.items()}
 
 
+class _RestMeshSize:
+    """``height`` and ``size`` of a rest mesh held in ``vertices`` (N, 3), metres."""
+
+    vertices: np.ndarray
+
+    @property
+    def height(self) -> float:
+        """Y extent of the rest mesh, metres."""
+        return float(self.vertices[:, 1].max() - self.vertices[:, 1].min())
+
+    @property
+    def size(self) -> float:
+        """Largest side of the rest mesh's bounding box, metres: the size the benchmark scales
+        translations by between two characters (:func:`benchmark.normalisation.size_ratio`)."""
+        return largest_extent(self.vertices)
+
+
 @dataclass(frozen=True)
-class Rig:
+class Rig(_RestMeshSize):
     """A character at rest with its skeleton (dataset frame: metres, Y up, +Z forward).
 
     Attributes:
@@ -74,17 +91,6 @@ class Rig:
         """A new Rig over the same read-only memory (no copy): one per request."""
         return dataclasses.replace(self)
 
-    @property
-    def height(self) -> float:
-        """Y extent of the rest mesh, metres."""
-        return float(self.vertices[:, 1].max() - self.vertices[:, 1].min())
-
-    @property
-    def size(self) -> float:
-        """Largest side of the rest mesh's bounding box, metres: the size the benchmark scales
-        translations by between two characters (:func:`benchmark.normalisation.size_ratio`)."""
-        return largest_extent(self.vertices)
-
 
 class RigWithheld(RuntimeError):
     """A mesh-only method (``MethodMetadata.reads_rig`` False) read a rig field of its request."""
@@ -104,7 +110,7 @@ def _withheld(name: str) -> property:
 
 
 @dataclass(frozen=True)
-class MeshOnlyRig:
+class MeshOnlyRig(_RestMeshSize):
     """A character at rest without its rig: what a mesh-only method receives in place of a :class:`Rig`.
 
     Attributes:
@@ -139,16 +145,6 @@ class MeshOnlyRig:
     def fresh(self) -> "MeshOnlyRig":
         """A new MeshOnlyRig over the same read-only memory (no copy): one per request."""
         return dataclasses.replace(self)
-
-    @property
-    def height(self) -> float:
-        """Y extent of the rest mesh, metres."""
-        return float(self.vertices[:, 1].max() - self.vertices[:, 1].min())
-
-    @property
-    def size(self) -> float:
-        """Largest side of the rest mesh's bounding box, metres."""
-        return largest_extent(self.vertices)
 
 
 @dataclass(frozen=True)

@@ -22,17 +22,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from baselines.mmdmc.nn import mlp
 from baselines.sfpt.handles import handle_centres, kabsch_transforms
-
-
-def mlp(sizes: list[int], last_act: bool = True) -> nn.Sequential:
-    """Linear layers of ``sizes`` with a ReLU after each (but the last when ``last_act`` is False)."""
-    layers: list[nn.Module] = []
-    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
-        layers.append(nn.Linear(a, b))
-        if last_act or i < len(sizes) - 2:
-            layers.append(nn.ReLU())
-    return nn.Sequential(*layers)
 
 
 class MeshEdgeConv(nn.Module):

@@ -118,11 +118,15 @@ class SameSkeleton(BenchmarkProtocol):
                 families[c.skeleton_id].append(c)
         return [(a, b) for fam in families.values() for a in fam for b in fam if a is not b]
 
+    def ground_truth(self, source, target, source_transforms):
+        """The target's ground-truth transforms (K, 7) for a source pose (:func:`ground_truth_transforms`)."""
+        return ground_truth_transforms(source, target, source_transforms)
+
     def make_case(self, source, target, motion, frame: int) -> CaseRecord:
         src_t = motion.transforms[frame]
         return CaseRecord(self.case_id(source, target, motion, frame), self.name, source.character_id,
                           target.character_id, motion.motion_id, frame, src_t,
-                          ground_truth_transforms(source, target, src_t), source.category, target.category)
+                          self.ground_truth(source, target, src_t), source.category, target.category)
 
     def evaluate(self, cases: Sequence[CaseRecord], data: EvalData, call: Call) -> list[Outcome]:
         src = [data.characters[c.source_id] for c in cases]

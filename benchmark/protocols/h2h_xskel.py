@@ -25,7 +25,6 @@ from benchmark.protocols.h2h import SameSkeleton, local_translations, transforms
 from benchmark.role_match import bone_mass, match_by_role
 from benchmark.semantic import character_role_classes
 from mimicbench.kinematics import array_to_transforms, local_from_global
-from schemas.case import CaseRecord
 from schemas.character import HUMANOID_LIKE
 
 
@@ -68,8 +67,6 @@ class CrossSkeleton(SameSkeleton):
         return [(a, b) for a in humans for b in humans
                 if a is not b and (a.skeleton_id != b.skeleton_id or not a.skeleton_id)]
 
-    def make_case(self, source, target, motion, frame: int) -> CaseRecord:
-        src_t = motion.transforms[frame]
-        return CaseRecord(self.case_id(source, target, motion, frame), self.name, source.character_id,
-                          target.character_id, motion.motion_id, frame, src_t,
-                          cross_skeleton_ground_truth(source, target, src_t), source.category, target.category)
+    def ground_truth(self, source, target, source_transforms):
+        """The role-retargeted ground truth (:func:`cross_skeleton_ground_truth`)."""
+        return cross_skeleton_ground_truth(source, target, source_transforms)
