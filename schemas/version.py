@@ -5,7 +5,7 @@ retyped); bump the minor number for an added nullable column or table.
 
 Each version and what it added: CHANGELOG.md.
 """
-SCHEMA_VERSION = "1.4"
+SCHEMA_VERSION = "1.3"
 METADATA_KEY = b"mimicbench.schema_version"
 TABLE_KEY = b"mimicbench.table"
 
