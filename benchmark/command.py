@@ -41,11 +41,13 @@ def register(subparsers) -> None:
     sub = p.add_subparsers(dest="bench_command", metavar="STEP")
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
-    c = sub.add_parser("cases", help="make deterministic h2h and cct cases (cases/ table)",
+    c = sub.add_parser("cases", help="make deterministic h2h, h2h_xskel and cct cases (cases/ table)",
                        description="Make benchmark cases from one split: h2h, same-skeleton transfer (characters "
                        "of any category that share a skeleton_id; ground truth carries the source's local rotations "
-                       "and size-scaled local translations over) and cct (cross-category pairs with a humanoid on "
-                       "one side, scored by cycle consistency). The cases record the fingerprints of the characters and "
+                       "and size-scaled local translations over), h2h_xskel (humanoids of different skeleton families with "
+                       "role labels; ground truth retargeted through the hidden roles) and cct (cross-category pairs "
+                       "with a humanoid on one side, scored by cycle consistency and by the forward leg against the "
+                       "hidden roles). The cases record the fingerprints of the characters and "
                        "motions they were built from; `bench run` refuses them once the dataset changes. A run that "
                        "makes no case is an error and keeps the existing cases. Example:\n"
                        "  mimicbench bench cases data/zoo5k --split all --h2h-pairs 50\n"
