@@ -19,6 +19,8 @@ humanoid, front-back along the longer horizontal side for the others).
 """
 from __future__ import annotations
 
+import abc
+
 import numpy as np
 from scipy.spatial.distance import cdist
 
@@ -66,8 +68,9 @@ class ProbeForeHind(PoseTransferMethod):
 class _RotationProbe(PoseTransferMethod):
     """Role transfer whose target rotations are edited by :meth:`corrupt`."""
 
+    @abc.abstractmethod
     def corrupt(self, request, rotations: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        """The target's global rotations (Kt, 4) after the corruption."""
 
     def transfer(self, requests):
         out = []
