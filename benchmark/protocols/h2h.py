@@ -132,17 +132,16 @@ class SameSkeleton(BenchmarkProtocol):
         src = [data.characters[c.source_id] for c in cases]
         tgt = [data.characters[c.target_id] for c in cases]
         hidden = wants_hidden_roles(call)
-        answers = call([data.request(s, data.posed(s, c.source_transforms), t, c.case_id, hidden)
-                        for s, t, c in zip(src, tgt, cases)])
+        posed = [data.posed(s, c.source_transforms) for s, c in zip(src, cases)]
+        answers = call([data.request(s, p, t, c.case_id, hidden) for s, p, t, c in zip(src, posed, tgt, cases)])
         out = []
-        for c, t, (pred, err, sec) in zip(cases, tgt, answers):
+        for c, s, p, t, (pred, err, sec) in zip(cases, src, posed, tgt, answers):
             if err:
                 out.append(Outcome(c, "failed", err, sec))
                 continue
             truth = data.posed(t, c.target_transforms)
             metrics = score_pose(pred, truth, data.frame(t), self.headline)
             metrics["pmd"] = metrics["pmd_aligned"]
-            metrics.update(data.forward_scores(data.characters[c.source_id],
-                                               data.posed(data.characters[c.source_id], c.source_transforms), t, pred))
+            metrics.update(data.forward_scores(s, p, t, pred))
             out.append(Outcome(c, "ok", None, sec, metrics, {"forward": pred}))
         return out
