@@ -1,13 +1,13 @@
 """Issue 33: each simulated clip's quality beside the same measures of its kinematic clip.
 
-The apparel stage records a clip's quality (:mod:`datagen.apparel.quality`) in the character's
+The apparel stage records a clip's quality (:mod:`mimicbench.datagen.apparel.quality`) in the character's
 ``meta["apparel"]``; the penetration and stretch of the clip it came from are not recorded. On
 real motions much of the penetration is the skinned clip's own (Gene's cloak inside the arms'
 pieces in poses far from its rest), so this prints, per clip of OUT (a ``datagen apparel``
-output folder), the stage's figures beside :func:`~datagen.apparel.quality.clip_quality` of the
+output folder), the stage's figures beside :func:`~mimicbench.datagen.apparel.quality.clip_quality` of the
 kinematic clip taken as the simulated one (same body pieces, same apparel vertices), and for
 each folder the medians and the clips over the jitter bound (3x the larger of the apparel's
-kinematic peak and that of the body it touches, :func:`~datagen.apparel.quality.over_jitter_bound`). A second folder (the same clips simulated with other ``--params``) adds its
+kinematic peak and that of the body it touches, :func:`~mimicbench.datagen.apparel.quality.over_jitter_bound`). A second folder (the same clips simulated with other ``--params``) adds its
 figures beside the first's.
 
     PYTHONPATH=. python analyses/apparel_against_kinematic.py OUT [OTHER_OUT]
@@ -19,12 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.apparel.body_shapes import body_pieces
-from datagen.apparel.quality import clip_quality, over_jitter_bound
-from datagen.apparel.selection import dominant_bone
-from datagen.apparel.stage import _apparel_masks
-from schemas.motion import SIM_SUFFIX
-from schemas.shards import read_records
+from mimicbench.datagen.apparel.body_shapes import body_pieces
+from mimicbench.datagen.apparel.quality import clip_quality, over_jitter_bound
+from mimicbench.datagen.apparel.selection import dominant_bone
+from mimicbench.datagen.apparel.stage import _apparel_masks
+from mimicbench.schemas.motion import SIM_SUFFIX
+from mimicbench.schemas.shards import read_records
 
 SHOWN = ("max_accel", "p99_accel", "new_inside_pct", "new_inside_max_pct", "max_edge_stretch")
 

@@ -19,10 +19,10 @@ from collections import defaultdict
 
 import numpy as np
 
-from benchmark.protocols.apparel import REFERENCE_HEIGHT_CM, WINDOW
-from mimicbench.skinning import linear_blend_skinning
-from schemas.motion import SIM_SUFFIX
-from schemas.shards import read_records
+from mimicbench.benchmark.protocols.apparel import REFERENCE_HEIGHT_CM, WINDOW
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.motion import SIM_SUFFIX
+from mimicbench.schemas.shards import read_records
 
 
 def _apparel(char, transforms: np.ndarray) -> np.ndarray:

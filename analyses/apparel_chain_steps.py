@@ -1,7 +1,7 @@
 """Issue 33: one apparel chain of one clip logged physics step by physics step.
 
-The clip is simulated as the apparel stage does it (:func:`datagen.apparel.setup.character_physics`,
-:class:`datagen.apparel.world.ApparelWorld`, :func:`datagen.apparel.simulate.simulate_clip`); after
+The clip is simulated as the apparel stage does it (:func:`mimicbench.datagen.apparel.setup.character_physics`,
+:class:`mimicbench.datagen.apparel.world.ApparelWorld`, :func:`mimicbench.datagen.apparel.simulate.simulate_clip`); after
 every step of clip frames ``--frames A B`` (relaxation frames negative), before the world's own
 limits and springs act on it, one line for the chain that holds ``--bone`` (the chain from that
 bone's link down its first children):
@@ -27,11 +27,11 @@ import json
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from datagen.apparel.params import params_from_json
-from datagen.apparel.setup import character_physics, physics_step, substeps_for
-from datagen.apparel.simulate import simulate_clip
-from datagen.apparel.world import ApparelWorld
-from schemas.shards import read_records
+from mimicbench.datagen.apparel.params import params_from_json
+from mimicbench.datagen.apparel.setup import character_physics, physics_step, substeps_for
+from mimicbench.datagen.apparel.simulate import simulate_clip
+from mimicbench.datagen.apparel.world import ApparelWorld
+from mimicbench.schemas.shards import read_records
 
 PHYSICS_FPS = 240.0
 

@@ -1,7 +1,7 @@
 """Issue 52: an MMD model's file physics under variants of its ``SimParams.file_*`` settings.
 
 Simulates the named clips of one or more ingested (or retargeted) datasets with the character's own
-rigid bodies and joints (:func:`datagen.apparel.file_physics.simulate_file_motion`, as the stage
+rigid bodies and joints (:func:`mimicbench.datagen.apparel.file_physics.simulate_file_motion`, as the stage
 does, 30 relaxation frames) once per variant, and prints each clip's quality (peak and p99 apparel
 acceleration m/s^2, the jitter bound's kinematic peak, new inside %, largest edge stretch,
 re-settles, over the jitter bound) and the count over the bound. A variant is a JSON object of
@@ -17,11 +17,11 @@ import dataclasses
 import json
 from pathlib import Path
 
-from datagen.apparel.file_physics import simulate_file_motion
-from datagen.apparel.params import SimParams
-from datagen.apparel.quality import over_jitter_bound
-from datagen.apparel.stage import _apparel_masks, _file_physics
-from schemas.shards import read_records
+from mimicbench.datagen.apparel.file_physics import simulate_file_motion
+from mimicbench.datagen.apparel.params import SimParams
+from mimicbench.datagen.apparel.quality import over_jitter_bound
+from mimicbench.datagen.apparel.stage import _apparel_masks, _file_physics
+from mimicbench.schemas.shards import read_records
 
 
 def main() -> None:

@@ -3,7 +3,7 @@
 For each method against the reference (the first listed) and each apparel column (PMD_a and
 PMD_b in cm at 1.70 m, ``accel_error``, ``penetration_share``), the mean of the per-case
 difference ``method - reference`` over the cases both scored, with its standard error clustered by
-(source, target) pair (:func:`benchmark.intervals.paired_difference`) and the difference in those
+(source, target) pair (:func:`mimicbench.benchmark.intervals.paired_difference`) and the difference in those
 standard errors. The issue-52 check: ``probe_apparel_jitter`` (``lbs_kinematic`` with 1 mm of
 frame-to-frame noise on its apparel) against ``lbs_kinematic`` must move ``accel_error`` by more
 than 2 SE while PMD_a barely moves.
@@ -16,14 +16,14 @@ import argparse
 
 import numpy as np
 
-from benchmark.intervals import paired_difference
+from mimicbench.benchmark.intervals import paired_difference
 
 COLUMNS = ("pmd_apparel_cm", "pmd_body_cm", "accel_error", "penetration_share")
 
 
 def per_case(results, method: str, metric: str, protocol: str = "apparel") -> dict[str, float | None]:
     """case ID -> ``metric`` of the ``ok`` rows of the method's newest stored version."""
-    from benchmark.results import method_dir, method_versions, read_result_records
+    from mimicbench.benchmark.results import method_dir, method_versions, read_result_records
 
     versions = [v for m, v in method_versions(results) if m == method]
     if not versions:

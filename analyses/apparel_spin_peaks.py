@@ -1,9 +1,9 @@
 """Issue 33: are a spin's apparel acceleration peaks over 3x the kinematic peak physical or numerical?
 
 For each ``spin`` clip of a zoo (``mimicbench zoo ... --categories apparel --clip-set dynamic``)
-the clip is simulated as the apparel stage does it (:func:`datagen.apparel.setup.simulate_motion`,
-its world from :func:`datagen.apparel.setup.character_physics`), and the peak of
-:func:`datagen.apparel.quality.clip_quality` (``max_accel``: the largest second difference of an
+the clip is simulated as the apparel stage does it (:func:`mimicbench.datagen.apparel.setup.simulate_motion`,
+its world from :func:`mimicbench.datagen.apparel.setup.character_physics`), and the peak of
+:func:`mimicbench.datagen.apparel.quality.clip_quality` (``max_accel``: the largest second difference of an
 apparel vertex at the clip's fps, m/s^2) is taken apart at its frame and vertex:
 
 - ``v`` (m/s): the vertex's speed there (central difference);
@@ -18,7 +18,7 @@ apparel vertex at the clip's fps, m/s^2) is taken apart at its frame and vertex:
   of that component over those 5 frames (0-4);
 - the same clip's peak / kinematic peak with the physics at 2x and 4x the rate (480 and 960 Hz)
   with the same physical springs: the springs' per-step shares (stiffness s, damping v,
-  :mod:`datagen.apparel.springs`: K = s diag(M0) / dt^2, C = v diag(M0) / dt) scaled to keep K and
+  :mod:`mimicbench.datagen.apparel.springs`: K = s diag(M0) / dt^2, C = v diag(M0) / dt) scaled to keep K and
   C (s x (dt'/dt)^2, v x dt'/dt), and Bullet's contact and constraint ERP (per-step shares of an
   error) scaled by dt'/dt. A physical peak converges as dt shrinks; a numerical one does not.
 
@@ -42,10 +42,10 @@ import time
 
 import numpy as np
 
-from datagen.apparel.params import ApparelParams, params_from_json
-from datagen.apparel.setup import character_physics, simulate_motion
-from mimicbench.skinning import linear_blend_skinning
-from schemas.shards import read_records
+from mimicbench.datagen.apparel.params import ApparelParams, params_from_json
+from mimicbench.datagen.apparel.setup import character_physics, simulate_motion
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.shards import read_records
 
 PHYSICS_FPS, RELAX = 240.0, 30  # the stage's defaults (mimicbench datagen apparel)
 

@@ -55,7 +55,7 @@ VARIANTS = ("init", "oracle_rot", "oracle")
 
 def rot6d(q: np.ndarray) -> np.ndarray:
     """(..., 6): the first two columns of R(q) for unit quaternions q (..., 4) (Zhou et al. 2019)."""
-    from mimicbench.quaternion import quat_to_matrix
+    from mimicbench.geometry.quaternion import quat_to_matrix
 
     m = quat_to_matrix(q)
     return np.concatenate([m[..., :, 0], m[..., :, 1]], axis=-1)
@@ -63,7 +63,7 @@ def rot6d(q: np.ndarray) -> np.ndarray:
 
 def quat_from_6d(x: np.ndarray) -> np.ndarray:
     """Unit quaternions (..., 4) from 6D vectors (..., 6) by Gram-Schmidt."""
-    from mimicbench.quaternion import matrix_to_quat
+    from mimicbench.geometry.quaternion import matrix_to_quat
 
     a, b = x[..., :3], x[..., 3:]
     e1 = a / np.linalg.norm(a, axis=-1, keepdims=True).clip(1e-9)
@@ -79,9 +79,9 @@ def recompose(q: np.ndarray, t: np.ndarray, rest: np.ndarray, parents: np.ndarra
     flagged ``change`` (K,) take local rotations ``local_new`` (K, 4) (and local translations
     ``moved_new`` (K, 3) when given); every other bone keeps its global rotation and its local
     translation, so descendants of a changed bone follow it."""
-    from benchmark.protocols.h2h import local_translations, transforms_from_local
-    from mimicbench.kinematics import local_from_global, transforms_to_array
-    from mimicbench.quaternion import quat_multiply
+    from mimicbench.benchmark.protocols.h2h import local_translations, transforms_from_local
+    from mimicbench.geometry.kinematics import local_from_global, transforms_to_array
+    from mimicbench.geometry.quaternion import quat_multiply
 
     moved = local_translations(transforms_to_array(q, t), rest, parents)
     if moved_new is not None:
@@ -100,7 +100,7 @@ class RoleRidge:
     def __init__(self, data: Path, split: str | None = "train"):
         import pyarrow.parquet as pq
 
-        from mimicbench.kinematics import local_from_global
+        from mimicbench.geometry.kinematics import local_from_global
 
         chars = pq.read_table(data / "characters", columns=["character_id", "category", "split", "bone_roles",
                                                             "parents"]).to_pylist()
@@ -169,15 +169,15 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(1)
-    from baselines.mimicat.method import MimicatInitOnly
-    from baselines.posing import source_pose
-    from benchmark.evaluator import load_cases
-    from benchmark.protocols.base import EvalData
-    from benchmark.scoring import score_pose
-    from mimicbench.kinematics import local_from_global
-    from mimicbench.quaternion import quat_angle
-    from mimicbench.skinning import linear_blend_skinning
-    from benchmark.protocols.h2h import local_translations
+    from mimicbench.baselines.mimicat.method import MimicatInitOnly
+    from mimicbench.baselines.posing import source_pose
+    from mimicbench.benchmark.evaluator import load_cases
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.benchmark.scoring import score_pose
+    from mimicbench.geometry.kinematics import local_from_global
+    from mimicbench.geometry.quaternion import quat_angle
+    from mimicbench.geometry.skinning import linear_blend_skinning
+    from mimicbench.benchmark.protocols.h2h import local_translations
 
     from analyses.mimicat_cycle_loss import chain_kinds
 
@@ -242,7 +242,7 @@ def main() -> None:
         clip_of.append(c.motion_id.rsplit("/", 1)[-1])
         if (n + 1) % 50 == 0:
             print(f"{n + 1} cases: " + ", ".join(f"{v} {np.mean(pmd[v]):.4f}" for v in variants), flush=True)
-    from benchmark.intervals import pair_clustered_se, pair_of
+    from mimicbench.benchmark.intervals import pair_clustered_se, pair_of
 
     res = {v: np.asarray(x) for v, x in pmd.items()}
     pairs = [pair_of(c.case_id) for c in cases]

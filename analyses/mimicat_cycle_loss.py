@@ -34,8 +34,8 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 def frozen_context(data: Path, checkpoint: Path, decode: str):
     """The transfer stage's context (frozen E, prior, G from ``checkpoint``) with the ``small``
     preset's config, ``data.split=all`` and ``transfer.m_decode=decode``."""
-    from baselines.mimicat.config import preset
-    from baselines.mimicat.method import checkpoint_path
+    from mimicbench.baselines.mimicat.config import preset
+    from mimicbench.baselines.mimicat.method import checkpoint_path
     from mimicbench.training.checkpoint import load_module
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
@@ -80,9 +80,9 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    import baselines.mimicat.transfer_training as tt
-    from baselines.mimicat.method import BUNDLED
-    from baselines.mimicat.transfer import correspondences, decode_correspondence, pose_mesh
+    import mimicbench.baselines.mimicat.transfer_training as tt
+    from mimicbench.baselines.mimicat.method import BUNDLED
+    from mimicbench.baselines.mimicat.transfer import correspondences, decode_correspondence, pose_mesh
 
     model, config, ctx = frozen_context(args.data, args.checkpoint or BUNDLED, args.decode)
     c = tt.section(config, "transfer")

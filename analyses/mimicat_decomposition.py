@@ -40,8 +40,8 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 
 def nearest_joint_matches(source, target) -> torch.Tensor:
-    """One-hot (Ks, Kt) M of nearest_joint's Hungarian match (:func:`baselines.nearest_joint.nearest_joint_pairs`)."""
-    from baselines.nearest_joint import nearest_joint_pairs
+    """One-hot (Ks, Kt) M of nearest_joint's Hungarian match (:func:`mimicbench.baselines.nearest_joint.nearest_joint_pairs`)."""
+    from mimicbench.baselines.nearest_joint import nearest_joint_pairs
 
     pairs = nearest_joint_pairs(source, target)
     m = torch.zeros(len(source.keypoints), len(target.keypoints))
@@ -51,8 +51,8 @@ def nearest_joint_matches(source, target) -> torch.Tensor:
 
 def variant(name: str, use_h: bool, matches: str, checkpoint: Path):
     """A `Mimicat` subclass registered as ``name``: H on or off, M from ``G`` or ``NJ``."""
-    from baselines.mimicat.method import CITATION, Mimicat
-    from benchmark.method import MethodMetadata
+    from mimicbench.baselines.mimicat.method import CITATION, Mimicat
+    from mimicbench.benchmark.method import MethodMetadata
 
     class Variant(Mimicat):
         metadata = MethodMetadata(name=name, version="1", licence="MIT", needs_training=True, citation=CITATION,
@@ -79,10 +79,10 @@ def variant(name: str, use_h: bool, matches: str, checkpoint: Path):
 
 def nearest_joint_variant(name: str, eq3_translation: bool, identity_unmatched: bool):
     """`nearest_joint` with its translation or unmatched-bone step replaced by the initialisation's."""
-    from baselines.posing import (carried_translations, inherit_unmatched, pose_target, pose_target_local,
+    from mimicbench.baselines.posing import (carried_translations, inherit_unmatched, pose_target, pose_target_local,
                                   size_ratio, source_pose)
-    from benchmark.method import MethodMetadata, PoseTransferMethod
-    from mimicbench.kinematics import forward_kinematics, local_from_global
+    from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+    from mimicbench.geometry.kinematics import forward_kinematics, local_from_global
 
     class NearestJointVariant(PoseTransferMethod):
         metadata = MethodMetadata(name=name, version="1", licence="MIT", description=f"nearest_joint variant {name}")
@@ -99,7 +99,7 @@ def nearest_joint_variant(name: str, eq3_translation: bool, identity_unmatched: 
             q[matched] = q_src[src_of[matched]]
             if not identity_unmatched:
                 q = inherit_unmatched(q, matched, r.target.parents)
-            if eq3_translation:  # as baselines.mimicat.initialisation.initial_pose
+            if eq3_translation:  # as mimicbench.baselines.mimicat.initialisation.initial_pose
                 wanted = t_src[src_of[matched]] - r.source.keypoints[src_of[matched]]
                 _, at_rest_root = forward_kinematics(local_from_global(q, r.target.parents), r.target.keypoints,
                                                      r.target.parents)
@@ -115,11 +115,11 @@ def nearest_joint_variant(name: str, eq3_translation: bool, identity_unmatched: 
 
 def m_statistics(data: Path, checkpoint: Path, cases) -> str:
     """Softness of G's M at the checkpoint's temperature and Eq. 4 against the naive average (A1)."""
-    from baselines.mimicat.initialisation import quaternion_average
-    from baselines.mimicat.method import Mimicat
-    from baselines.mimicat.transfer import correspondences
-    from baselines.posing import source_pose
-    from benchmark.protocols.base import EvalData
+    from mimicbench.baselines.mimicat.initialisation import quaternion_average
+    from mimicbench.baselines.mimicat.method import Mimicat
+    from mimicbench.baselines.mimicat.transfer import correspondences
+    from mimicbench.baselines.posing import source_pose
+    from mimicbench.benchmark.protocols.base import EvalData
 
     method = Mimicat(checkpoint, arap=False)
     method.setup("cpu")
@@ -153,10 +153,10 @@ def main() -> None:
     ap.add_argument("--cases", type=int, default=100, help="first N cct cases scored")
     args = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from baselines.mimicat.method import BUNDLED
-    from benchmark.aggregate import aggregate
-    from benchmark.evaluator import load_cases, run_benchmark
-    from benchmark.registry import register
+    from mimicbench.baselines.mimicat.method import BUNDLED
+    from mimicbench.benchmark.aggregate import aggregate
+    from mimicbench.benchmark.evaluator import load_cases, run_benchmark
+    from mimicbench.benchmark.registry import register
 
     if args.cases < 1:
         raise SystemExit(f"--cases: expected >= 1, got {args.cases}")
@@ -170,7 +170,7 @@ def main() -> None:
                                 ("nj_eq3_identity", True, True)):
         register(name, nearest_joint_variant(name, eq3, identity))
         names.append(name)
-    import benchmark.evaluator as evaluator
+    import mimicbench.benchmark.evaluator as evaluator
 
     all_cases = load_cases(data, ("cct",))["cct"]
     cases = all_cases[:args.cases]

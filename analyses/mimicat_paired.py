@@ -4,7 +4,7 @@ with standard errors clustered by (source, target) pair.
 For each protocol and metric, every method's mean over the cases that all the listed methods
 scored ``ok`` with a value, its pair-clustered standard error, and for each method against the
 reference (the first one listed) the mean of the per-case difference ``method - reference`` with
-its pair-clustered standard error (:func:`benchmark.intervals.pair_clustered_se`: the cases of one
+its pair-clustered standard error (:func:`mimicbench.benchmark.intervals.pair_clustered_se`: the cases of one
 pair share a correspondence, so the pair is the unit sampled), the difference in standard errors
 (``z``), the relative difference and the share of pairs on which the method is lower. A metric
 that no stored row has (an older results folder) is reported as missing. An entry of ``--methods``
@@ -39,7 +39,7 @@ def _version_key(v) -> tuple:
 def per_case(results, method: str, protocol: str, metric: str, version: str | None = None) -> dict[str, float]:
     """case ID -> metric of the ``ok`` rows of the method's ``version`` (None: its newest stored
     version, numeric versions compared as numbers)."""
-    from benchmark.results import method_dir, method_versions, read_result_records
+    from mimicbench.benchmark.results import method_dir, method_versions, read_result_records
 
     versions = [v for m, v in method_versions(results) if m == method]
     if not versions:
@@ -55,7 +55,7 @@ def per_case(results, method: str, protocol: str, metric: str, version: str | No
 
 def paired_rows(values: dict[str, dict[str, float]]) -> tuple[list[str], dict[str, np.ndarray], list[str]]:
     """(common case IDs, method -> values on them (C,), pair of each case (C,))."""
-    from benchmark.intervals import pair_of
+    from mimicbench.benchmark.intervals import pair_of
 
     common = sorted(set.intersection(*(set(v) for v in values.values())))
     return common, {m: np.array([v[c] for c in common]) for m, v in values.items()}, [pair_of(c) for c in common]
@@ -71,7 +71,7 @@ def pairs_lower(d: np.ndarray, pairs: list[str]) -> float:
 def paired_table(results, methods: list[str], protocol: str, metric: str, versions: dict | None = None) -> str:
     """Lines: each method's mean over the common cases (pair-clustered SE), and its paired
     difference to methods[0]."""
-    from benchmark.intervals import pair_clustered_se
+    from mimicbench.benchmark.intervals import pair_clustered_se
 
     versions = versions or {}
     values = {}

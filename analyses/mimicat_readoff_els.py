@@ -1,6 +1,6 @@
 """Whether the pose read-off of bones that own no vertices is what lowers `mimicat`'s ELS on real rigs.
 
-Every method reads the source's pose off its posed vertices (:func:`baselines.posing.source_pose`,
+Every method reads the source's pose off its posed vertices (:func:`mimicbench.baselines.posing.source_pose`,
 weighted Kabsch per bone); a bone that owns no vertices (total skin weight 0: a rig's ``root`` or
 ``Body`` on some artist rigs, pole targets, MMD's helper bones) cannot be read off the mesh (until
 version 6 it took its parent's rotation; since, the rotation its children agree on, where they
@@ -36,13 +36,13 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(1)
-    import baselines.posing as posing
-    import baselines.text_soft as text_soft
-    from baselines.mimicat.method import MimicatInitOnly
-    from benchmark.evaluator import load_cases
-    from benchmark.protocols.base import EvalData
-    from benchmark.scoring import score_pose
-    from mimicbench.transform_estimation import estimate_transforms
+    import mimicbench.baselines.posing as posing
+    import mimicbench.baselines.text_soft as text_soft
+    from mimicbench.baselines.mimicat.method import MimicatInitOnly
+    from mimicbench.benchmark.evaluator import load_cases
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.benchmark.scoring import score_pose
+    from mimicbench.geometry.transform_estimation import estimate_transforms
 
     ev = EvalData.load(args.data)
     cases = load_cases(args.data, ("h2h", "cct"))

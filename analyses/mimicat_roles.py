@@ -3,7 +3,7 @@ correspondences).
 
 ``accuracy``: for every (source, target) pair of DATA's cct cases (``bench cases``), each matcher
 gives each target bone one source bone or none; a target bone counts where its hidden role class
-(:func:`benchmark.semantic.character_role_classes`: arm ~ front leg ~ wing ~ pectoral fin, sides
+(:func:`mimicbench.benchmark.semantic.character_role_classes`: arm ~ front leg ~ wing ~ pectoral fin, sides
 kept) is also a class of the source, and it is right when its source bone has that class (no
 match is wrong). Matchers: each G given as ``--checkpoints NAME=FOLDER``, twice: ``NAME``, G's M
 at the transfer checkpoint's temperature decoded as the method reads it (``hungarian_sym`` in the
@@ -68,9 +68,9 @@ def match_from_m(m: np.ndarray) -> np.ndarray:
 
 def heuristic_targets(dataset) -> list:
     """The dataset's ``pairs/`` rows with the ``nearest_joint`` match as target (see the module docstring)."""
-    from baselines.mimicat.corr_data import PairTarget, read_pairs
-    from baselines.nearest_joint import nearest_joint_pairs
-    from benchmark.rigs import load_characters
+    from mimicbench.baselines.mimicat.corr_data import PairTarget, read_pairs
+    from mimicbench.baselines.nearest_joint import nearest_joint_pairs
+    from mimicbench.benchmark.rigs import load_characters
 
     chars = load_characters(dataset)
     out = []
@@ -84,8 +84,8 @@ def heuristic_targets(dataset) -> list:
 
 
 def train_a3(args) -> None:
-    from baselines.mimicat import transfer_training
-    from baselines.mimicat.config import shipped_config
+    from mimicbench.baselines.mimicat import transfer_training
+    from mimicbench.baselines.mimicat.config import shipped_config
     from mimicbench.training.loop import train_stage_result
 
     dataset = Path(args.data)
@@ -97,12 +97,12 @@ def train_a3(args) -> None:
 
 
 def accuracy(args) -> None:
-    from baselines.mimicat.method import Mimicat
-    from baselines.nearest_joint import nearest_joint_pairs
-    from benchmark.evaluator import load_cases
-    from benchmark.intervals import pair_clustered_se
-    from benchmark.protocols.base import EvalData
-    from benchmark.semantic import character_role_classes
+    from mimicbench.baselines.mimicat.method import Mimicat
+    from mimicbench.baselines.nearest_joint import nearest_joint_pairs
+    from mimicbench.benchmark.evaluator import load_cases
+    from mimicbench.benchmark.intervals import pair_clustered_se
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.benchmark.semantic import character_role_classes
 
     ev = EvalData.load(args.data)
     pairs = sorted({(c.source_id, c.target_id) for c in load_cases(args.data, ("cct",))["cct"]})
@@ -111,7 +111,7 @@ def accuracy(args) -> None:
         name, folder = spec.split("=", 1)
         methods[name] = Mimicat(checkpoint=folder, arap=False)
         methods[name].setup("cpu")
-    from baselines.mimicat.transfer import correspondences
+    from mimicbench.baselines.mimicat.transfer import correspondences
 
     names = [x for n in methods for x in (n, f"{n} argmax")] + ["nearest_joint"]
     right = {n: [] for n in names}

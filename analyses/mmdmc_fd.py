@@ -39,9 +39,9 @@ CM = 170.0  # cm of a 1.70 m character
 
 def _pairs(dataset: Path):
     """(Prepared, ClipPair, apparel rows, ground truth (F, A, 3), body target (F, A, 3)) per clip, metres."""
-    from baselines.mmdmc.data import TrainingData, body_target_weights, posed
-    from mimicbench.skinning import linear_blend_skinning
-    from schemas.weights import SparseWeights
+    from mimicbench.baselines.mmdmc.data import TrainingData, body_target_weights, posed
+    from mimicbench.geometry.skinning import linear_blend_skinning
+    from mimicbench.schemas.weights import SparseWeights
 
     data = TrainingData.load(dataset)
     for clip in data.clips:
@@ -223,7 +223,7 @@ def overfit_table(train: Path, held: Path, steps: int, windows: int, lr: float, 
     """Part 3: vertex L1 on fixed training / held-out windows (GT-history and rest starts) while a
     fresh f_d trains on the training windows (both starts)."""
     from mimicbench.training.registry import trainable
-    from baselines.mmdmc.losses import vertex_l1
+    from mimicbench.baselines.mmdmc.losses import vertex_l1
 
     model = trainable("mmdmc")
     config = model.config("small")

@@ -3,8 +3,8 @@
 The ``cct`` protocol scores the cycle A -> B -> A. A model can lower that score without posing B:
 its forward answer B' stays near B's rest mesh and the return leg reads A's pose back from small
 offsets. This script measures, on random cross-category pairs of a dataset (a humanoid-like
-character on exactly one side, :func:`baselines.npt.cycle.cross_category_pairs`), in the centred
-unit-size frames of :mod:`baselines.npt.placement` (distances are fractions of the mesh's size):
+character on exactly one side, :func:`mimicbench.baselines.npt.cycle.cross_category_pairs`), in the centred
+unit-size frames of :mod:`mimicbench.baselines.npt.placement` (distances are fractions of the mesh's size):
 
 - ``forward motion``: mean distance of B' from B's rest mesh, against ``source motion``, the mean
   distance of A posed from A's rest mesh; their per-pair ratio (median) is near 0 for a model that
@@ -32,8 +32,8 @@ import torch
 def measure(method, items) -> dict:
     """``{"forward", "source", "ratio", "self", "null"}`` of ``method`` (an Npt or Cgt, set up) over
     ``items``: (A rest, A posed, B rest) float32 arrays."""
-    from baselines.npt.cycle import box_centred
-    from baselines.npt.placement import centred
+    from mimicbench.baselines.npt.cycle import box_centred
+    from mimicbench.baselines.npt.placement import centred
 
     def answer(posed, rest, identity):
         pose = torch.as_tensor(centred(posed, rest)[method.pose_rows(len(posed))])[None]
@@ -65,10 +65,10 @@ def main() -> None:
     ap.add_argument("--model", action="append", default=[], metavar="NAME=RUN",
                     help="npt=RUN or cgt=RUN, or npt or cgt alone for the shipped weights (repeatable; default: both shipped)")
     args = ap.parse_args()
-    from baselines.cgt.method import Cgt
-    from baselines.npt.cycle import cross_category_pairs
-    from baselines.npt.method import Npt
-    from baselines.pose_pairs import PosePool
+    from mimicbench.baselines.cgt.method import Cgt
+    from mimicbench.baselines.npt.cycle import cross_category_pairs
+    from mimicbench.baselines.npt.method import Npt
+    from mimicbench.baselines.pose_pairs import PosePool
 
     torch.set_num_threads(1)
     pool = PosePool.load(args.data, "all")

@@ -1,4 +1,4 @@
-"""The range-of-motion score (:mod:`benchmark.motion_range`) on a dataset, and a method's cycle
+"""The range-of-motion score (:mod:`mimicbench.benchmark.motion_range`) on a dataset, and a method's cycle
 before and after a read-off change.
 
 ``range DATA``: (1) each clip of each character against the ranges of its *other* clips, the share
@@ -36,15 +36,15 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 
 def range_report(data: Path, n_cases: int) -> None:
-    from baselines.identity import Identity
-    from baselines.nearest_joint import NearestJoint
-    from baselines.text_soft import TextSoft
-    from benchmark.intervals import pair_clustered_se, pair_of
-    from benchmark.motion_range import MARGIN_DEG, out_of_range_bones, ranges_for_clips, ranges_for_dataset
-    from benchmark.protocols.base import EvalData
-    from mimicbench.kinematics import forward_kinematics, local_from_global, transforms_to_array
-    from mimicbench.quaternion import quat_from_axis_angle, quat_multiply
-    from schemas.dataset import Dataset
+    from mimicbench.baselines.identity import Identity
+    from mimicbench.baselines.nearest_joint import NearestJoint
+    from mimicbench.baselines.text_soft import TextSoft
+    from mimicbench.benchmark.intervals import pair_clustered_se, pair_of
+    from mimicbench.benchmark.motion_range import MARGIN_DEG, out_of_range_bones, ranges_for_clips, ranges_for_dataset
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.geometry.kinematics import forward_kinematics, local_from_global, transforms_to_array
+    from mimicbench.geometry.quaternion import quat_from_axis_angle, quat_multiply
+    from mimicbench.schemas.dataset import Dataset
 
     ev = EvalData.load(data)
     start = time.time()
@@ -116,7 +116,7 @@ def range_report(data: Path, n_cases: int) -> None:
 def cycle_report(before: Path, after: Path, metrics: list[str]) -> None:
     import pandas as pd
 
-    from benchmark.intervals import pair_clustered_se, pair_of
+    from mimicbench.benchmark.intervals import pair_clustered_se, pair_of
 
     def load(folder):
         return pd.concat([pd.read_parquet(f) for f in sorted(Path(folder).glob("*.parquet"))])
@@ -134,11 +134,11 @@ def cycle_report(before: Path, after: Path, metrics: list[str]) -> None:
 
 
 def changed_report(data: Path, methods: list[str], n_cases: int = 4) -> None:
-    import mimicbench.pose_readoff as readoff
-    from benchmark.protocols.base import EvalData
-    from benchmark.registry import get_method
-    from mimicbench.kabsch import kabsch_transforms
-    from schemas.dataset import Dataset
+    import mimicbench.geometry.pose_readoff as readoff
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.benchmark.registry import get_method
+    from mimicbench.geometry.kabsch import kabsch_transforms
+    from mimicbench.schemas.dataset import Dataset
 
     ev = EvalData.load(data)
     cases = [c for c in Dataset.of(data).records("cases") if c.protocol == "cct"]

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from mimicbench.skinning import linear_blend_skinning
-from schemas.weights import SparseWeights, as_dense
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.weights import SparseWeights, as_dense
 
 
 def nearest_body_bone(points: np.ndarray, keypoints: np.ndarray, parents: np.ndarray, body: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from benchmark.method import PoseTransferMethod
+from mimicbench.benchmark.method import PoseTransferMethod
 
 
 def checkpoint_path(folder: Path, stage: str) -> Path:
@@ -34,7 +34,7 @@ class CheckpointedMethod(PoseTransferMethod):
         self.config: dict = {}
 
     def weights_fingerprint(self) -> str:
-        from schemas.fingerprint import files_fingerprint
+        from mimicbench.schemas.fingerprint import files_fingerprint
 
         return files_fingerprint({self.stage: checkpoint_path(self.checkpoint, self.stage)})
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
 
 
 class Identity(PoseTransferMethod):

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from mimicbench.skinning import linear_blend_skinning
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.geometry.skinning import linear_blend_skinning
 
 
 class LbsKinematic(PoseTransferMethod):

@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from baselines.posing import carried_translations, inherit_unmatched, pose_target_local, size_ratio, source_pose
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from mimicbench.hungarian import hungarian_match
-from mimicbench.mesh import normalize_unit_height
+from mimicbench.baselines.posing import carried_translations, inherit_unmatched, pose_target_local, size_ratio, source_pose
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.geometry.hungarian import hungarian_match
+from mimicbench.geometry.mesh import normalize_unit_height
 
 
 def nearest_joint_pairs(source, target) -> np.ndarray:

@@ -1,17 +1,17 @@
 """Training examples of the re-implemented published baselines (NPT, CGT, SFPT), drawn from a zoo.
 
-A dataset's characters with a mesh and their clips (:func:`baselines.mimicat.transfer_data.read_transfer_pool`)
+A dataset's characters with a mesh and their clips (:func:`mimicbench.baselines.mimicat.transfer_data.read_transfer_pool`)
 give two kinds of example:
 
 - **same-skeleton pairs** (characters with equal ``skeleton_id``: the zoo's H2H family, any other
   shared rig): the source posed by one frame of one of its clips, and the target posed by the
   same pose carried over bone by bone, the h2h protocol's own ground truth
-  (:func:`benchmark.protocols.h2h.ground_truth_transforms`). NPT's and CGT's supervised loss,
+  (:func:`mimicbench.benchmark.protocols.h2h.ground_truth_transforms`). NPT's and CGT's supervised loss,
   SFPT's cross-transfer term.
 - **self examples** of any character (source = target): SFPT's reconstruction and skinning terms on
   every category.
 
-Posed meshes are the dataset's Eq. 1 (:func:`mimicbench.skinning.linear_blend_skinning`). Every draw
+Posed meshes are the dataset's Eq. 1 (:func:`mimicbench.geometry.skinning.linear_blend_skinning`). Every draw
 is a function of the generator passed in, so an epoch repeats for a seed.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimicbench.errors import UserError
+from mimicbench.runtime.errors import UserError
 
 
 @dataclass
@@ -48,7 +48,7 @@ class PosePool:
     """A dataset's characters and clips, with the pairs that share a skeleton.
 
     Attributes:
-        records: character ID -> :class:`schemas.character.CharacterRecord` (with a mesh and a clip).
+        records: character ID -> :class:`mimicbench.schemas.character.CharacterRecord` (with a mesh and a clip).
         motions: character ID -> list of (F, K, 7) float32 clips.
         pairs: sorted list of ordered (source ID, target ID) pairs sharing a skeleton, source != target.
         ids: sorted character IDs.
@@ -69,7 +69,7 @@ class PosePool:
     @classmethod
     def load(cls, dataset, split: str = "all") -> "PosePool":
         """The pool of ``dataset`` (cached per process, dataset folder and split)."""
-        from baselines.mimicat.transfer_data import read_transfer_pool
+        from mimicbench.baselines.mimicat.transfer_data import read_transfer_pool
 
         key = (str(dataset), split)
         if key not in _CACHE:
@@ -94,14 +94,14 @@ class PosePool:
 
     def posed(self, cid: str, transforms: np.ndarray) -> np.ndarray:
         """(N, 3) float32 character ``cid`` posed by ``transforms`` (K, 7) (Eq. 1)."""
-        from mimicbench.skinning import linear_blend_skinning
+        from mimicbench.geometry.skinning import linear_blend_skinning
 
         r = self.records[cid]
         return linear_blend_skinning(r.vertices, r.keypoints, r.weights, transforms).astype(np.float32)
 
     def example(self, source: str, target: str, rng: np.random.Generator) -> PoseExample:
         """A random pose of ``source`` and the same pose on ``target`` (same skeleton, or the same character)."""
-        from benchmark.protocols.h2h import ground_truth_transforms
+        from mimicbench.benchmark.protocols.h2h import ground_truth_transforms
 
         s, t = self.records[source], self.records[target]
         pose = self.draw_pose(source, rng)
@@ -129,8 +129,8 @@ def subsample(n: int, points: int, rng: np.random.Generator) -> np.ndarray:
 
 def neighbours(points: np.ndarray, k: int) -> np.ndarray:
     """(P, k) int64 nearest neighbours of each point (P, 3), the point itself first: the EdgeConv
-    neighbourhoods (MMDMC's :func:`baselines.mmdmc.apparel.component_neighbours` over one component)."""
-    from baselines.mmdmc.apparel import component_neighbours
+    neighbourhoods (MMDMC's :func:`mimicbench.baselines.mmdmc.apparel.component_neighbours` over one component)."""
+    from mimicbench.baselines.mmdmc.apparel import component_neighbours
 
     return component_neighbours(points, np.zeros(len(points), np.int64), k)
 

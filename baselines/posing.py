@@ -4,17 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.request import Rig, TransferRequest
-from mimicbench.kinematics import forward_kinematics, local_from_global, transforms_to_array
-from mimicbench.pose_readoff import read_rig_pose
-from mimicbench.skinning import linear_blend_skinning
+from mimicbench.benchmark.request import Rig, TransferRequest
+from mimicbench.geometry.kinematics import forward_kinematics, local_from_global, transforms_to_array
+from mimicbench.geometry.pose_readoff import read_rig_pose
+from mimicbench.geometry.skinning import linear_blend_skinning
 
 
 def source_pose(request: TransferRequest) -> tuple[np.ndarray, np.ndarray]:
     """Global rotations (Ks, 4) and posed keypoint positions (Ks, 3) of the posed source.
 
     Read off the posed source vertices by the joint fit of all bones, with the bones the mesh does
-    not determine completed from the skeleton (:func:`mimicbench.pose_readoff.read_pose`, the read-off
+    not determine completed from the skeleton (:func:`mimicbench.geometry.pose_readoff.read_pose`, the read-off
     every skeleton method and the protocols share).
     """
     pose = read_rig_pose(request.source, request.source_posed)
@@ -23,7 +23,7 @@ def source_pose(request: TransferRequest) -> tuple[np.ndarray, np.ndarray]:
 
 def size_ratio(request: TransferRequest) -> float:
     """Target size / source size: the rest meshes' largest bounding-box sides (the benchmark's
-    size, :func:`benchmark.normalisation.size_ratio`). Heights would not do: a snake's height is
+    size, :func:`mimicbench.benchmark.normalisation.size_ratio`). Heights would not do: a snake's height is
     its thickness, so a humanoid's steps would shrink 30-fold on it and a snake's grow 30-fold on
     a humanoid."""
     return request.target.size / request.source.size
@@ -61,10 +61,10 @@ def carried_translations(request: TransferRequest, q_src: np.ndarray, t_src: np.
     ``match[j]`` is the source bone of target bone j, or -1. A root takes its match's
     displacement from rest (the source's first root's when unmatched); another bone takes its
     match's translation relative to its parent beyond the rest offset (see
-    :func:`benchmark.protocols.h2h.local_translations`) when its parent is matched to that
+    :func:`mimicbench.benchmark.protocols.h2h.local_translations`) when its parent is matched to that
     bone's parent, else none. All scaled by :func:`size_ratio`.
     """
-    from benchmark.protocols.h2h import local_translations
+    from mimicbench.benchmark.protocols.h2h import local_translations
 
     src, tgt = request.source, request.target
     ratio = size_ratio(request)
@@ -84,7 +84,7 @@ def carried_translations(request: TransferRequest, q_src: np.ndarray, t_src: np.
 def pose_target_local(target: Rig, global_rotations: np.ndarray, moved: np.ndarray) -> np.ndarray:
     """Target vertices (Nt, 3) float32 posed by global rotations (Kt, 4) and local translations
     (Kt, 3) (:func:`carried_translations`) via forward kinematics and LBS."""
-    from benchmark.protocols.h2h import transforms_from_local
+    from mimicbench.benchmark.protocols.h2h import transforms_from_local
 
     transforms = transforms_from_local(local_from_global(global_rotations, target.parents), moved,
                                        target.keypoints, target.parents)

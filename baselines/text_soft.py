@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from baselines.posing import pose_target, size_ratio, source_pose
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from mimicbench.kinematics import forward_kinematics, local_from_global
-from mimicbench.rotation_average import weighted_quaternion_average
+from mimicbench.baselines.posing import pose_target, size_ratio, source_pose
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.geometry.kinematics import forward_kinematics, local_from_global
+from mimicbench.geometry.rotation_average import weighted_quaternion_average
 
 
 class TextSoft(PoseTransferMethod):
@@ -43,7 +43,7 @@ class TextSoft(PoseTransferMethod):
             return np.asarray(r.extras["m_sink"], dtype=np.float64)
         key = (r.source.bone_names, r.target.bone_names)
         if key not in self._cache:
-            from datagen.correspond import correspondence_for_names
+            from mimicbench.datagen.correspond.pair import correspondence_for_names
 
             kwargs = {"encoder": self.encoder}
             if self.temperature is not None:

@@ -1,5 +1,5 @@
 """The benchmark: adapter API, registry, cases, metrics, evaluator, results and leaderboard.
 
-A method is any :class:`benchmark.method.PoseTransferMethod` registered by name
-(:mod:`benchmark.registry`); the evaluator never imports a method by module.
+A method is any :class:`mimicbench.benchmark.method.PoseTransferMethod` registered by name
+(:mod:`mimicbench.benchmark.registry`); the evaluator never imports a method by module.
 """

@@ -11,7 +11,7 @@ matrix per protocol.
   headline metric over the cases of that category, plus an ``all`` column. A case's column is its
   target category when both sides are humanoid-like (h2h), else the side that is not humanoid-like
   (cct: ``bird`` holds humanoid->bird and bird->humanoid), else ``source->target``.
-- Every row is checked first (:mod:`benchmark.result_checks`: its folder's method and version,
+- Every row is checked first (:mod:`mimicbench.benchmark.result_checks`: its folder's method and version,
   the run's protocols and case IDs, metric ranges, no NaN); a row that fails is listed in
   ``refused`` with the reason, counted as ``invalid``, never averaged, and its method version gets
   no average.
@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmark.intervals import DRAWS, LEVEL, SEED, cluster_bootstrap_means, pair_of, paired_difference, tie_ranks
-from benchmark.result_checks import row_problem
-from benchmark.results import method_versions, read_result_records, read_run_info
-from schemas.character import HUMANOID_LIKE
-from schemas.result import ResultRecord
+from mimicbench.benchmark.intervals import DRAWS, LEVEL, SEED, cluster_bootstrap_means, pair_of, paired_difference, tie_ranks
+from mimicbench.benchmark.result_checks import row_problem
+from mimicbench.benchmark.results import method_versions, read_result_records, read_run_info
+from mimicbench.schemas.character import HUMANOID_LIKE
+from mimicbench.schemas.result import ResultRecord
 
 # Headline metric per protocol, first column present wins: h2h keeps the paper's unit height,
 # cross-category views use the largest extent (a flat snake is a few centimetres tall).
@@ -60,7 +60,7 @@ def metric_columns() -> list[str]:
 def _protocol(name: str):
     """The registered protocol object, or None for a name no longer registered."""
     try:
-        from benchmark.protocols import get_protocol
+        from mimicbench.benchmark.protocols import get_protocol
 
         return get_protocol(name)
     except ValueError:
@@ -153,7 +153,7 @@ def method_info(results, method: str, version: str) -> dict:
         info["source"] = "meta.json"
         return info
     try:
-        from benchmark.registry import get_method
+        from mimicbench.benchmark.registry import get_method
 
         md = get_method(method).metadata
     except Exception:  # an unknown or broken method still gets its results shown
@@ -322,7 +322,7 @@ def aggregate(results, reference: str | None = DEFAULT_REFERENCE) -> dict:
     ``method/version`` differences are taken against (None when ``reference`` is not in the
     results). Each row: method, version, key, complete, reads_rig (True when the method's metadata
     does not say: its requests carried the rig) and per column ``{"mean", "lo", "hi"`` (95%
-    percentile interval of a bootstrap clustered by (source, target) pair, :mod:`benchmark.intervals`),
+    percentile interval of a bootstrap clustered by (source, target) pair, :mod:`mimicbench.benchmark.intervals`),
     ``"cases", "pairs"`` (with a value), ``"unscored"`` (ok cases without a value, e.g. no role
     labels: never counted as zero), ``"diff", "diff_lo", "diff_hi", "diff_se", "diff_cases"``
     (mean of method - reference over the cases both have a value for, its interval and

@@ -10,7 +10,7 @@ the ``apparel`` protocol gives both per case:
 - :func:`penetration_share`: share (percent) of apparel vertices within :data:`CONTACT_MM`
   millimetres of the body, or inside it (HOOD's 1 mm), the distance scaled with the character
   (1 mm at 1.70 m height). The body is the target's convex body pieces
-  (:func:`datagen.apparel.body_shapes.body_pieces`, one a body bone, the shapes the simulation
+  (:func:`mimicbench.datagen.apparel.body_shapes.body_pieces`, one a body bone, the shapes the simulation
   collides with), posed by the ground truth's bones; apparel vertices already that close at rest
   (hair roots in the scalp, a collar on the neck: authored, not penetration) are not counted.
 """
@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.apparel.body_shapes import BodyPiece, body_pieces, points_inside
-from datagen.apparel.selection import dominant_bone
-from mimicbench.kinematics import rest_transforms
+from mimicbench.datagen.apparel.body_shapes import BodyPiece, body_pieces, points_inside
+from mimicbench.datagen.apparel.selection import dominant_bone
+from mimicbench.geometry.kinematics import rest_transforms
 
 REFERENCE_HEIGHT_M = 1.70
 """Both scores are stated for the character scaled to this height (MMDMC's 1.70 m)."""

@@ -1,20 +1,20 @@
 """One batch of cases of one protocol through a method, scored: the step every engine runs.
 
-:func:`evaluate_batch` is what the single-process loop (:mod:`benchmark.evaluator`) and a Ray task
-(:mod:`benchmark.ray_runner`) call; :func:`result_row` is the one way a case becomes a result row.
+:func:`evaluate_batch` is what the single-process loop (:mod:`mimicbench.benchmark.evaluator`) and a Ray task
+(:mod:`mimicbench.benchmark.ray_runner`) call; :func:`result_row` is the one way a case becomes a result row.
 """
 from __future__ import annotations
 
-from benchmark.protocols import DEFAULT_PROTOCOLS, answers, get_protocol
-from benchmark.protocols.base import EvalData
-from benchmark.request import MotionRequest, TransferRequest, mesh_only
-from benchmark.scoring import check_prediction
-from benchmark.worker import InProcessRunner
-from schemas.result import APPAREL_METRICS, FORWARD_METRICS, NOT_SUPPORTED, ResultRecord
+from mimicbench.benchmark.protocols import DEFAULT_PROTOCOLS, answers, get_protocol
+from mimicbench.benchmark.protocols.base import EvalData
+from mimicbench.benchmark.request import MotionRequest, TransferRequest, mesh_only
+from mimicbench.benchmark.scoring import check_prediction
+from mimicbench.benchmark.worker import InProcessRunner
+from mimicbench.schemas.result import APPAREL_METRICS, FORWARD_METRICS, NOT_SUPPORTED, ResultRecord
 
 
 def _call(method, requests: list[TransferRequest], sizes: list):
-    """Run a batch through a runner (:mod:`benchmark.worker`; a bare method runs in process); on a
+    """Run a batch through a runner (:mod:`mimicbench.benchmark.worker`; a bare method runs in process); on a
     failure retry one by one. Returns [(array | None, error | None, seconds)]. ``sizes`` holds each
     answer's vertex count, or its whole shape ((F, N, 3) for a :class:`MotionRequest`)."""
     runner = method if hasattr(method, "run_batch") else InProcessRunner(method, setup=False)
@@ -55,12 +55,12 @@ def supports(method, protocol: str) -> bool:
 
 def evaluate_batch(method, protocol, cases, data: EvalData, samples=None) -> list[ResultRecord]:
     """Score one batch of cases of one protocol (a :class:`BenchmarkProtocol` or its name);
-    ``samples`` (a :class:`benchmark.samples.SampleSink`) keeps the predictions of the sampled
+    ``samples`` (a :class:`mimicbench.benchmark.samples.SampleSink`) keeps the predictions of the sampled
     cases for pictures.
 
     A method whose metadata does not list the protocol gets ``not_supported`` rows and is not
     called. A method whose metadata says ``reads_rig=False`` gets every transfer request through
-    :func:`benchmark.request.mesh_only` (forward and return legs alike); the protocol scores
+    :func:`mimicbench.benchmark.request.mesh_only` (forward and return legs alike); the protocol scores
     with its own full rigs.
     """
     if isinstance(protocol, str):

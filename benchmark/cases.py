@@ -1,6 +1,6 @@
 """Deterministic benchmark cases: ``mimicbench bench cases DATASET``.
 
-Each protocol module builds its own cases (:mod:`benchmark.protocols`): ``h2h`` from pairs of
+Each protocol module builds its own cases (:mod:`mimicbench.benchmark.protocols`): ``h2h`` from pairs of
 characters that share a skeleton (any category: "same-skeleton" transfer, ground truth carried
 over bone by bone), ``cct`` from cross-category pairs with a humanoid on one side (scored by
 cycle consistency). Poses are frames (not the rest frame 0) of the source's own motions, drawn
@@ -12,11 +12,11 @@ every split, pairs across splits included, instead of a sample.
 """
 from __future__ import annotations
 
-from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
-from benchmark.protocols.base import CasePool
-from schemas.case import CaseRecord
-from schemas.shards import write_records
-from schemas.tables import rows_per_shard
+from mimicbench.benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
+from mimicbench.benchmark.protocols.base import CasePool
+from mimicbench.schemas.case import CaseRecord
+from mimicbench.schemas.shards import write_records
+from mimicbench.schemas.tables import rows_per_shard
 
 
 def build_cases(dataset, split: str = "test", h2h_pairs: int | None = 100, h2h_poses: int = 20,
@@ -54,7 +54,7 @@ def write_cases(dataset, cases: dict[str, list[CaseRecord]], config: dict) -> di
     Raises:
         ValueError: no protocol has any case: nothing is written, existing cases are kept.
     """
-    from benchmark.provenance import cases_config
+    from mimicbench.benchmark.provenance import cases_config
 
     if not any(cases.values()):
         raise ValueError(f"{dataset}: no cases were made (no two characters of the split share a skeleton_id "

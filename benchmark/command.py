@@ -6,8 +6,8 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from mimicbench.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
-from mimicbench.summary import StageSummary
+from mimicbench.runtime.argtypes import comma_choices, nonnegative_int, positive_float, positive_int
+from mimicbench.runtime.summary import StageSummary
 
 SPLIT_CHOICES = ("train", "val", "test", "all")
 CASES_CONFIG_KEYS = {"command": "bench", "bench_command": "cases", "debug": False, "no_verify": False}
@@ -26,7 +26,7 @@ def _method_names(text: str) -> tuple[str, ...]:
 
 def _protocol_names(text: str) -> tuple[str, ...]:
     """argparse type of ``--protocols``: a non-empty comma-separated subset of the protocols."""
-    from benchmark.protocols import available_protocols
+    from mimicbench.benchmark.protocols import available_protocols
 
     return comma_choices(available_protocols(), allow_empty=False)(text)
 
@@ -152,9 +152,9 @@ def refuse_flat_characters(dataset, case_ids: bool = False) -> None:
     Raises:
         ValueError: one line naming the characters and what to do.
     """
-    from schemas.integrity import entry_path
-    from schemas.shards import has_table, read_table, shard_entries
-    from schemas.validate import skeleton_and_height_problems
+    from mimicbench.schemas.integrity import entry_path
+    from mimicbench.schemas.shards import has_table, read_table, shard_entries
+    from mimicbench.schemas.validate import skeleton_and_height_problems
 
     flat = {cid for entry in shard_entries(dataset, "characters")
             for cid, kind, _ in skeleton_and_height_problems(entry_path(Path(dataset), entry["path"]))
@@ -181,14 +181,14 @@ def refuse_flat_characters(dataset, case_ids: bool = False) -> None:
 
 def run_cases(args) -> int:
     """``bench cases`` holding the writer's lock of the dataset."""
-    from schemas.folder_lock import hold
+    from mimicbench.schemas.folder_lock import hold
 
     with hold(args.dataset):  # one writer of the dataset at a time (a stage writing it makes this wait)
         return _run_cases(args)
 
 
 def _run_cases(args):
-    from benchmark.cases import build_cases, write_cases
+    from mimicbench.benchmark.cases import build_cases, write_cases
 
     refuse_flat_characters(args.dataset)
     if args.all_pairs and args.split not in (None, "all"):
@@ -211,8 +211,8 @@ def _run_protocols(args) -> list[str]:
     when it has none: the run then says to build cases)."""
     from pathlib import Path
 
-    from benchmark.protocols import DEFAULT_PROTOCOLS
-    from schemas.dataset import Dataset
+    from mimicbench.benchmark.protocols import DEFAULT_PROTOCOLS
+    from mimicbench.schemas.dataset import Dataset
 
     if args.protocols is not None:
         return list(args.protocols)
@@ -226,8 +226,8 @@ def _run_protocols(args) -> list[str]:
 def run_validity(args) -> int:
     from pathlib import Path
 
-    from benchmark.evaluator import run_benchmark
-    from benchmark.validity import markdown_validity, methods_to_run, validity_table, write_validity
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.validity import markdown_validity, methods_to_run, validity_table, write_validity
 
     results = Path(args.out) / "results"
     summary = run_benchmark(args.dataset, methods_to_run(), _run_protocols(args), results,
@@ -245,7 +245,7 @@ def run_run(args) -> int:
     run into the same results folder waits for the first, then skips the cases it computed."""
     import os
 
-    from schemas.folder_lock import hold
+    from mimicbench.schemas.folder_lock import hold
 
     rank = os.environ.get("RANK", "0") if os.environ.get("WORLD_SIZE", "1") not in ("", "1") else ""
     with hold(Path(args.out) if not rank else Path(f"{args.out}.rank-{rank}")):
@@ -253,11 +253,11 @@ def run_run(args) -> int:
 
 
 def _run_run(args) -> int:
-    from benchmark.evaluator import run_benchmark
-    from benchmark.leaderboard import markdown_tables
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.leaderboard import markdown_tables
     from mimicbench.engines import get_engine
 
-    from benchmark.registry import check_method_names
+    from mimicbench.benchmark.registry import check_method_names
 
     check_method_names(args.methods)  # a typo is named before anything about the dataset
     refuse_flat_characters(args.dataset, case_ids=True)
@@ -277,10 +277,10 @@ def _run_run(args) -> int:
 
 
 def run_leaderboard(args) -> int:
-    from benchmark.leaderboard import markdown_tables, write_leaderboard
-    from benchmark.aggregate import aggregate
+    from mimicbench.benchmark.leaderboard import markdown_tables, write_leaderboard
+    from mimicbench.benchmark.aggregate import aggregate
 
-    from benchmark.leaderboard import default_out
+    from mimicbench.benchmark.leaderboard import default_out
 
     out = args.out or default_out(args.results)
     reference = getattr(args, "reference", "nearest_joint")
@@ -292,8 +292,8 @@ def run_leaderboard(args) -> int:
 
 def run_methods(args) -> int:
     """One line a method; a method that cannot be loaded (a broken plug-in) is named on stderr, exit 1."""
-    from benchmark.registry import METHODS, get_method
-    from schemas.errors import UserError
+    from mimicbench.benchmark.registry import METHODS, get_method
+    from mimicbench.schemas.errors import UserError
 
     broken, rows = [], []
     for name in METHODS.names():

@@ -5,12 +5,12 @@ nccl on GPU), each rank appends its own result parts, and rank 0 aggregates once
 barrier. A re-run computes only the cases without a row. A method that raises, returns NaN or a
 wrong shape, writes into its (read-only) input, hangs past the per-case timeout or kills its
 worker process fails that case (the batch is retried one request at a time to find which) and
-the run goes on; see :mod:`benchmark.worker` for the worker process and :mod:`benchmark.provenance`
+the run goes on; see :mod:`mimicbench.benchmark.worker` for the worker process and :mod:`mimicbench.benchmark.provenance`
 for the fingerprints that keep results, cases and dataset together.
 
-The evaluator knows no protocol by name: each protocol module (:mod:`benchmark.protocols`) builds
+The evaluator knows no protocol by name: each protocol module (:mod:`mimicbench.benchmark.protocols`) builds
 its requests and scores, and calls the method only through the ``call`` it is handed here
-(:func:`benchmark.batch.evaluate_batch`). A method whose metadata does not list a protocol gets ``not_supported`` rows.
+(:func:`mimicbench.benchmark.batch.evaluate_batch`). A method whose metadata does not list a protocol gets ``not_supported`` rows.
 """
 from __future__ import annotations
 
@@ -20,18 +20,18 @@ from typing import Sequence
 
 from tqdm.auto import tqdm
 
-from benchmark.batch import evaluate_batch
-from benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
-from benchmark.protocols.base import EvalData
-from benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
+from mimicbench.benchmark.batch import evaluate_batch
+from mimicbench.benchmark.protocols import DEFAULT_PROTOCOLS, get_protocol
+from mimicbench.benchmark.protocols.base import EvalData
+from mimicbench.benchmark.provenance import (check_cases_current, check_method_folder, check_results_folder,
                                   dataset_fingerprints, method_meta, write_method_meta)
-from benchmark.ray_runner import evaluate_on_engine, ray_path
-from benchmark.registry import LoadError, check_method_names, get_method
-from benchmark.results import append_results, done_case_ids, method_dir, write_run_info
-from benchmark.samples import SampleSink
-from benchmark.worker import open_runner
-from schemas.result import NOT_SUPPORTED
-from schemas.dataset import Dataset
+from mimicbench.benchmark.ray_runner import evaluate_on_engine, ray_path
+from mimicbench.benchmark.registry import LoadError, check_method_names, get_method
+from mimicbench.benchmark.results import append_results, done_case_ids, method_dir, write_run_info
+from mimicbench.benchmark.samples import SampleSink
+from mimicbench.benchmark.worker import open_runner
+from mimicbench.schemas.result import NOT_SUPPORTED
+from mimicbench.schemas.dataset import Dataset
 
 
 @dataclass
@@ -69,7 +69,7 @@ class DistributedContext:
 
 def load_cases(dataset, protocols: Sequence[str]):
     """Cases of each protocol, in stored order; raises if ``bench cases`` has not been run.
-    ``dataset``: a :class:`~schemas.dataset.Dataset` or its path."""
+    ``dataset``: a :class:`~mimicbench.schemas.dataset.Dataset` or its path."""
     dataset = Dataset.of(dataset)
     out = {}
     for p in protocols:
@@ -99,7 +99,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
     Args:
         dataset: dataset folder with ``characters``, ``motions`` and ``cases`` tables.
         methods: registered method names.
-        protocols: protocol names (:func:`benchmark.protocols.available_protocols`).
+        protocols: protocol names (:func:`mimicbench.benchmark.protocols.available_protocols`).
         out: results folder; rows go to ``out/<method>/<version>/`` with a ``meta.json``.
         device: passed to each method's ``setup``.
         batch_size: requests per ``transfer`` call (>= 1).
@@ -107,9 +107,9 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         case_timeout: seconds a request may take in the worker process (> 0).
         in_process: call methods in this process (faster start, no timeout, no crash isolation).
         engine: a :class:`mimicbench.engines.RayEngine` runs each batch as a Ray task
-            (:mod:`benchmark.ray_runner`); None or a local engine keeps the worker processes.
+            (:mod:`mimicbench.benchmark.ray_runner`); None or a local engine keeps the worker processes.
 
-    A method whose entry cannot be imported (:class:`~mimicbench.registry.LoadError`, e.g. a plug-in
+    A method whose entry cannot be imported (:class:`~mimicbench.runtime.registry.LoadError`, e.g. a plug-in
     missing a module) is not run: the summary's ``unavailable`` maps its name to the reason.
 
     Raises:
@@ -118,7 +118,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         ProvenanceError: the cases were built from another state of the dataset, or ``out``
             holds rows made from another dataset state (nothing is written then).
     """
-    from schemas.spawn_guard import leave_if_reimporting_main
+    from mimicbench.schemas.spawn_guard import leave_if_reimporting_main
 
     leave_if_reimporting_main("a benchmark run")  # a worker re-running an unguarded script: stop, write nothing
     check_run_options(methods, batch_size, case_timeout)
@@ -192,7 +192,7 @@ def run_benchmark(dataset, methods: Sequence[str], protocols: Sequence[str] = DE
         ctx.close()
     summary = {"rank": ctx.rank, "world_size": ctx.world_size, **counts, "unavailable": unavailable}
     if ctx.rank == 0:
-        from benchmark.aggregate import aggregate
+        from mimicbench.benchmark.aggregate import aggregate
 
         summary["aggregate"] = aggregate(out)
     return summary

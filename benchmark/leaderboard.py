@@ -6,10 +6,10 @@ difference against a reference method, ranks with ties, whether the method reads
 by ``semantic_deg``), then the method x category matrix of the headline metric (with an ``all``
 column and a "missing / failed / not supported" column), a plot per category (log axis when one category is
 far off), the summary of every metric, and rendered strips of a few sampled cases (see
-:mod:`benchmark.leaderboard_strips`). Then each method's licence, citation and provenance.
+:mod:`mimicbench.benchmark.leaderboard_strips`). Then each method's licence, citation and provenance.
 Files: ``leaderboard.md``, ``.csv`` (one row per protocol and method), ``leaderboard_matrix.csv``
 (one row per protocol, method and category), ``leaderboard_ranking.csv`` (one row per protocol,
-column and method: mean, interval, difference, rank), ``.json`` (:func:`benchmark.aggregate.aggregate`),
+column and method: mean, interval, difference, rank), ``.json`` (:func:`mimicbench.benchmark.aggregate.aggregate`),
 ``.html`` (images embedded), and ``leaderboard_files/`` (the same images as PNG files, which the
 Markdown links to).
 """
@@ -23,9 +23,9 @@ import json
 import math
 from pathlib import Path
 
-from benchmark.aggregate import ALL, DEFAULT_REFERENCE, aggregate
-from benchmark.provenance import check_results_provenance
-from schemas.manifest import atomic_write_bytes
+from mimicbench.benchmark.aggregate import ALL, DEFAULT_REFERENCE, aggregate
+from mimicbench.benchmark.provenance import check_results_provenance
+from mimicbench.schemas.manifest import atomic_write_bytes
 
 FILES_DIR = "leaderboard_files"
 COUNT_COLUMNS = (("cases", "cases"), ("ok", "ok"), ("failed", "failed"), ("missing", "missing"),
@@ -432,13 +432,13 @@ def write_leaderboard(results, out_dir=None, pictures: bool = True, reference: s
     try:
         return _write_files(results, agg, out, pictures)
     except OSError as exc:  # a full disk or a read-only folder: name the folder, keep the reason
-        from mimicbench.errors import os_error_at
+        from mimicbench.runtime.errors import os_error_at
 
         raise os_error_at(exc, out) from exc
 
 
 def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Path]:
-    from benchmark.plots import protocol_figure_png
+    from mimicbench.benchmark.plots import protocol_figure_png
 
     files = out / FILES_DIR
     files.mkdir(parents=True, exist_ok=True)
@@ -449,8 +449,8 @@ def _write_files(results, agg: dict, out: Path, pictures: bool) -> dict[str, Pat
         atomic_write_bytes(files / f"plot-{protocol}.png", plots[protocol])
     strips, note = [], None
     if pictures:
-        from benchmark.leaderboard_strips import build_strips, render_strips
-        from datagen.render.render import RenderError
+        from mimicbench.benchmark.leaderboard_strips import build_strips, render_strips
+        from mimicbench.datagen.render.render import RenderError
 
         todo, note = build_strips(results, agg)
         try:

@@ -2,10 +2,10 @@
 the target's ground truth (where the protocol has one), every method's prediction, and for cycle
 protocols the source each method returned.
 
-Predictions come from the sample store (:mod:`benchmark.samples`); rest meshes, faces and the
+Predictions come from the sample store (:mod:`mimicbench.benchmark.samples`); rest meshes, faces and the
 case's transforms from the dataset the run used (``run.json``). Every panel of every strip is
-rendered in one Blender process (:func:`datagen.render.render_panels`), then each strip is laid
-out as one labelled PNG. Colours follow :data:`datagen.render.ROLE_COLOURS` (source blue, ground
+rendered in one Blender process (:func:`mimicbench.datagen.render.render_panels`), then each strip is laid
+out as one labelled PNG. Colours follow :data:`mimicbench.datagen.render.ROLE_COLOURS` (source blue, ground
 truth green, prediction orange, returned purple, rest grey); panels on the same character share a
 camera, so a prediction's offset from the truth stays visible.
 """
@@ -18,13 +18,13 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from benchmark.results import read_result_records
-from benchmark.samples import SAMPLES_DIR, read_sample, sample_rank
-from datagen.render.panel import Panel
-from mimicbench.skinning import linear_blend_skinning
-from schemas.columns import table_to_records
-from schemas.shards import has_table, read_records, read_table
-from schemas.tables import record_type
+from mimicbench.benchmark.results import read_result_records
+from mimicbench.benchmark.samples import SAMPLES_DIR, read_sample, sample_rank
+from mimicbench.datagen.render.panel import Panel
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.columns import table_to_records
+from mimicbench.schemas.shards import has_table, read_records, read_table
+from mimicbench.schemas.tables import record_type
 
 STRIPS_PER_PROTOCOL = 3
 PANEL_PX = 220
@@ -95,7 +95,7 @@ def build_strips(results, agg: dict, per_protocol: int = STRIPS_PER_PROTOCOL) ->
 
     Args:
         results: results folder.
-        agg: :func:`benchmark.aggregate.aggregate` of it (method order, headline metrics).
+        agg: :func:`mimicbench.benchmark.aggregate.aggregate` of it (method order, headline metrics).
     """
     dataset = find_dataset(results, agg.get("run", {}), agg.get("methods", {}))
     if dataset is None:
@@ -158,9 +158,9 @@ def render_strips(strips: list[Strip], out_dir, panel_px: int = PANEL_PX, timeou
         Per strip ``{"protocol", "case_id", "title", "path"}``.
 
     Raises:
-        datagen.render.RenderError: Blender is missing, crashed or timed out.
+        mimicbench.datagen.render.RenderError: Blender is missing, crashed or timed out.
     """
-    from datagen.render.render import compose_sheet, frame_panels, render_panels, with_notes
+    from mimicbench.datagen.render.render import compose_sheet, frame_panels, render_panels, with_notes
 
     panels = [p for s in strips for p in s.items if isinstance(p, Panel)]
     images = iter(render_panels(panels, panel_px, panel_px, timeout))

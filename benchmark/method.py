@@ -12,7 +12,7 @@ from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from benchmark.request import MotionRequest, TransferRequest
+from mimicbench.benchmark.request import MotionRequest, TransferRequest
 
 
 @dataclass(frozen=True)
@@ -28,15 +28,15 @@ class MethodMetadata:
         description: one line.
         tags: free-form labels.
         protocols: the benchmark protocols the method supports (names from
-            :func:`benchmark.protocols.available_protocols`); the evaluator does not run it on
+            :func:`mimicbench.benchmark.protocols.available_protocols`); the evaluator does not run it on
             the others and records those cases as ``not_supported``, not failed. The default is
             every protocol whose requests a general pose-transfer method can answer
             (``h2h``, ``cct``); a humanoid-only method would declare ``("h2h",)``.
         reads_rig: whether :meth:`PoseTransferMethod.transfer` reads the rig (keypoints, parents,
             skin weights, bone names, or the bone-indexed ``extras`` such as ``m_sink``) or only
             meshes. The default, True, is safe for any method. A method that declares False gets
-            transfer requests whose rigs carry no rig (:func:`benchmark.request.mesh_only`):
-            reading one raises :class:`benchmark.request.RigWithheld`, so the declaration
+            transfer requests whose rigs carry no rig (:func:`mimicbench.benchmark.request.mesh_only`):
+            reading one raises :class:`mimicbench.benchmark.request.RigWithheld`, so the declaration
             cannot be wrong. Motion requests (``apparel``) state the motion as bone transforms,
             so they always carry the rig; the leaderboard marks the methods that read it.
     """
@@ -80,7 +80,7 @@ class PoseTransferMethod(abc.ABC):
 
     def weights_fingerprint(self) -> str | None:
         """Fingerprint of the weights this instance will load (e.g.
-        :func:`schemas.fingerprint.files_fingerprint` of its checkpoint files), None for a method
+        :func:`mimicbench.schemas.fingerprint.files_fingerprint` of its checkpoint files), None for a method
         without weights (the default).
 
         Results are stored per method version and resumed, so ``bench run`` records it in the

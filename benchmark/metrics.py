@@ -1,9 +1,9 @@
-"""Pose-transfer metrics, NumPy (the torch twins are in :mod:`benchmark.metrics_torch`).
+"""Pose-transfer metrics, NumPy (the torch twins are in :mod:`mimicbench.benchmark.metrics_torch`).
 
-Distances are measured in the frame of a rest mesh (:class:`benchmark.normalisation.RestFrame`:
+Distances are measured in the frame of a rest mesh (:class:`mimicbench.benchmark.normalisation.RestFrame`:
 the target's for ground truth, the source's for a cycle's return), divided by its height
 (``by="height"``, the papers' convention) or its largest extent (``by="extent"``, one scale for
-every kind of character); see :mod:`benchmark.normalisation` for why both exist.
+every kind of character); see :mod:`mimicbench.benchmark.normalisation` for why both exist.
 
 - PMD (point-wise mesh distance; MimiCAT, Sec. 5; skeleton-free pose transfer): mean over
   vertices of the Euclidean distance between predicted and reference vertices, x100.
@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.normalisation import as_rest_frame
-from mimicbench.mesh import edge_lengths
+from mimicbench.benchmark.normalisation import as_rest_frame
+from mimicbench.geometry.mesh import edge_lengths
 
 
 def _difference(pred, ref, frame, by: str) -> np.ndarray:

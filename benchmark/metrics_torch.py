@@ -1,13 +1,13 @@
-"""Torch twins of :mod:`benchmark.metrics`, batched: tensors (B, N, 3), results (B,).
+"""Torch twins of :mod:`mimicbench.benchmark.metrics`, batched: tensors (B, N, 3), results (B,).
 
 ``target_rest_vertices`` is (B, N, 3) or (N, 3); ``by`` is ``height`` (Y extent) or ``extent``
-(largest side of the bounding box), as in :mod:`benchmark.normalisation`.
+(largest side of the bounding box), as in :mod:`mimicbench.benchmark.normalisation`.
 """
 from __future__ import annotations
 
 import torch
 
-from benchmark.normalisation import NORMALISATIONS
+from mimicbench.benchmark.normalisation import NORMALISATIONS
 
 
 def _scale(target_rest_vertices: torch.Tensor, by: str) -> torch.Tensor:

@@ -2,7 +2,7 @@
 beyond it (issue 47's forward plausibility, column ``out_of_range``).
 
 **Local rotation.** Bone k's rotation relative to its *reference*, the nearest ancestor whose
-rotation the mesh determines (:func:`mimicbench.transform_estimation.weight_support`; usually the
+rotation the mesh determines (:func:`mimicbench.geometry.transform_estimation.weight_support`; usually the
 parent): ``l_k = q_ref^-1 q_k`` with the rest-relative world rotations of the data contract. A
 bone without such an ancestor (a root, or a bone under roots without vertices) has no local
 rotation and is not scored: a root's rotation is the whole body's heading, not a joint angle.
@@ -22,7 +22,7 @@ segment's end: both are caught, where a bound on the rotation angle alone misses
 
 **Excess.** A pose's excess for bone k is ``max(distance of its swing vector to the hull, twist
 beyond the arc)`` in degrees, 0 inside. :func:`out_of_range_share` reads a predicted mesh's pose
-with the shared joint-fit read-off (:func:`mimicbench.pose_readoff.read_pose`) and the character's
+with the shared joint-fit read-off (:func:`mimicbench.geometry.pose_readoff.read_pose`) and the character's
 ground-truth weights and returns the share of scored bones whose excess is over
 :data:`MARGIN_DEG`.
 """
@@ -33,11 +33,11 @@ from typing import Mapping
 
 import numpy as np
 
-from mimicbench.kinematics import local_from_global
-from mimicbench.pose_readoff import read_pose
-from mimicbench.quaternion import quat_conjugate, quat_multiply, quat_normalize
-from mimicbench.transform_estimation import weight_support
-from mimicbench.validation import check_parents, check_shape
+from mimicbench.geometry.kinematics import local_from_global
+from mimicbench.geometry.pose_readoff import read_pose
+from mimicbench.geometry.quaternion import quat_conjugate, quat_multiply, quat_normalize
+from mimicbench.geometry.transform_estimation import weight_support
+from mimicbench.geometry.validation import check_parents, check_shape
 
 MARGIN_DEG = 10.0
 """Degrees beyond the range before a bone counts as out of range. The range is what a few clips
@@ -253,7 +253,7 @@ def out_of_range_bones(predicted_vertices: np.ndarray, rig, ranges: BoneRanges,
         predicted_vertices: (N, 3) the predicted mesh of the character, metres.
         rig: the character at rest with its ground-truth skin weights: any object with
             ``vertices`` (N, 3), ``keypoints`` (K, 3), ``parents`` (K,) and ``weights`` (a
-            :class:`benchmark.request.Rig`).
+            :class:`mimicbench.benchmark.request.Rig`).
         ranges: the character's :class:`BoneRanges`.
         margin_deg: degrees beyond the range that still count as inside.
 
@@ -298,9 +298,9 @@ def ranges_for_dataset(dataset, characters: Mapping | None = None) -> dict[str, 
     (``<clip>@sim``) are left out: their body pose is their kinematic twin's.
 
     Args:
-        dataset: a :class:`~schemas.dataset.Dataset` or its path.
-        characters: ``{character_id: rig}`` (a :class:`benchmark.request.Rig`, or an object with
-            a ``rig`` attribute such as :class:`benchmark.rigs.CharacterData`); None loads every
+        dataset: a :class:`~mimicbench.schemas.dataset.Dataset` or its path.
+        characters: ``{character_id: rig}`` (a :class:`mimicbench.benchmark.request.Rig`, or an object with
+            a ``rig`` attribute such as :class:`mimicbench.benchmark.rigs.CharacterData`); None loads every
             character with a mesh.
 
     Returns:
@@ -310,11 +310,11 @@ def ranges_for_dataset(dataset, characters: Mapping | None = None) -> dict[str, 
     Raises:
         DatasetError: a clip's joint count differs from its character's.
     """
-    from benchmark.rigs import load_characters
-    from schemas.dataset import Dataset
-    from schemas.errors import DatasetError
-    from schemas.motion import SIM_SUFFIX
-    from schemas.shard_stream import checked_parquet_file
+    from mimicbench.benchmark.rigs import load_characters
+    from mimicbench.schemas.dataset import Dataset
+    from mimicbench.schemas.errors import DatasetError
+    from mimicbench.schemas.motion import SIM_SUFFIX
+    from mimicbench.schemas.shard_stream import checked_parquet_file
 
     dataset = Dataset.of(dataset)
     chars = load_characters(dataset) if characters is None else characters

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimicbench.validation import check_shape
+from mimicbench.geometry.validation import check_shape
 
 NORMALISATIONS = ("height", "extent")
 

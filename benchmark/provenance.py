@@ -1,7 +1,7 @@
 """What made a set of results: dataset fingerprints, the method's metadata, the toolkit version.
 
 ``bench cases`` records in the manifest the fingerprints of the ``characters`` and ``motions``
-tables it read (``configs.cases.fingerprint.inputs``, see :func:`schemas.fingerprint.stage_config`;
+tables it read (``configs.cases.fingerprint.inputs``, see :func:`mimicbench.schemas.fingerprint.stage_config`;
 ``validate`` reports cases made from other tables too); ``bench run`` refuses cases whose recorded
 fingerprints differ from the tables now in the dataset (the dataset was regenerated after the
 cases were made).
@@ -14,7 +14,7 @@ cases were made).
      "weights": sha | null,
      "created": "2026-11-30T08:00:00+00:00"}
 
-(``weights``: :meth:`benchmark.method.PoseTransferMethod.weights_fingerprint`, null for a method
+(``weights``: :meth:`mimicbench.benchmark.method.PoseTransferMethod.weights_fingerprint`, null for a method
 without weights) and refuses (it never silently redoes) to add rows to a results folder whose
 rows were made from other fingerprints, with other weights or by another toolkit version, saying
 which differs: use another ``--out``, or delete the old folder. The leaderboard calls :func:`check_results_provenance`, which refuses
@@ -29,10 +29,10 @@ from pathlib import Path
 from typing import Sequence
 
 from mimicbench import __version__ as TOOLKIT_VERSION
-from schemas.errors import UserError
-from schemas.fingerprint import digest_of, stage_config, stale_inputs, table_fingerprint
-from schemas.dataset import Dataset
-from schemas.manifest import atomic_write_bytes, load_manifest
+from mimicbench.schemas.errors import UserError
+from mimicbench.schemas.fingerprint import digest_of, stage_config, stale_inputs, table_fingerprint
+from mimicbench.schemas.dataset import Dataset
+from mimicbench.schemas.manifest import atomic_write_bytes, load_manifest
 
 META_FILE = "meta.json"
 CASES_INPUTS = ("characters", "motions")
@@ -52,7 +52,7 @@ def split_fingerprint(manifest: dict, table: str, split: str) -> str | None:
 
 def cases_config(dataset, params: dict) -> dict:
     """The manifest config of the cases table: ``params`` plus the fingerprints of the characters
-    and motions tables of ``dataset`` (:func:`schemas.fingerprint.stage_config`)."""
+    and motions tables of ``dataset`` (:func:`mimicbench.schemas.fingerprint.stage_config`)."""
     manifest = load_manifest(dataset)
     return stage_config(params, {t: table_fingerprint(dataset, t, manifest) for t in CASES_INPUTS})
 

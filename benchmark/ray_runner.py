@@ -1,10 +1,10 @@
 """``bench run --engine ray``: batches of cases as Ray tasks, for CPU-bound methods and many small cases.
 
-GPU methods keep ``torchrun`` (one rank a GPU, :mod:`benchmark.evaluator`). With the Ray engine,
+GPU methods keep ``torchrun`` (one rank a GPU, :mod:`mimicbench.benchmark.evaluator`). With the Ray engine,
 each batch of ``--batch-size`` cases of one protocol is one task (1 CPU, retried by Ray when its
 worker dies). A Ray worker process builds the method once from its import path (``module:Class``,
-as :mod:`benchmark.worker` does), loads the dataset once, and scores its batches through the
-same runner as the local engine: a :class:`benchmark.worker.WorkerRunner` (a child process of
+as :mod:`mimicbench.benchmark.worker` does), loads the dataset once, and scores its batches through the
+same runner as the local engine: a :class:`mimicbench.benchmark.worker.WorkerRunner` (a child process of
 the Ray worker that runs ``setup(device)`` once) with the per-case timeout, or with
 ``in_process`` the method itself in the Ray worker (no timeout, no crash isolation). The sampled
 cases' predictions are kept for the leaderboard's pictures. The driver appends the rows in case
@@ -22,8 +22,8 @@ from __future__ import annotations
 from functools import partial
 from typing import Sequence
 
-from benchmark.protocols import get_protocol
-from mimicbench.registry import load_target
+from mimicbench.benchmark.protocols import get_protocol
+from mimicbench.runtime.registry import load_target
 
 _RUNNERS: dict = {}  # per Ray worker process: (import path, device, timeout, in process) -> runner
 _DATA: dict = {}  # per Ray worker process: dataset folder -> EvalData
@@ -31,7 +31,7 @@ _DATA: dict = {}  # per Ray worker process: dataset folder -> EvalData
 
 def _runner(path: str, device: str, case_timeout: float, in_process: bool):
     """This Ray worker's runner of the method at ``path``, built on first use and kept for later batches."""
-    from benchmark.worker import InProcessRunner, WorkerRunner
+    from mimicbench.benchmark.worker import InProcessRunner, WorkerRunner
 
     key = (path, device, case_timeout, in_process)
     if key not in _RUNNERS:
@@ -43,7 +43,7 @@ def _runner(path: str, device: str, case_timeout: float, in_process: bool):
 
 def _data(dataset: str):
     if dataset not in _DATA:
-        from benchmark.protocols.base import EvalData
+        from mimicbench.benchmark.protocols.base import EvalData
 
         _DATA.clear()  # one dataset at a time per worker
         _DATA[dataset] = EvalData.load(dataset)
@@ -52,7 +52,7 @@ def _data(dataset: str):
 
 def ray_path(method) -> str:
     """The import path a Ray worker builds ``method`` from; ValueError when it has none."""
-    from benchmark.worker import import_path
+    from mimicbench.benchmark.worker import import_path
 
     path = import_path(method)
     if path is None:
@@ -64,7 +64,7 @@ def ray_path(method) -> str:
 def score_batch(cases: Sequence, method_path: str, device: str, dataset: str, protocol: str, samples=None,
                 case_timeout: float = 600.0, in_process: bool = False) -> list:
     """ResultRecords of one batch of cases of one protocol (the Ray task's body)."""
-    from benchmark.batch import evaluate_batch
+    from mimicbench.benchmark.batch import evaluate_batch
 
     runner = _runner(method_path, device, float(case_timeout), in_process)
     return evaluate_batch(runner, get_protocol(protocol), list(cases), _data(dataset), samples)
@@ -76,13 +76,13 @@ def evaluate_on_engine(engine, method, method_path: str, protocol: str, todo: Se
     """Score ``todo`` cases of ``protocol`` in batches on ``engine``; ``on_rows(rows)`` in case order.
 
     ``case_timeout`` (seconds a case may take) and ``in_process`` mean what they mean for the
-    local engine (:func:`benchmark.evaluator.run_benchmark`).
+    local engine (:func:`mimicbench.benchmark.evaluator.run_benchmark`).
 
     A batch whose task failed for good (its worker died on every retry) gives ``failed`` rows
     with the engine's reason.
     """
-    from benchmark.batch import result_row
-    from datagen.stage_runner import run_stage
+    from mimicbench.benchmark.batch import result_row
+    from mimicbench.datagen.stage_runner import run_stage
     from mimicbench.engines import TaskResources
 
     batches = [list(todo[i:i + batch_size]) for i in range(0, len(todo), batch_size)]

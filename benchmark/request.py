@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from benchmark.normalisation import largest_extent
-from schemas.weights import SparseWeights
+from mimicbench.benchmark.normalisation import largest_extent
+from mimicbench.schemas.weights import SparseWeights
 
 
 def read_only(array, dtype=None) -> np.ndarray:
@@ -52,7 +52,7 @@ class _RestMeshSize:
     @property
     def size(self) -> float:
         """Largest side of the rest mesh's bounding box, metres: the size the benchmark scales
-        translations by between two characters (:func:`benchmark.normalisation.size_ratio`)."""
+        translations by between two characters (:func:`mimicbench.benchmark.normalisation.size_ratio`)."""
         return largest_extent(self.vertices)
 
 

@@ -7,7 +7,7 @@ checked against its folder (method and version), the run's cases (``run.json``: 
 and, when recorded, each protocol's case IDs) and the metric ranges below; a row that fails is
 shown with the reason and never averaged, and its method version gets no average.
 
-Metric ranges (see :mod:`schemas.result`): every PMD (``pmd*``, x100 or centimetres) is a mean
+Metric ranges (see :mod:`mimicbench.schemas.result`): every PMD (``pmd*``, x100 or centimetres) is a mean
 of distances, finite and >= 0; ``els*`` is 1 - a mean of |ratio - 1|, finite and <= 1;
 ``seconds`` finite and >= 0.
 """
@@ -18,7 +18,7 @@ import numbers
 
 import numpy as np
 
-from schemas.result import STATUSES
+from mimicbench.schemas.result import STATUSES
 
 
 def metric_range_problem(name: str, value) -> str | None:
@@ -47,7 +47,7 @@ def row_problem(row, method: str, version: str, metrics, case_ids: set | None = 
     """Why a result row cannot be averaged (None when it can).
 
     Args:
-        row: a :class:`~schemas.result.ResultRecord`.
+        row: a :class:`~mimicbench.schemas.result.ResultRecord`.
         method, version: the folder it was read from (``RESULTS/<method>/<version>``).
         metrics: the metric columns to range-check (scalar or per-frame list columns).
         case_ids: the protocol's case IDs (None: not recorded, not checked).

@@ -25,10 +25,10 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from schemas.columns import records_to_table, table_to_records
-from schemas.manifest import atomic_write_bytes
-from schemas.result import ResultRecord
-from schemas.tables import schema_of
+from mimicbench.schemas.columns import records_to_table, table_to_records
+from mimicbench.schemas.manifest import atomic_write_bytes
+from mimicbench.schemas.result import ResultRecord
+from mimicbench.schemas.tables import schema_of
 
 RUN_FILE = "run.json"
 PART_RE = re.compile(r"^part-(?P<seq>\d{10})-r(?P<rank>\d{3})-(?P<id>[0-9a-f]{12})\.parquet$")
@@ -112,7 +112,7 @@ def read_results(folder: Path) -> pa.Table:
     A row whose ``method``/``method_version`` is not the folder's (``<method>/<version>``: rows
     copied from another method) never replaces one of the folder's own rows; it is kept only for a
     case the folder has no own row for, so the leaderboard can show it as refused
-    (:mod:`benchmark.result_checks`)."""
+    (:mod:`mimicbench.benchmark.result_checks`)."""
     folder = Path(folder)
     tables = [t for t in (_read_part(p) for p in part_files(folder)) if t is not None]
     if not tables:

@@ -1,7 +1,7 @@
 """Load a dataset's characters as :class:`Rig` objects, with the per-character data the
 evaluator reuses across cases (unique edges).
 
-Every array here is read-only (see :func:`benchmark.request.read_only`): the same rig serves many
+Every array here is read-only (see :func:`mimicbench.benchmark.request.read_only`): the same rig serves many
 cases and methods, so nothing may write into it.
 """
 from __future__ import annotations
@@ -11,10 +11,10 @@ from functools import cached_property
 
 import numpy as np
 
-from benchmark.request import Rig, read_only
-from mimicbench.mesh import unique_edges
-from schemas.character import CharacterRecord
-from schemas.dataset import Dataset
+from mimicbench.benchmark.request import Rig, read_only
+from mimicbench.geometry.mesh import unique_edges
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.dataset import Dataset
 
 
 @dataclass

@@ -1,12 +1,12 @@
 """Match two skeletons' bones through their hidden roles (ground truth, never a method input).
 
 Used by the cross-skeleton ``h2h_xskel`` protocol to carry a pose over as its ground truth, and by the
-validity probes (:mod:`baselines.probes`), which read the roles to corrupt a right transfer in a
+validity probes (:mod:`mimicbench.baselines.probes`), which read the roles to corrupt a right transfer in a
 known way.
 
 A target bone's match is the source bone with the same role (``left/upper_arm``; a role that may
 label many bones, such as a role-label file's ``left/forelimb``, is not matched this way); failing that, a
-source bone of the same role class (``left/forelimb``, :func:`benchmark.semantic.character_role_classes`)
+source bone of the same role class (``left/forelimb``, :func:`mimicbench.benchmark.semantic.character_role_classes`)
 at the nearest position along the class by skin-weight mass (:func:`class_mass_position`), the bone
 with the most skin weight winning a tie; failing that, none (-1).
 """
@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.roles.vocabulary import is_class_role
+from mimicbench.datagen.roles.vocabulary import is_class_role
 
 
 def bone_mass(rig) -> np.ndarray:
     """(K,) each bone's total skin weight over the rest mesh (``rig``: anything with ``weights``, a
-    :class:`schemas.weights.SparseWeights`, and ``parents``)."""
+    :class:`mimicbench.schemas.weights.SparseWeights`, and ``parents``)."""
     w = rig.weights
     out = np.zeros(len(rig.parents))
     np.add.at(out, np.asarray(w.indices).ravel(), np.asarray(w.values, np.float64).ravel())

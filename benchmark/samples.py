@@ -74,7 +74,7 @@ def _write(path: Path, arrays: dict) -> None:
     a full disk is an OSError naming ``path``)."""
     import io
 
-    from schemas.manifest import atomic_write_bytes
+    from mimicbench.schemas.manifest import atomic_write_bytes
 
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)

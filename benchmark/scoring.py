@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.metrics import els, pmd, pmd_aligned, pmd_squared
-from benchmark.normalisation import RestFrame
+from mimicbench.benchmark.metrics import els, pmd, pmd_aligned, pmd_squared
+from mimicbench.benchmark.normalisation import RestFrame
 
 
 class InvalidPrediction(ValueError):

@@ -3,7 +3,7 @@
 The cycle of ``cct`` round-trips any one-to-one bone mapping, so a transfer that drives the
 target's right arm with the source's left arm costs it nothing. This score looks at the forward
 prediction alone, against ground truth that methods never receive: each character's hidden role
-classes (:func:`datagen.correspond.roles.role_classes`: arm ~ front leg ~ wing ~ pectoral fin,
+classes (:func:`mimicbench.datagen.correspond.roles.role_classes`: arm ~ front leg ~ wing ~ pectoral fin,
 sides kept; real characters get them from a role-label file).
 
 Definition (one case, source S posed, target T predicted):
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datagen.correspond.roles import role_classes
+from mimicbench.datagen.correspond.roles import role_classes
 
 FRAME_CLASSES = frozenset({"root", "spine"})
 """Classes that define the body frame rather than being scored as parts."""
@@ -96,7 +96,7 @@ def part_regions(weights, parents, classes: list) -> PartRegions:
     """The torso and the proximal/distal regions of every scored class of one character.
 
     Args:
-        weights: :class:`schemas.weights.SparseWeights` over K bones.
+        weights: :class:`mimicbench.schemas.weights.SparseWeights` over K bones.
         parents: (K,) parent indices, -1 for roots.
         classes: K role classes (``left/forelimb``, ``tail``, ...; None for an unlabelled bone).
     """

@@ -1,9 +1,9 @@
 """The validity table: can each score tell a corrupted transfer from its uncorrupted method?
 
-Each probe (:mod:`baselines.probes`) corrupts a right transfer in one known way. For every
+Each probe (:mod:`mimicbench.baselines.probes`) corrupts a right transfer in one known way. For every
 protocol column and probe, the table gives the paired difference ``probe - uncorrupted`` over the
 cases both scored, its standard error clustered by (source, target) pair
-(:func:`benchmark.intervals.pair_clustered_se`), ``z = difference / SE`` signed so that positive
+(:func:`mimicbench.benchmark.intervals.pair_clustered_se`), ``z = difference / SE`` signed so that positive
 means "the probe scores worse", and whether the column **detects** the corruption (``z > 2``).
 """
 from __future__ import annotations
@@ -11,8 +11,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from benchmark.intervals import pair_clustered_se, paired_values
-from benchmark.results import method_versions, method_dir, read_results
+from mimicbench.benchmark.intervals import pair_clustered_se, paired_values
+from mimicbench.benchmark.results import method_versions, method_dir, read_results
 
 PROBES = (
     ("probe_role_transfer", "probe_mirror", "left/right mirror"),

@@ -32,7 +32,7 @@ warning saying so. A script that calls the evaluator must guard its top level wi
 script's ``__main__`` module in the worker. A worker is the harness's until it reports ``started``
 (before it imports the method): one that ends before that is a start-up failure of the harness,
 raised as :class:`WorkerStartError` (one line naming the cause and, for an unguarded script, the
-fix: :mod:`schemas.spawn_guard`), never stored as the method's failure, so a re-run computes those
+fix: :mod:`mimicbench.schemas.spawn_guard`), never stored as the method's failure, so a re-run computes those
 cases.
 """
 from __future__ import annotations
@@ -47,10 +47,10 @@ from typing import Sequence
 
 import numpy as np
 
-from benchmark.request import MotionRequest, Rig, TransferRequest
-from mimicbench.errors import UserError
-from mimicbench.registry import load_target
-from schemas.spawn_guard import REIMPORT_EXIT, fix_text, leave_if_reimporting_main
+from mimicbench.benchmark.request import MotionRequest, Rig, TransferRequest
+from mimicbench.runtime.errors import UserError
+from mimicbench.runtime.registry import load_target
+from mimicbench.schemas.spawn_guard import REIMPORT_EXIT, fix_text, leave_if_reimporting_main
 
 log = logging.getLogger("mimicbench")
 

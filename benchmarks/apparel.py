@@ -10,7 +10,7 @@ Both sides simulate the same thing: 8 physics steps a frame (240 Hz; Blender's
 ``substeps_per_frame`` x fps), 30 solver iterations, gravity 9.8 m/s^2, the same capsules,
 masses and linear/angular damping, swing limit 0.7 rad and twist 0.2 rad, springs toward rest
 with the stage's per-joint stiffness and damping (Blender: Generic Spring constraints, SPRING2,
-given the diagonal of :class:`datagen.apparel.springs.Springs`), links colliding with the body
+given the diagonal of :class:`mimicbench.datagen.apparel.springs.Springs`), links colliding with the body
 and not with other chains (Blender: the torso in every collision collection, each chain in one,
 neighbours in different ones). Differences that stay: Blender's limits are a box on three Euler
 angles where the stage's are a swing cone and a twist bound; Blender joins the root links to
@@ -34,7 +34,7 @@ idle machine the wall ratio is the fairer one; on a loaded machine only the CPU 
 
     python benchmarks/apparel.py [--links 10 50 200] [--seconds 2] [--clips 3] [--no-blender]
 
-The compiled joint kernels (numba, :mod:`datagen.apparel.joint_kernel`) are imported and called
+The compiled joint kernels (numba, :mod:`mimicbench.datagen.apparel.joint_kernel`) are imported and called
 once before any figure is timed; that first call (compiling them, or loading numba's cache of
 them) is printed on its own line and is in no per-clip figure.
 
@@ -90,9 +90,9 @@ def clip_transforms(keypoints, yaw, shift) -> np.ndarray:
 
 def stage_chains(keypoints, parents):
     """Body pieces and chains of the scene as the stage describes them (skirt defaults)."""
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
-    from datagen.apparel.params import ApparelParams
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+    from mimicbench.datagen.apparel.params import ApparelParams
 
     sim = ApparelParams().simulation
     box = np.array([[x, y, z] for x in TORSO_BOX[:, 0] for y in TORSO_BOX[:, 1] for z in TORSO_BOX[:, 2]])
@@ -112,11 +112,11 @@ def run_ours(keypoints, parents, yaw, shift, clips: int = CLIPS_PER_CHARACTER) -
     """Seconds of this stage: (CPU set-up of the character's world, CPU and wall mean simulation
     of one clip).
 
-    As the stage does it: one world per character (:mod:`datagen.apparel.world_cache`), reset
+    As the stage does it: one world per character (:mod:`mimicbench.datagen.apparel.world_cache`), reset
     before each of its ``clips`` clips (here the same clip each time).
     """
-    from datagen.apparel.simulate import simulate_clip
-    from datagen.apparel.world import ApparelWorld
+    from mimicbench.datagen.apparel.simulate import simulate_clip
+    from mimicbench.datagen.apparel.world import ApparelWorld
 
     sim, pieces, chains = stage_chains(keypoints, parents)
     clip = clip_transforms(keypoints, yaw, shift)
@@ -138,8 +138,8 @@ def first_kernel_call() -> tuple[float, float]:
     scene's first frame; once a process, so kept out of every per-clip figure (a stage worker
     pays it once)."""
     start = time.perf_counter()
-    from datagen.apparel.simulate import simulate_clip
-    from datagen.apparel.world import ApparelWorld
+    from mimicbench.datagen.apparel.simulate import simulate_clip
+    from mimicbench.datagen.apparel.world import ApparelWorld
 
     imported = time.perf_counter()
     keypoints, parents, yaw, shift = scene(10, 1.0 / FPS)
@@ -153,8 +153,8 @@ def first_kernel_call() -> tuple[float, float]:
 
 def blender_springs(keypoints, parents) -> tuple[np.ndarray, np.ndarray]:
     """(L, 3) spring stiffness (N m/rad) and damping (N m s/rad) per link and axis (swing x, y,
-    twist z): the diagonal K and C of this stage's springs (:mod:`datagen.apparel.springs`)."""
-    from datagen.apparel.springs import Springs
+    twist z): the diagonal K and C of this stage's springs (:mod:`mimicbench.datagen.apparel.springs`)."""
+    from mimicbench.datagen.apparel.springs import Springs
 
     _, _, chains = stage_chains(keypoints, parents)
     dt = 1.0 / (FPS * SUBSTEPS)

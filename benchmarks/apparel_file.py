@@ -1,6 +1,6 @@
 """Apparel from the file's physics on Gene.pmx: this stage's file physics
-(:mod:`datagen.apparel.file_physics`, the model's 87 rigid bodies and 92 joints) against the
-chain defaults (:mod:`datagen.apparel.setup`, the zoo's chains on the same apparel bones), on
+(:mod:`mimicbench.datagen.apparel.file_physics`, the model's 87 rigid bodies and 92 joints) against the
+chain defaults (:mod:`mimicbench.datagen.apparel.setup`, the zoo's chains on the same apparel bones), on
 the same clips, with the same substeps (240 Hz), solver iterations and relaxation (30 frames).
 
 Clips: Gene_stand.vmd (121 frames, ingested with it), and a quarter turn of the whole body in
@@ -22,7 +22,7 @@ import numpy as np
 
 
 def _turn(c, frames: int = 30):
-    from schemas.motion import MotionRecord
+    from mimicbench.schemas.motion import MotionRecord
 
     angles = np.minimum(np.arange(frames) / 6, 1.0) * (np.pi / 2)
     root = np.asarray(c.keypoints[0], np.float64)
@@ -36,14 +36,14 @@ def _turn(c, frames: int = 30):
 
 
 def main() -> None:
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.file_physics import simulate_file_motion
-    from datagen.apparel.params import ApparelParams
-    from datagen.apparel.quality import clip_quality
-    from datagen.apparel.selection import dominant_bone
-    from datagen.apparel.setup import character_physics, simulate_motion
-    from datagen.ingest.runner import ingest_assets
-    from schemas.shards import read_records
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.file_physics import simulate_file_motion
+    from mimicbench.datagen.apparel.params import ApparelParams
+    from mimicbench.datagen.apparel.quality import clip_quality
+    from mimicbench.datagen.apparel.selection import dominant_bone
+    from mimicbench.datagen.apparel.setup import character_physics, simulate_motion
+    from mimicbench.datagen.ingest.runner import ingest_assets
+    from mimicbench.schemas.shards import read_records
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--assets", default=str(Path(__file__).resolve().parents[2] / "shared" / "assets"))

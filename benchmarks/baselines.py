@@ -37,8 +37,8 @@ timed_steps = _mimicat_benchmark.timed_steps
 
 
 def training_steps_per_second(name: str, data: Path, device: torch.device, steps: int) -> float:
-    from baselines.checkpointed import checkpoint_path
-    from benchmark.registry import get_method
+    from mimicbench.baselines.checkpointed import checkpoint_path
+    from mimicbench.benchmark.registry import get_method
     from mimicbench.training.checkpoint import read_header
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
@@ -54,9 +54,9 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=10, help="timed training steps per method")
     ap.add_argument("--cases", type=int, default=24, help="forward requests timed")
     args = ap.parse_args()
-    from benchmark.evaluator import load_cases
-    from benchmark.protocols.base import EvalData
-    from benchmark.registry import get_method
+    from mimicbench.benchmark.evaluator import load_cases
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.benchmark.registry import get_method
 
     device = torch.device(args.device)
     data = dataset(Path(args.work or tempfile.mkdtemp(prefix="mimicbench-baselines-")))

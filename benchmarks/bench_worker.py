@@ -1,7 +1,7 @@
 """Cost of running methods in a worker process (`bench run`'s default) against `--in-process`.
 
 Builds a zoo (or uses DATASET), makes cases, then scores the same methods twice into fresh
-results folders: once in process, once through :class:`benchmark.worker.WorkerRunner` (one spawn
+results folders: once in process, once through :class:`mimicbench.benchmark.worker.WorkerRunner` (one spawn
 worker a method, rigs sent once, requests as IDs plus posed vertices). Prints both wall times and
 their ratio, and the per-case overhead of the worker.
 
@@ -23,10 +23,10 @@ def main() -> None:
     ap.add_argument("--batch-size", type=int, default=16)
     args = ap.parse_args()
 
-    from benchmark.cases import build_cases, write_cases
-    from benchmark.evaluator import run_benchmark
-    from datagen.zoo import build_zoo
-    from schemas.shards import read_records
+    from mimicbench.benchmark.cases import build_cases, write_cases
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import read_records
 
     work = Path(tempfile.mkdtemp(prefix="bench_worker-"))
     data = Path(args.dataset) if args.dataset else work / "zoo"

@@ -1,13 +1,13 @@
 """Speed of the correspond stage's pair computation (embedding excluded), per method.
 
-20,000 pairs of 80-joint characters through :func:`datagen.correspond.batched.correspondence_batch`
+20,000 pairs of 80-joint characters through :func:`mimicbench.datagen.correspond.batched.correspondence_batch`
 (batched S_cos, scaling-domain Sinkhorn in torch, scipy Hungarian) with the ``text`` method (the
 paper's) and with the ``structure`` method (structure features of 80 zoo-like bones: the feature
 product, the no-match Hungarian and the Sinkhorn dustbin), against two peers on a subset: a plain
 per-pair loop (scipy's Hungarian plus a NumPy log-domain Sinkhorn) and POT's ``ot.sinkhorn`` with
 scipy's Hungarian. Embeddings mimic bone names: each character draws its 80 names from a shared
 160-word vocabulary of 384-d unit vectors, with a little noise. Structure features are those of
-real zoo skeletons (:func:`datagen.correspond.structure.skeleton_features`), cut or tiled to 80.
+real zoo skeletons (:func:`mimicbench.datagen.correspond.structure.skeleton_features`), cut or tiled to 80.
 The last lines are the structure method's speed over the plain per-pair loop's and over the text
 method's, in the same run.
 
@@ -20,7 +20,7 @@ within the 2x the issue allows; still about 11-25x the plain per-pair loop.
     python benchmarks/correspond.py [--pairs 20000] [--peer-pairs 400]
 
 ``--stage DATASET`` profiles the whole stage instead (cProfile): ``--stage-pairs`` sampled pairs a
-split of a copy of DATASET through :func:`datagen.correspond.stage.correspond_dataset`, printing
+split of a copy of DATASET through :func:`mimicbench.datagen.correspond.stage.correspond_dataset`, printing
 the CPU milliseconds a pair (encoder loading included), the bytes a pair takes on disk and the
 functions that took the most time. On the 975-character zoo (all-pairs blocks of the first
 5,000 train pairs, 2-core machine shared with other work) the Sinkhorn sweeps took about 75% of
@@ -35,9 +35,9 @@ import time
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
-from datagen.correspond.methods import get_matcher, match_batch
-from mimicbench.sinkhorn import sinkhorn_log
+from mimicbench.datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
+from mimicbench.datagen.correspond.methods import get_matcher, match_batch
+from mimicbench.geometry.sinkhorn import sinkhorn_log
 
 
 def make_characters(n: int, k: int = 80, vocab: int = 160, d: int = 384, seed: int = 0) -> list[np.ndarray]:
@@ -52,12 +52,12 @@ def make_characters(n: int, k: int = 80, vocab: int = 160, d: int = 384, seed: i
 
 def zoo_features(n: int, k: int = 80) -> list[np.ndarray]:
     """(k, F) structure features of ``n`` zoo skeletons (every category), rows tiled or cut to k."""
-    from datagen.correspond.canonical import canonicalize_names
-    from datagen.correspond.structure import skeleton_features
-    from datagen.zoo.build import build_skeleton, naming_style
-    from datagen.zoo.naming import bone_names
-    from datagen.zoo.plan import plan_zoo
-    from schemas.character import HUMANOID_LIKE
+    from mimicbench.datagen.correspond.canonical import canonicalize_names
+    from mimicbench.datagen.correspond.structure import skeleton_features
+    from mimicbench.datagen.zoo.build import build_skeleton, naming_style
+    from mimicbench.datagen.zoo.naming import bone_names
+    from mimicbench.datagen.zoo.plan import plan_zoo
+    from mimicbench.schemas.character import HUMANOID_LIKE
 
     out = []
     for spec in plan_zoo(n, seed=0):
@@ -76,7 +76,7 @@ def profile_stage(dataset: str, pairs: int) -> None:
     import tempfile
     from pathlib import Path
 
-    from datagen.correspond.stage import correspond_dataset
+    from mimicbench.datagen.correspond.stage import correspond_dataset
 
     with tempfile.TemporaryDirectory(prefix="correspond-profile-") as tmp:
         copy = Path(tmp) / "data"

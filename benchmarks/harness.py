@@ -22,13 +22,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", default=None, help="folder for the data (default: a temporary folder)")
     args = ap.parse_args()
-    from benchmark.cases import build_cases, write_cases
-    from benchmark.evaluator import load_cases, run_benchmark
-    from benchmark.metrics import els, pmd
-    from benchmark.rigs import load_characters
-    from datagen.resample import resample_dataset
-    from datagen.zoo import build_zoo
-    from mimicbench.skinning import linear_blend_skinning
+    from mimicbench.benchmark.cases import build_cases, write_cases
+    from mimicbench.benchmark.evaluator import load_cases, run_benchmark
+    from mimicbench.benchmark.metrics import els, pmd
+    from mimicbench.benchmark.rigs import load_characters
+    from mimicbench.datagen.resample.stage import resample_dataset
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.geometry.skinning import linear_blend_skinning
 
     work = Path(args.work or tempfile.mkdtemp(prefix="mimicbench-harness-"))
     zoo, data = work / "zoo", work / "zoo5k"
@@ -61,7 +61,7 @@ def main() -> None:
     import torch
 
     if torch.cuda.is_available():
-        from benchmark.metrics_torch import pmd_torch
+        from mimicbench.benchmark.metrics_torch import pmd_torch
 
         v = torch.randn(256, 2500, 3, device="cuda")
         torch.cuda.synchronize()

@@ -12,7 +12,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from datagen.ingest import ingest_assets
+from mimicbench.datagen.ingest.runner import ingest_assets
 
 DEFAULT_ASSETS = Path(__file__).resolve().parents[2] / "shared" / "assets"
 

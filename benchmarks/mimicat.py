@@ -9,9 +9,9 @@ Builds (or reuses) a 16-character zoo resampled to 5,000 faces with corresponden
 - the transfer stage before and after, on the same batches: before, G's Sinkhorn in log space
   for the pairs each step meets and every rest mesh through E every step (the code up to version
   3); then with the shared caches alone
-  (:data:`baselines.mimicat.transfer_training.SHARED_CACHES`: G's M computed once per pair at an
+  (:data:`mimicbench.baselines.mimicat.transfer_training.SHARED_CACHES`: G's M computed once per pair at an
   epoch's start, E's rest tokens once per mesh); after, the caches and G's Sinkhorn by matrix
-  scaling (:func:`mimicbench.sinkhorn.sinkhorn_scaling_torch`); a first epoch from empty caches
+  scaling (:func:`mimicbench.geometry.sinkhorn.sinkhorn_scaling_torch`); a first epoch from empty caches
   (the epoch's M computation included in its time) and a second epoch in the same process;
 - inference: seconds per request of ``mimicat`` (E -> G -> H -> LBS, with and without ARAP) on
   the cases' forward requests, against the named peer ``text_soft`` (the same initialisation
@@ -35,11 +35,11 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 
 def dataset(work: Path) -> Path:
-    from benchmark.cases import build_cases, write_cases
-    from datagen.correspond import correspond_dataset
-    from datagen.resample import resample_dataset
-    from datagen.zoo import build_zoo
-    from schemas.shards import has_table
+    from mimicbench.benchmark.cases import build_cases, write_cases
+    from mimicbench.datagen.correspond.stage import correspond_dataset
+    from mimicbench.datagen.resample.stage import resample_dataset
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import has_table
 
     zoo, data = work / "zoo", work / "zoo5k"
     if not (zoo / "manifest.json").exists():
@@ -54,7 +54,7 @@ def dataset(work: Path) -> Path:
 
 
 def training_steps_per_second(stage_name: str, data: Path, checkpoint: Path, device: torch.device, steps: int) -> float:
-    from baselines.mimicat.method import checkpoint_path
+    from mimicbench.baselines.mimicat.method import checkpoint_path
     from mimicbench.training.checkpoint import load_module, read_header
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
@@ -105,10 +105,10 @@ def transfer_epochs_steps_per_second(data: Path, checkpoint: Path, device: torch
     """Steps per second of two epochs of ``steps`` steps of the transfer stage, caches emptied
     first, with the shared caches on or off and G's no-gradient Sinkhorn by matrix scaling or in
     log space; each epoch timed from its first batch (the epoch's M precomputation included)."""
-    import baselines.mimicat.correspondence as corr
-    import baselines.mimicat.transfer_training as tt
-    from mimicbench.sinkhorn import sinkhorn_log, sinkhorn_scaling_torch
-    from baselines.mimicat.method import checkpoint_path
+    import mimicbench.baselines.mimicat.correspondence as corr
+    import mimicbench.baselines.mimicat.transfer_training as tt
+    from mimicbench.geometry.sinkhorn import sinkhorn_log, sinkhorn_scaling_torch
+    from mimicbench.baselines.mimicat.method import checkpoint_path
     from mimicbench.training.checkpoint import load_module, read_header
     from mimicbench.training.loop import _to_device
     from mimicbench.training.registry import trainable
@@ -169,10 +169,10 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=20, help="timed training steps per stage")
     ap.add_argument("--cases", type=int, default=48, help="forward requests timed")
     args = ap.parse_args()
-    from baselines.mimicat.method import BUNDLED, Mimicat
-    from baselines.text_soft import TextSoft
-    from benchmark.evaluator import load_cases
-    from benchmark.protocols.base import EvalData
+    from mimicbench.baselines.mimicat.method import BUNDLED, Mimicat
+    from mimicbench.baselines.text_soft import TextSoft
+    from mimicbench.benchmark.evaluator import load_cases
+    from mimicbench.benchmark.protocols.base import EvalData
 
     device = torch.device(args.device)
     checkpoint = Path(args.checkpoint) if args.checkpoint else BUNDLED

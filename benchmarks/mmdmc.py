@@ -3,7 +3,7 @@ CPU (and on CUDA where a GPU is present), against the apparel stage's Bullet sim
 clip (what the model stands in for).
 
 The clip: the first simulated clip of the first character of DATASET (a ``mimicbench datagen
-apparel`` output). Simulation: :func:`datagen.apparel.setup.simulate_motion` at 240 Hz with the
+apparel`` output). Simulation: :func:`mimicbench.datagen.apparel.setup.simulate_motion` at 240 Hz with the
 default parameters, relaxation frames included (as the stage runs it). Inference: the shipped
 ``mmdmc`` answering the whole clip as one motion request, once cold (geodesics, mask and weights
 computed) and once warm (cached per character). Training: ``--steps`` optimiser steps of each
@@ -23,8 +23,8 @@ import torch
 
 
 def simulation_fps(record, motion) -> float:
-    from datagen.apparel.params import ApparelParams
-    from datagen.apparel.setup import character_physics, simulate_motion
+    from mimicbench.datagen.apparel.params import ApparelParams
+    from mimicbench.datagen.apparel.setup import character_physics, simulate_motion
 
     params = ApparelParams()
     start = time.perf_counter()
@@ -34,8 +34,8 @@ def simulation_fps(record, motion) -> float:
 
 
 def inference_fps(record, motion, device: str) -> tuple[float, float]:
-    from benchmark.registry import get_method
-    from benchmark.request import MotionRequest, Rig
+    from mimicbench.benchmark.registry import get_method
+    from mimicbench.benchmark.request import MotionRequest, Rig
 
     rig = Rig(record.character_id, record.category, record.vertices, record.faces, record.keypoints, record.parents,
               record.weights, record.bone_names)
@@ -55,7 +55,7 @@ def inference_fps(record, motion, device: str) -> tuple[float, float]:
 
 
 def training_steps_per_second(dataset, steps: int) -> dict:
-    from baselines.mmdmc.method import checkpoint_path, load_modules
+    from mimicbench.baselines.mmdmc.method import checkpoint_path, load_modules
     from mimicbench.training.checkpoint import read_header
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
@@ -87,7 +87,7 @@ def training_steps_per_second(dataset, steps: int) -> dict:
 
 
 def main() -> None:
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("dataset")

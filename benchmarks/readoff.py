@@ -1,5 +1,5 @@
-"""The shared read-off (joint fit of all bones, :func:`mimicbench.transform_estimation.estimate_transforms`)
-against per-bone weighted Kabsch (:func:`mimicbench.kabsch.kabsch_transforms`), its peer, on a
+"""The shared read-off (joint fit of all bones, :func:`mimicbench.geometry.transform_estimation.estimate_transforms`)
+against per-bone weighted Kabsch (:func:`mimicbench.geometry.kabsch.kabsch_transforms`), its peer, on a
 dataset's characters posed by linear blend skinning with frames of their own clips.
 
 Per character: bones, vertices, the largest rotation error of each estimator against the
@@ -27,11 +27,11 @@ def main() -> None:
                          "LBS poses, as a forward leg's source; 0.003 is a mesh no rig poses exactly, as a return leg's)")
     args = ap.parse_args()
 
-    from benchmark.protocols.base import EvalData
-    from mimicbench.kabsch import kabsch_transforms
-    from mimicbench.quaternion import quat_angle
-    from mimicbench.transform_estimation import estimate_transforms
-    from schemas.dataset import Dataset
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.geometry.kabsch import kabsch_transforms
+    from mimicbench.geometry.quaternion import quat_angle
+    from mimicbench.geometry.transform_estimation import estimate_transforms
+    from mimicbench.schemas.dataset import Dataset
 
     ev = EvalData.load(args.data)
     wanted = set(args.characters.split(",")) if args.characters else set(ev.characters)

@@ -10,10 +10,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from datagen.render.contact_sheet import contact_sheet_panels
-from datagen.render.render import render_panels
-from datagen.zoo import build_zoo
-from schemas.shards import read_records
+from mimicbench.datagen.render.contact_sheet import contact_sheet_panels
+from mimicbench.datagen.render.render import render_panels
+from mimicbench.datagen.zoo.dataset import build_zoo
+from mimicbench.schemas.shards import read_records
 
 
 def main() -> None:

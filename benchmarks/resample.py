@@ -35,7 +35,7 @@ def subdivided(record):
 
     import trimesh
 
-    from schemas.weights import SparseWeights
+    from mimicbench.schemas.weights import SparseWeights
 
     v, f, attr = trimesh.remesh.subdivide(record.vertices.astype(np.float64), record.faces,
                                           vertex_attributes={"w": record.weights.to_dense(np.float64)})
@@ -47,9 +47,9 @@ def subdivided(record):
 
 def score(record, motions, v, f, weights):
     """(transfer error, Hausdorff), % of height, of a resampled mesh against the original."""
-    from datagen.resample.character import sample_frames
-    from datagen.resample.closest_point import closest_points
-    from datagen.resample.quality import hausdorff_percent, transfer_error_percent
+    from mimicbench.datagen.resample.character import sample_frames
+    from mimicbench.datagen.resample.closest_point import closest_points
+    from mimicbench.datagen.resample.quality import hausdorff_percent, transfer_error_percent
 
     old_v = record.vertices.astype(np.float64)
     height = float(np.ptp(old_v[:, 1]))
@@ -61,11 +61,11 @@ def score(record, motions, v, f, weights):
 
 def run_ours(chars, motions, faces, backend):
     """Seconds per character (work, record to record), mean transfer error and Hausdorff."""
-    from datagen.resample.character import resample_character
-    from datagen.resample.clean import clean_mesh
-    from datagen.resample.closest_point import closest_points
-    from datagen.resample.reskin import interpolate_weights
-    from datagen.resample.simplify import resample_to
+    from mimicbench.datagen.resample.character import resample_character
+    from mimicbench.datagen.resample.clean import clean_mesh
+    from mimicbench.datagen.resample.closest_point import closest_points
+    from mimicbench.datagen.resample.reskin import interpolate_weights
+    from mimicbench.datagen.resample.simplify import resample_to
 
     start = time.perf_counter()
     for c in chars:
@@ -83,7 +83,7 @@ def run_ours(chars, motions, faces, backend):
 
 def run_blender(chars, motions, faces, tmp):
     """The same for Blender's route, in a child process."""
-    from schemas.weights import SparseWeights
+    from mimicbench.schemas.weights import SparseWeights
 
     arrays = {"count": len(chars), "target": faces}
     for i, c in enumerate(chars):
@@ -107,8 +107,8 @@ def main() -> None:
     ap.add_argument("--characters", type=int, default=8)
     ap.add_argument("--faces", type=int, default=5000)
     args = ap.parse_args()
-    from datagen.zoo import build_zoo
-    from schemas.shards import read_records
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import read_records
 
     tmp = Path(tempfile.mkdtemp(prefix="mimicbench-resample-"))
     build_zoo(tmp / "zoo", args.characters, seed=0, progress=False)

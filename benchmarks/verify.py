@@ -34,10 +34,10 @@ def main() -> None:
     args = ap.parse_args()
     import pyarrow.parquet as pq
 
-    from datagen.zoo import build_zoo
-    from schemas import integrity
-    from schemas.manifest import load_manifest
-    from schemas.shards import read_records
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas import integrity
+    from mimicbench.schemas.manifest import load_manifest
+    from mimicbench.schemas.shards import read_records
 
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "zoo"

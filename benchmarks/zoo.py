@@ -40,13 +40,13 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
 
-    from datagen.zoo import build_zoo
-    from datagen.zoo.build import TARGET_FACES, build_skeleton, clip_list
-    from datagen.zoo.clips import generator
-    from datagen.zoo.mesh_builder import build_mesh
-    from datagen.zoo.motions import NUM_FRAMES, clip_transforms
-    from datagen.zoo.plan import plan_zoo
-    from datagen.zoo.skin_weights import skin_weights
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.datagen.zoo.build import TARGET_FACES, build_skeleton, clip_list
+    from mimicbench.datagen.zoo.clips import generator
+    from mimicbench.datagen.zoo.mesh_builder import build_mesh
+    from mimicbench.datagen.zoo.motions import NUM_FRAMES, clip_transforms
+    from mimicbench.datagen.zoo.plan import plan_zoo
+    from mimicbench.datagen.zoo.skin_weights import skin_weights
 
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()

@@ -53,7 +53,7 @@ def split_rule(fractions: dict[str, float] | None = None, salt: str = "", split_
     """A JSON description of how splits are assigned, for a stage's fingerprinted parameters.
 
     A stage that assigns splits (ingest with :func:`split_of` or a split file) puts this in the
-    parameters it passes to :func:`schemas.fingerprint.stage_config`, so output made under another
+    parameters it passes to :func:`mimicbench.schemas.fingerprint.stage_config`, so output made under another
     split rule, or another split file's content, is not reused on resume.
 
     Returns:

@@ -1,11 +1,13 @@
-"""The skeleton of every datagen stage: a :class:`Stage` declares its params dataclass, inputs,
-per-item function and outputs; a :class:`StageRun` owns config, fingerprint reuse, refusal of a
-foreign dataset, marks, status rows and copied tables (resume: FORMAT.md, "Stages and resume");
-:func:`run_stage` runs the per-item function on an engine, a failure failing only its item.
+"""The skeleton of every datagen stage: a :class:`Stage` declares its params dataclass (whose
+fields are the command's options and the pipeline file's keys, :mod:`mimicbench.runtime.options`),
+the tables it reads and writes, its items (:class:`StagePlan`, with what it reuses) and its
+per-item function; :func:`drive` owns the loop: the :class:`StageRun` (config, fingerprint reuse,
+refusal of a foreign dataset, marks, status rows and copied tables; resume: FORMAT.md, "Stages and
+resume"), ``begin()`` before any write, the engine (:func:`run_stage`: a failure fails only its
+item), ``finish()`` with validation, and the :class:`~mimicbench.runtime.summary.StageSummary`.
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import shutil
@@ -18,18 +20,22 @@ from typing import Any, Callable, Iterable, Sequence
 
 from tqdm.auto import tqdm
 
-from mimicbench.engines import Engine, LocalEngine, Outcome, TaskResources
-from schemas.errors import DatasetError, UserError
-from schemas.folder_lock import hold
-from schemas.fingerprint import fingerprint_mismatch, stage_config, stale_inputs, tables_fingerprint
-from schemas.integrity import entry_path, verify_shard
-from schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_complete,
+from mimicbench.datagen.stage_options import (engine_option, jobs_option, not_a_param, omitted_unless_set,  # noqa: F401
+                                              quiet_option, ray_address_option)
+from mimicbench.engines import Engine, LocalEngine, Outcome, TaskResources, get_engine
+from mimicbench.runtime.options import config_values
+from mimicbench.runtime.summary import StageSummary
+from mimicbench.schemas.errors import DatasetError, UserError
+from mimicbench.schemas.folder_lock import hold
+from mimicbench.schemas.fingerprint import fingerprint_mismatch, stage_config, stale_inputs, tables_fingerprint
+from mimicbench.schemas.integrity import entry_path, verify_shard
+from mimicbench.schemas.manifest import (MANIFEST, chmod_like_open, fsync_file, load_manifest_for_write, mark_complete,
                               mark_incomplete, save_manifest)
-from schemas.shard_stream import ShardStream
-from schemas.shards import _unlink_stale, has_table, read_records, write_records
-from schemas.status import StatusRecord
-from schemas.tables import rows_per_shard
-from schemas.validate import validate_dataset
+from mimicbench.schemas.shard_stream import ShardStream
+from mimicbench.schemas.shards import _unlink_stale, has_table, read_records, remove_split, write_records
+from mimicbench.schemas.status import StatusRecord
+from mimicbench.schemas.tables import rows_per_shard
+from mimicbench.schemas.validate import validate_dataset
 
 
 def run_stage(items: Sequence[Any], fn: Callable[[Any], Any], stage: str, name_of: Callable[[Any], str] = str,
@@ -83,16 +89,6 @@ def summarize_statuses(statuses: Iterable[StatusRecord]) -> str:
 NO_ROWS = "OUT holds no earlier rows"  # StageRun.previous's reason when there is nothing to reuse
 
 
-def omitted_unless_set(default=None):
-    """A params field left out of the config while it holds ``default`` (old configs keep their fingerprint)."""
-    return dataclasses.field(default=default, metadata={"omit": default})
-
-
-def not_a_param(default=None, **kw):
-    """An options field that does not change the output (processes, exports): not in the config."""
-    return dataclasses.field(default=default, **kw, metadata={"param": False})
-
-
 @dataclass(frozen=True)
 class Stage:
     """What a datagen stage declares: ``params`` (a dataclass type), the ``inputs`` tables read from
@@ -110,13 +106,141 @@ class Stage:
     out_name: str = "OUT_DATASET"  # how the CLI names the output folder, for messages
     generator: str | None = None  # the config's ``generator`` of datasets made before configs named their stage
     title: str = ""  # how messages name the stage ("the zoo"; default its name)
+    plan: Callable | None = None  # ``plan(run) -> StagePlan``: reads IN and OUT, decides the items; writes nothing
+    out_key: str = "out"  # the params field naming the output folder
+    in_key: str | None = None  # the params field naming the input folder (None: no input dataset)
+    constants: tuple[tuple[str, Any], ...] = ()  # config entries that are not options (the code's version)
+    check: Callable | None = None  # ``check(params)``: ValueError/UserError before anything is opened
+    info: Callable | None = None  # ``info(params) -> dict``: config fields kept for the reader, not fingerprinted
+    refuse_foreign: bool = True  # False: a stage that adds tables to its own input folder
+    what: str = "item"  # how messages name an item ("character")
+
+
+class StagePlan:
+    """What a stage's ``plan(run)`` decides before anything is written: the items to run and how.
+
+    Subclasses override what differs; the defaults run ``stage.item(item, **kwargs)`` over
+    :attr:`items` in one batch. Attributes:
+        items: the items of this run (those not reused).
+        kwargs: keyword arguments bound to the per-item function (picklable).
+        reused: status rows of the work reused from OUT (``skipped``).
+        statuses: status rows decided while planning (an input refused before it ran).
+        drop: ``(table, split)`` of OUT removed right after ``begin()`` (rows that cannot be reused).
+        resources, chunk, ordered: as :func:`run_stage` takes them.
+        configs: tables given the run's config by ``finish()``.
+        status_config: the config the status table gets (``"run"`` or None, as :meth:`StageRun.write`).
+    """
+
+    kwargs: dict = {}
+    resources: TaskResources = TaskResources()
+    chunk: int = 1
+    ordered: bool = False
+    configs: tuple[str, ...] = ()
+    status_config: dict | None | str = "run"
+
+    def __init__(self, stage: Stage, items: Sequence = ()):
+        self.stage, self.items = stage, list(items)
+        self.reused: list[StatusRecord] = []
+        self.statuses: list[StatusRecord] = []
+        self.drop: list[tuple[str, str]] = []
+
+    def function(self) -> Callable:
+        """The per-item function the engine runs (picklable)."""
+        from functools import partial
+
+        return partial(self.stage.item, **self.kwargs) if self.kwargs else self.stage.item
+
+    def batches(self) -> Iterable[tuple[str, Sequence]]:
+        """``(progress label, items)`` batches, run one after another."""
+        yield self.stage.name, self.items
+
+    def name_of(self, item) -> str:
+        """The item's name in its status row (its reuse key)."""
+        return str(item)
+
+    def engine(self, engine: Engine) -> Engine:
+        """The engine that runs the items (a stage may run its items on its own local workers)."""
+        return engine
+
+    def done(self, run: StageRun, item, ok: bool, result) -> None:
+        """Called here as each item finishes (after ``begin()``: it may write)."""
+
+    def nothing_made(self, statuses: list[StatusRecord]) -> bool:
+        """True when the run must be undone: it had items, every one failed, and nothing was reused."""
+        return bool(statuses) and not self.reused and all(s.status == "failed" for s in statuses)
+
+    def write(self, run: StageRun, statuses: list[StatusRecord]) -> tuple[list[StatusRecord], dict]:
+        """Write the output tables; return (the status rows to write, the summary's details)."""
+        return statuses + self.reused, {}
+
+    def after(self, run: StageRun) -> None:
+        """Work after ``finish()`` on the complete dataset (exports)."""
+
+    def counts(self, statuses: list[StatusRecord]) -> tuple[int, int]:
+        """(items done or reused, items failed) of this run."""
+        return (sum(s.status == "ok" for s in statuses) + len(self.reused),
+                sum(s.status == "failed" for s in statuses))
+
+
+def engine_of(params, default_jobs: int = 1) -> Engine:
+    """The engine the params' ``engine``, ``ray_address`` and ``jobs`` fields (when present) ask for."""
+    return get_engine(getattr(params, "engine", "local"), getattr(params, "jobs", default_jobs) or 1,
+                      getattr(params, "ray_address", None))
+
+
+def drive(stage: Stage, params, engine: Engine | None = None, progress: bool | None = None) -> StageSummary:
+    """Run ``stage`` with ``params``: check, plan (reads only), ``begin()``, the items on ``engine``
+    (default :func:`engine_of` the params; a failure becomes a status row and the rest goes on),
+    the tables and status rows, the copied inputs, ``finish()`` (validation), the plan's ``after``.
+
+    Returns:
+        The run's summary: items done (and reused), failed, seconds, the output folder, the
+        status rows of this run (``statuses``) and the stage's own figures (``details``).
+
+    Raises:
+        DatasetError: every item failed and nothing was reused (OUT is then left as it was).
+    """
+    import time
+
+    start = time.perf_counter()
+    progress = not getattr(params, "quiet", False) if progress is None else progress
+    if stage.check is not None:
+        stage.check(params)
+    in_dir = getattr(params, stage.in_key) if stage.in_key else None
+    run = StageRun(stage, params, getattr(params, stage.out_key), in_dir,
+                   info=stage.info(params) if stage.info else None, refuse_foreign=stage.refuse_foreign)
+    plan = stage.plan(run)
+    run.begin()
+    for table, split in plan.drop:
+        run.drop_split(table, split)
+    statuses = list(plan.statuses)
+    engine = plan.engine(engine or engine_of(params))
+    fn = plan.function()
+    for label, batch in plan.batches():
+        batch = list(batch)
+        statuses += run_stage(batch, fn, label, name_of=plan.name_of, progress=progress,
+                              on_done=lambda i, ok, result, batch=batch: plan.done(run, batch[i], ok, result),
+                              engine=engine, chunk=plan.chunk, resources=plan.resources, ordered=plan.ordered,
+                              keep_results=False)[1]
+    if plan.nothing_made(statuses):
+        raise run.abandon([s for s in statuses if s.status == "failed"], stage.what)
+    rows, details = plan.write(run, statuses)
+    run.write_status(rows, plan.status_config)
+    run.copy_inputs()
+    run.finish(plan.configs)
+    plan.after(run)
+    ok, failed = plan.counts(statuses)
+    if progress:
+        print(summarize_statuses(statuses))
+    return StageSummary(ok, failed, time.perf_counter() - start, str(run.out_dir), skipped=len(plan.reused),
+                        statuses=tuple(statuses), details=details)
 
 
 class StageRun:
     """One run of ``stage`` with ``params`` from ``in_dir`` (None: no input; ``out_dir`` with
     ``refuse_foreign=False``: a stage adding tables to its input) into ``out_dir``; refuses at once
     folders inside one another and an ``out_dir`` holding another stage's dataset. It holds the
-    writer's lock of ``out_dir`` (:mod:`schemas.folder_lock`) from its start until :meth:`finish` or
+    writer's lock of ``out_dir`` (:mod:`mimicbench.schemas.folder_lock`) from its start until :meth:`finish` or
     :meth:`abandon`: a second writer of the same folder waits for it."""
 
     def __init__(self, stage: Stage, params, out_dir, in_dir=None, info: dict | None = None,
@@ -129,8 +253,7 @@ class StageRun:
             raise UserError(f"{stage.name}: {stage.out_name} {out_dir} and the input {in_dir} must be separate "
                             f"folders, neither inside the other")
         inputs = [t for t in stage.inputs if self.in_dir is not None and has_table(self.in_dir, t)]
-        values = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
-                  if getattr(params, f.name) != f.metadata.get("omit", ()) and f.metadata.get("param", True)}
+        values = {**dict(stage.constants), **config_values(params)}
         self.config = stage_config({"stage": stage.name, **{k: v.to_json() if hasattr(v, "to_json") else v
                                                             for k, v in values.items()}},
                                    tables_fingerprint(self.in_dir, inputs) if inputs else {},
@@ -178,6 +301,17 @@ class StageRun:
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.before, self.begun = self.manifest(), True
         mark_incomplete(self.out_dir, self.stage.name, self.config)
+
+    def drop_split(self, table: str, split: str) -> None:
+        """Remove one split of OUT's ``table`` (rows that cannot be reused), also from the manifest
+        :meth:`abandon` would restore."""
+        remove_split(self.out_dir, table, split)
+        info = ((self.before or {}).get("tables") or {}).get(table)
+        if info:
+            info["shards"] = [e for e in info["shards"] if e["split"] != split]
+            info["rows"] = sum(e["rows"] for e in info["shards"])
+            if not info["shards"]:
+                del self.before["tables"][table]
 
     def abandon(self, statuses: list[StatusRecord], what: str) -> DatasetError:
         """Undo :meth:`begin` if it ran (the old manifest, or no folder) after a run in which every

@@ -2,10 +2,10 @@
 
 Each sub-command lives in its own module exposing ``register(subparsers)``, which adds a parser
 whose ``func`` default takes the command's options (a dataclass derived from that parser, see
-:mod:`mimicbench.options`) and returns a :class:`~mimicbench.summary.StageSummary` or an exit code. Modules import their
+:mod:`mimicbench.runtime.options`) and returns a :class:`~mimicbench.runtime.summary.StageSummary` or an exit code. Modules import their
 heavy dependencies inside ``func``, so ``mimicbench --help`` stays fast.
 
-User errors (:class:`~schemas.errors.UserError` and its subclasses such as ``DatasetError``,
+User errors (:class:`~mimicbench.schemas.errors.UserError` and its subclasses such as ``DatasetError``,
 any ``OSError`` (a missing file, a full disk, a read-only folder), a ``ValueError`` from an
 argument check) print ``mimicbench: error: ...`` and exit
 with status 2; ``--debug`` (anywhere on the command line, or ``MIMICBENCH_DEBUG=1``) shows the
@@ -15,36 +15,38 @@ shard read, for speed on trusted data.
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import sys
 
 from mimicbench import __version__
-from mimicbench.options import from_namespace
-from mimicbench.summary import StageSummary
-from schemas.errors import UserError
+from mimicbench.runtime.options import from_namespace
+from mimicbench.runtime.summary import StageSummary
+from mimicbench.schemas.errors import UserError
 
 # Exceptions that mean "the user asked for something impossible", not "mimicbench has a bug".
 # Any OSError (disk full, a read-only folder, a missing file) is the machine's state, not a bug:
 # shown as ``<path>: <reason>``.
 USER_ERRORS = (UserError, OSError, ValueError)
 
-# (group, module): group None puts the command at the top level.
-COMMAND_MODULES = (
-    (None, "mimicbench.commands.validate"),
-    (None, "datagen.zoo.command"),
-    ("datagen", "datagen.resample.command"),
-    ("datagen", "datagen.correspond.command"),
-    ("datagen", "datagen.ingest.command"),
-    ("datagen", "datagen.retarget.command"),
-    ("datagen", "datagen.roles.command"),
-    ("datagen", "datagen.apparel.command"),
-    (None, "benchmark.command"),
-    (None, "benchmark.demo"),
-    (None, "datagen.render.command"),
-    (None, "mimicbench.commands.train"),
-    (None, "mimicbench.commands.pipeline"),
-)
+
+def command_modules() -> tuple:
+    """(group, module) of every sub-command in ``--help`` order; group None puts it at the top level.
+    Imported here, after :func:`main` has fitted the address space: a command module keeps its heavy
+    imports inside its ``func``."""
+    from mimicbench.benchmark import command as bench
+    from mimicbench.commands import demo, pipeline, train, validate
+    from mimicbench.datagen.apparel import command as apparel
+    from mimicbench.datagen.correspond import command as correspond
+    from mimicbench.datagen.ingest import command as ingest
+    from mimicbench.datagen.render import command as render
+    from mimicbench.datagen.resample import command as resample
+    from mimicbench.datagen.retarget import command as retarget
+    from mimicbench.datagen.roles import command as roles
+    from mimicbench.datagen.zoo import command as zoo
+
+    return ((None, validate), (None, zoo), ("datagen", resample), ("datagen", correspond), ("datagen", ingest),
+            ("datagen", retarget), ("datagen", roles), ("datagen", apparel), (None, bench), (None, demo),
+            (None, render), (None, train), (None, pipeline))
 
 GROUP_HELP = {
     "datagen": "dataset stages: ingest real assets, attach role labels, resample meshes, compute correspondences, "
@@ -113,8 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_global_flags(parser, top=True)
     top = parser.add_subparsers(dest="command", metavar="COMMAND")
     groups: dict[str, argparse._SubParsersAction] = {}
-    for group, module_name in COMMAND_MODULES:
-        module = importlib.import_module(module_name)
+    for group, module in command_modules():
         if group is None:
             target = top
         else:
@@ -144,7 +145,7 @@ def exit_code(result) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from mimicbench.address_space import fit_to_address_space_limit, limit_text
+    from mimicbench.runtime.address_space import fit_to_address_space_limit, limit_text
 
     fit_to_address_space_limit()  # under `ulimit -v`: small reservations, one thread a pool (before numpy loads)
     parser = build_parser()

@@ -5,8 +5,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from schemas.columns import Column
-from schemas.weights import MAX_INFLUENCES, SparseWeights
+from mimicbench.schemas.columns import Column
+from mimicbench.schemas.weights import MAX_INFLUENCES, SparseWeights
 
 TABLE = "characters"
 
@@ -67,7 +67,7 @@ class CharacterRecord:
 
     @property
     def weights(self) -> SparseWeights:
-        """Skin weights as :class:`~schemas.weights.SparseWeights`."""
+        """Skin weights as :class:`~mimicbench.schemas.weights.SparseWeights`."""
         return SparseWeights(np.asarray(self.weight_indices, np.int32), np.asarray(self.weight_values, np.float32),
                              int(len(self.parents)))
 

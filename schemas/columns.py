@@ -23,7 +23,7 @@ from typing import Any, Sequence
 import numpy as np
 import pyarrow as pa
 
-from schemas.version import METADATA_KEY, SCHEMA_VERSION, TABLE_KEY
+from mimicbench.schemas.version import METADATA_KEY, SCHEMA_VERSION, TABLE_KEY
 
 _ARROW_TYPES = {
     "string": pa.string(),

@@ -12,10 +12,10 @@ from typing import Any, Iterable
 
 import pyarrow as pa
 
-from schemas.columns import table_to_records
-from schemas.fingerprint import table_fingerprint
-from schemas.shards import checked_entries, entries_of, ordered_splits, read_entries, reader_manifest
-from schemas.tables import record_type
+from mimicbench.schemas.columns import table_to_records
+from mimicbench.schemas.fingerprint import table_fingerprint
+from mimicbench.schemas.shards import checked_entries, entries_of, ordered_splits, read_entries, reader_manifest
+from mimicbench.schemas.tables import record_type
 
 
 class Dataset:
@@ -74,22 +74,22 @@ class Dataset:
         return ordered_splits(self.entries(table))
 
     def readable_entries(self, table: str, split: str | None = None) -> list[dict]:
-        """The entries of ``table`` after the table-level checks of :func:`schemas.shards.read_table`
+        """The entries of ``table`` after the table-level checks of :func:`mimicbench.schemas.shards.read_table`
         (not stale, at least one shard): DatasetError naming the file otherwise."""
         return checked_entries(self.root, self.manifest, table, split)
 
     def read_table(self, table: str, split: str | None = None, columns: list[str] | None = None, *,
                    verify: bool | None = None) -> pa.Table:
         """``table`` (of ``split``) as an Arrow table, each shard checked as
-        :func:`schemas.shards.read_table` does."""
+        :func:`mimicbench.schemas.shards.read_table` does."""
         return read_entries(self.root, table, self.readable_entries(table, split), columns, verify)
 
     def records(self, table: str, split: str | None = None, *, verify: bool | None = None) -> list[Any]:
-        """``table`` (of ``split``) as records (:func:`schemas.tables.record_type`)."""
+        """``table`` (of ``split``) as records (:func:`mimicbench.schemas.tables.record_type`)."""
         return table_to_records(self.read_table(table, split, verify=verify), record_type(table))
 
     def fingerprint(self, table: str) -> str:
-        """The table's fingerprint (:func:`schemas.fingerprint.table_fingerprint`), computed once.
+        """The table's fingerprint (:func:`mimicbench.schemas.fingerprint.table_fingerprint`), computed once.
 
         Raises:
             KeyError: the manifest lists no shard of ``table``.

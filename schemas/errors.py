@@ -3,7 +3,7 @@
 The CLI prints a :class:`UserError` as ``mimicbench: error: <message>`` and exits with status 2
 (``--debug`` shows the traceback); anything else is a bug and keeps its traceback. Raise one with
 a message that says what was expected and what was found. It lives here, in the data contract
-(the lowest layer), so every package can raise it; :mod:`mimicbench.errors` offers the same class.
+(the lowest layer), so every package can raise it; :mod:`mimicbench.runtime.errors` offers the same class.
 """
 from __future__ import annotations
 

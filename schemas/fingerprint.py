@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from schemas.manifest import load_manifest, sha256_of
+from mimicbench.schemas.manifest import load_manifest, sha256_of
 
 
 def digest_of(value) -> str:

@@ -1,6 +1,6 @@
 """One writer at a time per output folder (a dataset, a results folder): an advisory ``flock`` lock.
 
-Every stage that writes a dataset (:class:`datagen.stage_runner.StageRun`), ``bench cases`` and
+Every stage that writes a dataset (:class:`mimicbench.datagen.stage_runner.StageRun`), ``bench cases`` and
 ``bench run`` hold the lock of the folder they write from before they read what it holds until they
 finish. A second writer of the same folder waits, after one line on stderr naming the holder
 (process ID, its command line and since when)::
@@ -27,7 +27,7 @@ import time
 import weakref
 from pathlib import Path
 
-from schemas.spawn_guard import leave_if_reimporting_main
+from mimicbench.schemas.spawn_guard import leave_if_reimporting_main
 
 _HELD: dict[Path, list] = {}  # lock file -> [file descriptor, holders in this process, pid that took it]
 _GUARD = threading.Lock()

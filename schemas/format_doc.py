@@ -1,15 +1,15 @@
 """Generate the column tables of ``schemas/FORMAT.md`` from the record types' ``COLUMNS``.
 
-``python -m schemas.format_doc`` rewrites the part of FORMAT.md between the markers; a test
+``python -m mimicbench.schemas.format_doc`` rewrites the part of FORMAT.md between the markers; a test
 checks that the file is up to date, so the documentation cannot drift from the code.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-from schemas.tables import RECORD_TYPES
+from mimicbench.schemas.tables import RECORD_TYPES
 
-BEGIN = "<!-- BEGIN GENERATED COLUMNS (python -m schemas.format_doc) -->"
+BEGIN = "<!-- BEGIN GENERATED COLUMNS (python -m mimicbench.schemas.format_doc) -->"
 END = "<!-- END GENERATED COLUMNS -->"
 FORMAT_MD = Path(__file__).with_name("FORMAT.md")
 

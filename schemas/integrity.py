@@ -17,8 +17,8 @@ import os
 import time
 from pathlib import Path, PurePosixPath
 
-from schemas.errors import DatasetError
-from schemas.manifest import sha256_of
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.manifest import sha256_of
 
 VERIFY_ENV = "MIMICBENCH_VERIFY"
 

@@ -19,8 +19,8 @@ import os
 import tempfile
 from pathlib import Path
 
-from schemas.errors import DatasetError
-from schemas.version import SCHEMA_VERSION, is_compatible, newer
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.version import SCHEMA_VERSION, is_compatible, newer
 
 MANIFEST = "manifest.json"
 
@@ -194,7 +194,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         if isinstance(exc, OSError):  # a full disk's write error names no file: name the one being written
-            from schemas.errors import os_error_at
+            from mimicbench.schemas.errors import os_error_at
 
             raise os_error_at(exc, path) from exc
         raise

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from schemas.columns import Column
+from mimicbench.schemas.columns import Column
 
 TABLE = "motions"
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from schemas.columns import Column
+from mimicbench.schemas.columns import Column
 
 TABLE = "results"
 APPAREL_METRICS = ("pmd_apparel", "pmd_body", "pmd_cm", "pmd_apparel_cm", "pmd_body_cm", "pmd_frames",

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from schemas.columns import Column
+from mimicbench.schemas.columns import Column
 
 TABLE = "rigid_bodies"
 # the tables of a character's own physics (an MMD file): stages that keep its bones keep them too

@@ -1,6 +1,6 @@
 """Write one split of a table shard by shard as rows arrive, holding at most one shard in memory.
 
-:func:`schemas.shards.write_records` needs the whole split at once; a PokeAnimDB-size motions
+:func:`mimicbench.schemas.shards.write_records` needs the whole split at once; a PokeAnimDB-size motions
 table (millions of frames) does not fit. :class:`ShardStream` takes rows in their final order,
 writes every full shard to a hidden temporary file at once, and on :meth:`ShardStream.close`
 renames them to ``{split}-{i:05d}-of-{n:05d}.parquet`` (n is known only then) and lists them in
@@ -18,13 +18,13 @@ from typing import Any, Iterable, Iterator
 
 import pyarrow.parquet as pq
 
-from schemas.columns import records_to_table, table_to_records
-from schemas.integrity import entry_path, verify_shard
-from schemas.manifest import load_manifest_for_write, save_manifest, sha256_of
-from schemas.errors import DatasetError
-from schemas.shards import (_unlink_stale, _write_parquet_temp, check_schema, read_checked_shard, readable_entries,
+from mimicbench.schemas.columns import records_to_table, table_to_records
+from mimicbench.schemas.integrity import entry_path, verify_shard
+from mimicbench.schemas.manifest import load_manifest_for_write, save_manifest, sha256_of
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.shards import (_unlink_stale, _write_parquet_temp, check_schema, read_checked_shard, readable_entries,
                             shard_name)
-from schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
+from mimicbench.schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
 
 
 class ShardStream:
@@ -117,7 +117,7 @@ class ShardStream:
 def iter_records(root, table: str, split: str | None = None, *, verify: bool | None = None,
                  allow_incomplete: bool = False) -> Iterator[Any]:
     """The records of ``table`` (one split, or all) one shard at a time, with the checks of
-    :func:`schemas.shards.read_table` on each shard; memory holds one shard, not the table."""
+    :func:`mimicbench.schemas.shards.read_table` on each shard; memory holds one shard, not the table."""
     root = Path(root)
     expected, rtype = schema_of(table), record_type(table)
     for e in readable_entries(root, table, split, allow_incomplete):

@@ -23,15 +23,15 @@ from typing import Any, Sequence
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from schemas.columns import records_to_table, table_to_records
-from schemas.errors import os_error_at
-from schemas.errors import DatasetError
-from schemas.fingerprint import stale_inputs
-from schemas.integrity import entry_path, verify_shard
-from schemas.manifest import (chmod_like_open, fsync_file, incomplete_reason, is_complete, load_manifest,
+from mimicbench.schemas.columns import records_to_table, table_to_records
+from mimicbench.schemas.errors import os_error_at
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.fingerprint import stale_inputs
+from mimicbench.schemas.integrity import entry_path, verify_shard
+from mimicbench.schemas.manifest import (chmod_like_open, fsync_file, incomplete_reason, is_complete, load_manifest,
                               load_manifest_for_write, save_manifest, sha256_of)
-from schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
-from schemas.version import METADATA_KEY, SCHEMA_VERSION, is_compatible
+from mimicbench.schemas.tables import COLUMN_ENCODING, ROW_GROUP_SIZE, record_type, schema_of
+from mimicbench.schemas.version import METADATA_KEY, SCHEMA_VERSION, is_compatible
 
 SHARD_RE = re.compile(r"^(?P<split>[A-Za-z0-9_]+)-(?P<i>\d{5})-of-(?P<n>\d{5})\.parquet$")
 SPLITS = ("train", "val", "test")
@@ -162,7 +162,7 @@ def _write_parquet_temp(table: pa.Table, final: Path, row_group_size: int,
     """Write ``table`` to a temporary file beside ``final``; return its path (removed on error).
 
     ``column_encoding``: {leaf column path: Parquet encoding} for columns that do better without
-    the dictionary encoding (``schemas.tables.COLUMN_ENCODING``); the others keep it.
+    the dictionary encoding (``mimicbench.schemas.tables.COLUMN_ENCODING``); the others keep it.
     """
     fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent)
     os.close(fd)

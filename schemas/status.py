@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from schemas.columns import Column
+from mimicbench.schemas.columns import Column
 
 TABLE = "status"
 

@@ -1,15 +1,15 @@
 """The tables a dataset folder can hold, by name."""
 from __future__ import annotations
 
-from schemas.case import CaseRecord
-from schemas.character import CharacterRecord
-from schemas.columns import arrow_schema
-from schemas.joint import JointRecord
-from schemas.motion import MotionRecord
-from schemas.pair import PairRecord
-from schemas.result import ResultRecord
-from schemas.rigid_body import RigidBodyRecord
-from schemas.status import StatusRecord
+from mimicbench.schemas.case import CaseRecord
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.columns import arrow_schema
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.motion import MotionRecord
+from mimicbench.schemas.pair import PairRecord
+from mimicbench.schemas.result import ResultRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
+from mimicbench.schemas.status import StatusRecord
 
 RECORD_TYPES = {
     "characters": CharacterRecord,

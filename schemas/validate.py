@@ -7,13 +7,13 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from schemas.errors import DatasetError
-from schemas.finite import FINITE_COLUMNS, nonfinite_counts
-from schemas.fingerprint import stale_inputs
-from schemas.integrity import entry_path
-from schemas.manifest import MANIFEST, incomplete_reason, is_complete, load_manifest, sha256_of
-from schemas.shards import SHARD_RE, check_schema
-from schemas.tables import RECORD_TYPES, schema_of
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.finite import FINITE_COLUMNS, nonfinite_counts
+from mimicbench.schemas.fingerprint import stale_inputs
+from mimicbench.schemas.integrity import entry_path
+from mimicbench.schemas.manifest import MANIFEST, incomplete_reason, is_complete, load_manifest, sha256_of
+from mimicbench.schemas.shards import SHARD_RE, check_schema
+from mimicbench.schemas.tables import RECORD_TYPES, schema_of
 
 
 UNIQUE_IDS = {"characters": "character_id", "motions": "motion_id"}  # one row per ID, across splits
@@ -74,7 +74,7 @@ def validate_dataset(root, values: bool = False) -> list[str]:
     out), exists, has the recorded size and sha256, reads as Parquet with the recorded row count,
     carries a compatible schema version and the contract's column types; no shard file on disk
     is unlisted; with ``values`` (``mimicbench validate`` asks for it), no NaN or infinite mesh or
-    animation value (:data:`schemas.finite.FINITE_COLUMNS`; this decodes those columns, several
+    animation value (:data:`mimicbench.schemas.finite.FINITE_COLUMNS`; this decodes those columns, several
     times the cost of the checksums, so the stages' own end-of-run checks leave it out: ingest
     checks every row it adds on the way in);
     with ``values``, no character whose ``parents`` break the format's order (a cycle) or whose rest

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from schemas.character import CharacterRecord
-from schemas.motion import MotionRecord
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.motion import MotionRecord
 
 TORSO_HEAD = np.array([0.0, 1.0, 0.0])
 CHAIN_X = 0.25

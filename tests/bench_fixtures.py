@@ -6,8 +6,8 @@ import shutil
 
 import numpy as np
 
-from baselines.name_copy import NameCopy
-from benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.baselines.name_copy import NameCopy
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
 
 
 class FlakyMethod(PoseTransferMethod):
@@ -55,7 +55,7 @@ class KillerCopy(NameCopy):
 
 def make_bench_dataset(zoo_dir, dest, h2h_poses=3, cct_pairs=6, cct_poses=2):
     """Copy a zoo to ``dest`` and add cases (all splits, small counts)."""
-    from benchmark.cases import build_cases, write_cases
+    from mimicbench.benchmark.cases import build_cases, write_cases
 
     shutil.copytree(zoo_dir, dest)
     cases = build_cases(dest, "test", h2h_pairs=4, h2h_poses=h2h_poses, cct_pairs=cct_pairs, cct_poses=cct_poses)

@@ -61,7 +61,7 @@ def tube():
 @pytest.fixture(scope="session")
 def small_zoo(tmp_path_factory) -> Path:
     """A 14-character zoo (seed 0) shared by the tests of later stages; copy it before writing."""
-    from datagen.zoo import build_zoo
+    from mimicbench.datagen.zoo.dataset import build_zoo
 
     root = tmp_path_factory.mktemp("zoo") / "zoo14"
     build_zoo(root, 14, seed=0, progress=False)

@@ -6,7 +6,7 @@ import shutil
 
 import numpy as np
 
-from schemas.shards import read_records, write_records
+from mimicbench.schemas.shards import read_records, write_records
 
 
 def descendants(parents: np.ndarray, k: int) -> list[int]:

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
 
 ENV = "MIMICBENCH_HOSTILE"
 

@@ -1,4 +1,4 @@
-"""A Blender ingest child for tests: like :mod:`datagen.ingest.blender_child --serve`, but an asset
+"""A Blender ingest child for tests: like :mod:`mimicbench.datagen.ingest.blender_child --serve`, but an asset
 whose file name contains ``Hanging`` first writes a partial result (a stand-in for the arrays a
 child writes before it is stopped) and then hangs, and one containing ``Crashing`` kills the
 process. The runner must fail those jobs, drop what they wrote, and go on with a fresh process."""
@@ -9,7 +9,7 @@ import time
 import bpy  # noqa: F401  (first, as in the real child)
 import numpy as np
 
-from datagen.ingest import blender_child
+from mimicbench.datagen.ingest import blender_child
 
 _real = blender_child.ingest_one
 

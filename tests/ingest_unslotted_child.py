@@ -6,7 +6,7 @@ import sys
 
 import bpy  # noqa: F401  (first, as in the real child)
 
-from datagen.ingest import blender_child
+from mimicbench.datagen.ingest import blender_child
 
 _real = blender_child._assign
 

@@ -6,10 +6,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from benchmark.request import Rig, TransferRequest
-from mimicbench.kinematics import forward_kinematics, transforms_to_array
-from mimicbench.quaternion import quat_from_axis_angle
-from mimicbench.skinning import linear_blend_skinning
+from mimicbench.benchmark.request import Rig, TransferRequest
+from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+from mimicbench.geometry.quaternion import quat_from_axis_angle
+from mimicbench.geometry.skinning import linear_blend_skinning
 from tests.toys import make_tube
 
 

@@ -1,6 +1,6 @@
 """Small MMD files written field by field from the PMX 2.0/2.1 and PMD specifications, for tests.
 
-These writers are deliberately independent of :mod:`datagen.mmd` (only ``struct``), so a
+These writers are deliberately independent of :mod:`mimicbench.datagen.mmd` (only ``struct``), so a
 reader bug is not mirrored by the fixture."""
 from __future__ import annotations
 

@@ -6,11 +6,11 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from benchmark.request import Rig
-from mimicbench.kinematics import forward_kinematics, transforms_to_array
-from mimicbench.quaternion import quat_from_axis_angle, quat_identity
-from mimicbench.skinning import linear_blend_skinning
-from schemas.weights import SparseWeights
+from mimicbench.benchmark.request import Rig
+from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+from mimicbench.geometry.quaternion import quat_from_axis_angle, quat_identity
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.weights import SparseWeights
 
 
 def segment_cloud(a, b, n: int = 12, radius: float = 0.02) -> np.ndarray:
@@ -28,7 +28,7 @@ def segment_cloud(a, b, n: int = 12, radius: float = 0.02) -> np.ndarray:
 def labelled_rig(joints: dict, name: str = "toy", category: str = "humanoid"):
     """A rig from ``{bone: (head (3,), tail (3,), parent name or None, role)}`` in order (parents first).
 
-    Returns a namespace with ``rig`` (:class:`benchmark.request.Rig`), ``record`` (character-record-like:
+    Returns a namespace with ``rig`` (:class:`mimicbench.benchmark.request.Rig`), ``record`` (character-record-like:
     ``bone_roles``, ``parents``, ``category``, ``keypoints``, ``vertices``, ``weights``, ``character_id``)
     and ``names``.
     """

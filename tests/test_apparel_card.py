@@ -1,7 +1,7 @@
 """The apparel section of a build's CARD.md and its plot (datagen/apparel/card.py)."""
 from __future__ import annotations
 
-from datagen.apparel.card import BEGIN, END, PLOT, write_apparel_card
+from mimicbench.datagen.apparel.card import BEGIN, END, PLOT, write_apparel_card
 
 
 def _q(peak, p99, kin, touch, new_in, worst, resettles=0):

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.apparel.file_physics import FileWorld
-from datagen.apparel.file_plan import collision_filter, plan_scene
-from mimicbench.kinematics import rest_transforms
-from schemas.joint import JointRecord
-from schemas.rigid_body import RigidBodyRecord
+from mimicbench.datagen.apparel.file_physics import FileWorld
+from mimicbench.datagen.apparel.file_plan import collision_filter, plan_scene
+from mimicbench.geometry.kinematics import rest_transforms
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
 
 PIVOT = np.array([0.0, 1.0, 0.0])
 ARM = 0.5  # metres from the pivot to the pendulum bob
@@ -131,9 +131,9 @@ def test_a_spring_returns_to_rest(spring):
 
 
 def test_gene_scene_plan(assets_dir):
-    from datagen.mmd.physics import physics_records
-    from datagen.mmd.pmx import read_pmx
-    from datagen.mmd.records import topological_order
+    from mimicbench.datagen.mmd.physics import physics_records
+    from mimicbench.datagen.mmd.pmx import read_pmx
+    from mimicbench.datagen.mmd.records import topological_order
 
     model = read_pmx(assets_dir / "mmd" / "Gene.pmx")
     order = topological_order(np.array([b.parent for b in model.bones]))
@@ -160,7 +160,7 @@ def test_gene_scene_plan(assets_dir):
 @pytest.mark.slow
 def test_gene_stand_through_ingest_and_apparel(assets_dir, tmp_path):
     from mimicbench.cli import main
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
 
     assert main(["datagen", "ingest", str(assets_dir / "mmd" / "Gene.pmx"), "--out", str(tmp_path / "gene"),
                  "--quiet"]) == 0
@@ -200,12 +200,12 @@ def _held_out_names(names: list[str]) -> list[str]:
 def test_held_out_pmx_with_other_names_gets_its_apparel_from_its_bodies(tmp_path):
     import dataclasses
 
-    from datagen.mmd.chain_physics import chain_physics
-    from datagen.mmd.pmx_writer import write_pmx
-    from datagen.zoo.build import build_character
-    from datagen.zoo.plan import plan_zoo
+    from mimicbench.datagen.mmd.chain_physics import chain_physics
+    from mimicbench.datagen.mmd.pmx_writer import write_pmx
+    from mimicbench.datagen.zoo.build import build_character
+    from mimicbench.datagen.zoo.plan import plan_zoo
     from mimicbench.cli import main
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
     from tests.mmd_fixtures import vmd_bytes
 
     spec = [s for s in plan_zoo(24, seed=0) if s.category == "apparel"][0]
@@ -267,7 +267,7 @@ def test_the_file_world_runs_through_the_one_clip_loop():
     # the pendulum released from horizontal, as a 30 fps clip of 20 frames: the static bone keeps
     # the clip's rows, the bob's bone head stays ARM from the pivot and swings down; a speed bound below
     # the bob's speed (it reaches about sqrt(2 g ARM) = 3.1 m/s at the bottom) is an explosion
-    from datagen.apparel.simulate import SimulationExploded, simulate_clip
+    from mimicbench.datagen.apparel.simulate import SimulationExploded, simulate_clip
 
     bodies, joints = _pendulum(_joint(0, 1, *FREE))
     keypoints = np.array([PIVOT, PIVOT + [ARM, 0, 0]])
@@ -289,7 +289,7 @@ def test_a_struck_file_chain_is_resettled_at_rest_on_its_anchor():
     # after frame 12 the bob is struck to 40 m/s (bound 25): it is put back at rest, horizontal on
     # the turned pivot (its bone at the pivot plus the turned rest arm, turned as bone 0 is), and
     # swings down again; the frames before are those of the clip simulated without the strike
-    from datagen.apparel.simulate import SimulationExploded, simulate_clip
+    from mimicbench.datagen.apparel.simulate import SimulationExploded, simulate_clip
 
     bodies, joints = _pendulum(_joint(0, 1, *FREE))
     keypoints = np.array([PIVOT, PIVOT + [ARM, 0, 0]])
@@ -345,10 +345,10 @@ def test_gene_keeps_its_file_physics_through_resample_and_retarget(assets_dir, t
     character through both stages (without them ``datagen apparel`` fell back to the zoo's chain
     defaults on Gene's apparel bones, and a dance exploded there), and the retargeted clip is
     simulated with the file's physics."""
-    from datagen.zoo.build import build_character
-    from datagen.zoo.plan import plan_zoo
+    from mimicbench.datagen.zoo.build import build_character
+    from mimicbench.datagen.zoo.plan import plan_zoo
     from mimicbench.cli import main
-    from schemas.shards import read_records, write_records
+    from mimicbench.schemas.shards import read_records, write_records
 
     spec = [s for s in plan_zoo(12, seed=0) if s.category == "humanoid"][0]
     walker = build_character(spec, "train", 1, 24)

@@ -8,15 +8,15 @@ than at rest (w the spring's frequency), and a link moving with the limb was sto
 within a step: on the seed-711 dynamic zoo an arm sweeping round in a spin struck the cape it
 carried (16 of 40 spins above 3x their kinematic peak, worst frames up to 2.4 % of apparel
 vertices inside the body). Now each piece starts a step where the last one ended and carries the speed
-that takes it to its pose (:attr:`datagen.apparel.params.SimParams.piece_velocity`).
+that takes it to its pose (:attr:`mimicbench.datagen.apparel.params.SimParams.piece_velocity`).
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from datagen.apparel.params import ApparelParams, SimParams
-from datagen.apparel.world import ApparelWorld, piece_velocities
+from mimicbench.datagen.apparel.params import ApparelParams, SimParams
+from mimicbench.datagen.apparel.world import ApparelWorld, piece_velocities
 
 FPS, SUBSTEPS = 30.0, 8
 
@@ -31,10 +31,10 @@ def _pressed_strand(piece_velocity: bool, speed: float, frames: int = 60, still:
     ``collision_mask``: the strand's (0b01 collides with the body; 0 is ``collide_body`` false).
 
     Returns the link heads relative to the anchor (F, 4, 3), metres."""
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
-    from datagen.apparel.simulate import simulate_clip
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+    from mimicbench.datagen.apparel.simulate import simulate_clip
+    from mimicbench.geometry.kinematics import rest_transforms
     from tests.test_apparel_physics import STRIP
 
     hair = ApparelParams().for_kind("hair")

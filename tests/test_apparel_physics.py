@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from datagen.apparel.params import ApparelParams, load_params, params_from_json
-from datagen.apparel.selection import apparel_vertex_mask, bone_kind, bones_matching
-from datagen.apparel.setup import character_physics, simulate_motion
-from datagen.apparel.simulate import SimulationExploded
-from datagen.apparel.springs import chain_mass_matrix
-from datagen.apparel.urdf import chain_urdf, hull_obj
-from datagen.apparel.world import ApparelWorld
-from schemas.errors import UserError
+from mimicbench.datagen.apparel.params import ApparelParams, load_params, params_from_json
+from mimicbench.datagen.apparel.selection import apparel_vertex_mask, bone_kind, bones_matching
+from mimicbench.datagen.apparel.setup import character_physics, simulate_motion
+from mimicbench.datagen.apparel.simulate import SimulationExploded
+from mimicbench.datagen.apparel.springs import chain_mass_matrix
+from mimicbench.datagen.apparel.urdf import chain_urdf, hull_obj
+from mimicbench.datagen.apparel.world import ApparelWorld
+from mimicbench.schemas.errors import UserError
 from tests.apparel_toys import LINK, LINKS, make_character, make_motion, quick_turn
 
 
@@ -171,8 +171,8 @@ def test_a_world_on_a_reused_client_simulates_as_one_on_a_new_client(monkeypatch
 
     import pybullet
 
-    import datagen.apparel.world as world_module
-    from datagen.apparel.params import params_from_json
+    import mimicbench.datagen.apparel.world as world_module
+    from mimicbench.datagen.apparel.params import params_from_json
 
     rec = make_character()
     params = ApparelParams()
@@ -338,7 +338,7 @@ def test_selection_by_globs_and_weights():
 
 
 def _hanging_chain(name: str, x: float, links: int, max_torque: float):
-    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+    from mimicbench.datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
 
     down = np.array([0.0, -1.0, 0.0])
     specs = tuple(LinkSpec(1 + i, np.array([x, 1.0 - 0.08 * i, 0.0]), down, 0.08, 0.015, 0.05 + 0.01 * i)
@@ -354,7 +354,7 @@ def _posed_mass_matrix(chain, rotation: np.ndarray) -> np.ndarray:
     J_w^T I J_w, one link and joint at a time (the naive form of joint_kernel's composite sums)."""
     from scipy.spatial.transform import Rotation
 
-    from datagen.apparel.urdf import bone_frame, capsule_inertia
+    from mimicbench.datagen.apparel.urdf import bone_frame, capsule_inertia
 
     n = len(chain.links)
     rest = [bone_frame(link.axis).as_matrix() for link in chain.links]
@@ -391,8 +391,8 @@ def test_springs_of_merged_chains_match_one_dense_solve(max_torque, lengths):
     # tau = -M (M + dt D)^-1 (K q + D w), K = s diag(M0) / dt^2, D = K dt + v diag(M0) / dt (M0 the
     # rest mass matrix, M the one at the joints' rotations q, from _posed_mass_matrix), and
     # where |tau| passes the bound, K and D of that axis scaled by bound / |tau| and solved again
-    from datagen.apparel.springs import Springs
-    from datagen.apparel.chain_spec import merged_by_anchor
+    from mimicbench.datagen.apparel.springs import Springs
+    from mimicbench.datagen.apparel.chain_spec import merged_by_anchor
 
     dt = 1 / 240
     merged = merged_by_anchor([_hanging_chain("a", 0.2, lengths[0], max_torque),
@@ -426,7 +426,7 @@ def test_springs_of_merged_chains_match_one_dense_solve(max_torque, lengths):
 def test_substep_poses_are_the_frame_by_frame_blends():
     # a clip's substep poses are computed for many frames at once; they must be the very numbers
     # of blending each frame from the one before it (the first from the given previous pose)
-    from datagen.apparel.relax import blend_poses, substep_poses
+    from mimicbench.datagen.apparel.relax import blend_poses, substep_poses
 
     rng = np.random.default_rng(2)
     q = rng.normal(size=(6, 5, 4))
@@ -450,7 +450,7 @@ def test_joint_kernel_rotation_vectors_and_limit_count_match_scipy_and_a_naive_l
     # a swing cone or twist bound against a plain loop; below every joint's floor none is counted
     from scipy.spatial.transform import Rotation
 
-    from datagen.apparel.joint_kernel import rotation_vectors
+    from mimicbench.datagen.apparel.joint_kernel import rotation_vectors
 
     rng = np.random.default_rng(3)
     joints = 40
@@ -484,14 +484,14 @@ def _strip_and_box(box_head, box_half, speed: float, kind: str, mass: float, joi
     moved 3 cm along -Z at ``speed`` m/s from frame 10, then held. The root link's contacts are a
     spring of ``root_contact_frequency`` rad/s, the other links' of ``contact_frequency`` (0: Bullet's
     rigid contact). ``piece_velocity``: the box carries its speed (simulation version 13) or is a
-    static body placed each step (version 12, :class:`~datagen.apparel.params.SimParams`).
+    static body placed each step (version 12, :class:`~mimicbench.datagen.apparel.params.SimParams`).
 
     Returns the simulated clip (F, 6, 7), 8 substeps a frame at ``fps``."""
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
-    from datagen.apparel.params import SimParams
-    from datagen.apparel.simulate import simulate_clip
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+    from mimicbench.datagen.apparel.params import SimParams
+    from mimicbench.datagen.apparel.simulate import simulate_clip
+    from mimicbench.geometry.kinematics import rest_transforms
 
     heads = np.array([[0.0, 1.0 - 0.08 * i, 0.0] for i in range(4)])
     box_head = np.asarray(box_head, np.float64)
@@ -569,9 +569,9 @@ def test_quality_accelerations_peak_and_99th_percentile_by_hand(frames):
     # elsewhere, so the peak is d fps^2; of the (frames - 2) x A accelerations a share of
     # 1 / (4 (frames - 2)) is nonzero: above 1% (frames 20) the 99th percentile is the peak too,
     # below it (frames 200) it is 0
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.quality import clip_quality
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.quality import clip_quality
+    from mimicbench.geometry.kinematics import rest_transforms
 
     rec = make_character()
     fps, d = 30.0, 0.01
@@ -597,9 +597,9 @@ def test_quality_kinematic_body_peak_by_hand():
     # torso (bone 0, one-hot weights, every body vertex) jumps into a drift of d per frame after frame
     # 5 in the kinematic clip while the chain's bones stay: every torso vertex's second difference is
     # d at frame 5, so the body's peak is d fps^2 and the apparel's stays 0 (rounding only)
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.quality import clip_quality
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.quality import clip_quality
+    from mimicbench.geometry.kinematics import rest_transforms
 
     rec = make_character()
     fps, d, frames = 30.0, 0.02, 20
@@ -624,9 +624,9 @@ def test_quality_touching_peak_counts_only_limbs_that_reach_the_apparel(axis, to
     # it (its nearest vertex stays 8 cm off in X), so the touching peak is d fps^2 or 0 while the
     # body's peak is d fps^2 either way; a strike's peak over 3x the apparel's is jitter only when it
     # is also over 3x the touching limbs' peak
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.quality import TOUCH_SHARE, clip_quality, over_jitter_bound
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.quality import TOUCH_SHARE, clip_quality, over_jitter_bound
+    from mimicbench.geometry.kinematics import rest_transforms
 
     rec = make_character()
     assert TOUCH_SHARE * rec.height < 0.08
@@ -642,8 +642,8 @@ def test_quality_touching_peak_counts_only_limbs_that_reach_the_apparel(axis, to
     assert q["max_accel_kinematic_touching"] == pytest.approx(d * fps ** 2 if touches else 0.0, rel=1e-4, abs=1e-3)
     # the pieces are tested a few frames at a time, stopping at a piece's first touch: the torso
     # reaches the chain only some frames after the drift starts, so small chunks see it late
-    from datagen.apparel.quality import _touched_bones
-    from mimicbench.skinning import linear_blend_skinning
+    from mimicbench.datagen.apparel.quality import _touched_bones
+    from mimicbench.geometry.skinning import linear_blend_skinning
 
     posed = linear_blend_skinning(rec.vertices, rec.keypoints, rec.weights, kinematic).astype(np.float64)[:, apparel]
     for chunk in (1, 3, frames):
@@ -661,7 +661,7 @@ def test_body_pieces_with_mass_are_carried_at_the_limbs_speed(piece_mass, piece_
     # (version 13's default) ends each step at its pose with the torso's speed; a piece with mass is
     # carried there by its constraint and moves at the torso's speed, a few millimetres behind its
     # pose at most
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.geometry.kinematics import rest_transforms
 
     rec = make_character()
     params = params_from_json({"simulation": {"piece_mass": piece_mass, "piece_velocity": piece_velocity}})
@@ -745,9 +745,9 @@ def _two_strips(kicks=(), kick=(40.0, 0.0, 0.0), max_resettles: int = 5, frames:
     velocity ``kick`` m/s.
 
     Returns (keypoints (10, 3), clip (F, 10, 7), the simulated clip, the kicked world's resettle counts)."""
-    from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
-    from datagen.apparel.params import SimParams
-    from datagen.apparel.simulate import simulate_clip
+    from mimicbench.datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+    from mimicbench.datagen.apparel.params import SimParams
+    from mimicbench.datagen.apparel.simulate import simulate_clip
     from tests.apparel_toys import turn_about_y
 
     chains, heads = [], []
@@ -824,7 +824,7 @@ def test_a_nan_state_is_resettled_like_an_escape():
 
 
 def test_a_state_still_bad_right_after_resettling_fails_the_clip():
-    from datagen.apparel.simulate import simulate_clip
+    from mimicbench.datagen.apparel.simulate import simulate_clip
 
     class Unfixed(_Kicked):  # its re-settle puts nothing back
         def resettle(self, pose):
@@ -845,7 +845,7 @@ def test_cut_near_pivot_clips_the_hull_at_a_share_of_the_link():
     # bone): a share 0.3 clips it at 3 cm, the box from 3 to 10 cm (8 corners: 4 kept, 4 where the
     # side edges cross the plane); share 0 keeps the hull as it is, as does a share whose part spans
     # no volume (1: the bottom face alone)
-    from datagen.apparel.chains import cut_near_pivot
+    from mimicbench.datagen.apparel.chains import cut_near_pivot
 
     axis, length = np.array([0.0, -1.0, 0.0]), 0.1
     hull = np.array([[x, -y, z] for y in (0.0, 0.1) for x in (-0.01, 0.01) for z in (-0.01, 0.01)])
@@ -858,7 +858,7 @@ def test_cut_near_pivot_clips_the_hull_at_a_share_of_the_link():
     assert cut_near_pivot(None, axis, length, 0.3) is None
     # a link's hull keeps at most MAX_LINK_HULL_POINTS points, the clipped one too (a ball of 400
     # points on its surface clipped through its middle has over 200 hull points)
-    from datagen.apparel.chains import MAX_LINK_HULL_POINTS
+    from mimicbench.datagen.apparel.chains import MAX_LINK_HULL_POINTS
 
     rng = np.random.default_rng(0)
     ball = rng.normal(size=(400, 3))

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy.special import ellipk
 
-from datagen.apparel.file_physics import FileWorld
-from datagen.apparel.params import SimParams
-from datagen.apparel.simulate import simulate_clip
-from mimicbench.kinematics import rest_transforms
-from schemas.joint import JointRecord
-from schemas.rigid_body import RigidBodyRecord
+from mimicbench.datagen.apparel.file_physics import FileWorld
+from mimicbench.datagen.apparel.params import SimParams
+from mimicbench.datagen.apparel.simulate import simulate_clip
+from mimicbench.geometry.kinematics import rest_transforms
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
 
 PIVOT = np.array([0.0, 1.0, 0.0])
 ARM = 0.5  # metres from the pivot to the bob's centre

@@ -6,17 +6,17 @@ import dataclasses
 import numpy as np
 import pytest
 
-from baselines.body_only import BodyOnly
-from baselines.lbs_kinematic import LbsKinematic
-from benchmark.batch import evaluate_batch
-from benchmark.normalisation import RestFrame
-from benchmark.protocols import get_protocol
-from benchmark.protocols.apparel import BURN_IN, apparel_scores, burn_in_frames
-from benchmark.protocols.base import CasePool, EvalData
-from benchmark.registry import get_method
-from datagen.apparel.stage import simulate_dataset
-from mimicbench.mesh import unique_edges
-from schemas.shards import write_records
+from mimicbench.baselines.body_only import BodyOnly
+from mimicbench.baselines.lbs_kinematic import LbsKinematic
+from mimicbench.benchmark.batch import evaluate_batch
+from mimicbench.benchmark.normalisation import RestFrame
+from mimicbench.benchmark.protocols import get_protocol
+from mimicbench.benchmark.protocols.apparel import BURN_IN, apparel_scores, burn_in_frames
+from mimicbench.benchmark.protocols.base import CasePool, EvalData
+from mimicbench.benchmark.registry import get_method
+from mimicbench.datagen.apparel.stage import simulate_dataset
+from mimicbench.geometry.mesh import unique_edges
+from mimicbench.schemas.shards import write_records
 from tests.apparel_toys import make_character, make_motion, quick_turn
 
 SHIFT = 0.01  # metres: the hand-made "simulation" moves every apparel bone by this along +X
@@ -178,8 +178,8 @@ def test_baselines_on_simulated_toy_data(tmp_path):
 
 
 def _request(c, transforms):
-    from benchmark.request import MotionRequest
-    from benchmark.rigs import CharacterData
+    from mimicbench.benchmark.request import MotionRequest
+    from mimicbench.benchmark.rigs import CharacterData
 
     return MotionRequest(CharacterData(c).rig, transforms, ~c.apparel_bone_mask, 30.0)
 
@@ -200,11 +200,11 @@ def test_wrong_shapes_fail_the_case(tmp_path):
 def test_leaderboard_strips_show_the_window_middle_frame(tmp_path):
     """The leaderboard's strips for apparel cases: a window's middle frame, the frame the samples keep.
     By hand: the truth panel is the prediction panel of lbs_kinematic with apparel vertices + SHIFT in x."""
-    from benchmark.aggregate import aggregate
-    from benchmark.cases import write_cases
-    from benchmark.evaluator import run_benchmark
-    from benchmark.leaderboard_strips import build_strips
-    from datagen.render.panel import Panel
+    from mimicbench.benchmark.aggregate import aggregate
+    from mimicbench.benchmark.cases import write_cases
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.leaderboard_strips import build_strips
+    from mimicbench.datagen.render.panel import Panel
 
     root, c = _hand_case(tmp_path)
     cases = get_protocol("apparel").build_cases(CasePool.load(root, "all"), None, 2, seed=0)
@@ -244,12 +244,12 @@ def test_pose_protocols_draw_kinematic_clips_only(tmp_path):
 def test_strips_show_the_window_middle_frame_after_a_burn_in(tmp_path):
     """With burn-in frames in the request, the source panel is still the window's middle frame: the
     kinematic pose at frame + 8 (by hand: LBS of the clip's frame, one-hot weights), the prediction's frame."""
-    from benchmark.aggregate import aggregate
-    from benchmark.cases import write_cases
-    from benchmark.evaluator import run_benchmark
-    from benchmark.leaderboard_strips import build_strips
-    from datagen.render.panel import Panel
-    from mimicbench.skinning import linear_blend_skinning
+    from mimicbench.benchmark.aggregate import aggregate
+    from mimicbench.benchmark.cases import write_cases
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.leaderboard_strips import build_strips
+    from mimicbench.datagen.render.panel import Panel
+    from mimicbench.geometry.skinning import linear_blend_skinning
 
     c, kin, sim = _long_hand_case(130)
     root = tmp_path / "long"

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.apparel.stage import simulate_dataset
-from schemas.motion import MotionRecord
-from schemas.shards import read_records, write_records
+from mimicbench.datagen.apparel.stage import simulate_dataset
+from mimicbench.schemas.motion import MotionRecord
+from mimicbench.schemas.shards import read_records, write_records
 
 
 @pytest.mark.slow

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.mmdmc.probe_jitter import apparel_vertices, jitter
-from benchmark.apparel_metrics import (accel_error, clear_at_rest, contact_reach, penetration_share,
+from mimicbench.baselines.mmdmc.probe_jitter import apparel_vertices, jitter
+from mimicbench.benchmark.apparel_metrics import (accel_error, clear_at_rest, contact_reach, penetration_share,
                                        second_differences)
-from datagen.apparel.body_shapes import BodyPiece
+from mimicbench.datagen.apparel.body_shapes import BodyPiece
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 
@@ -104,10 +104,10 @@ def test_protocol_rows_carry_both_scores_and_see_the_jitter_probe(tmp_path):
     # 1 mm (at 1.70 m) of independent noise per axis gives second differences of mean magnitude
     # sqrt(6) sigma fps^2 sqrt(8 / pi) (a 3D normal's mean length is sqrt(8 / pi) times its std),
     # while its PMD_a moves by about sigma^2 / (2 shift), a small share of the shift
-    from benchmark.batch import evaluate_batch
-    from benchmark.protocols import get_protocol
-    from benchmark.protocols.base import CasePool, EvalData
-    from benchmark.registry import get_method
+    from mimicbench.benchmark.batch import evaluate_batch
+    from mimicbench.benchmark.protocols import get_protocol
+    from mimicbench.benchmark.protocols.base import CasePool, EvalData
+    from mimicbench.benchmark.registry import get_method
     from tests.test_apparel_protocol import _hand_case
 
     root, c = _hand_case(tmp_path)

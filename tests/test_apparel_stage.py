@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datagen.apparel.params import params_from_json
-from datagen.apparel.selection import selection_problem
-from datagen.apparel.stage import simulate_dataset
+from mimicbench.datagen.apparel.params import params_from_json
+from mimicbench.datagen.apparel.selection import selection_problem
+from mimicbench.datagen.apparel.stage import simulate_dataset
 from mimicbench.cli import main
-from schemas.shards import read_records, write_records
-from schemas.validate import validate_dataset
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.validate import validate_dataset
 from tests.apparel_toys import make_character, make_motion, quick_turn
 
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
-from datagen.apparel.params import ApparelParams, SimParams, params_from_json
-from datagen.apparel.springs import Springs, chain_mass_matrix
-from datagen.apparel.urdf import capsule_inertia
-from datagen.apparel.world import ApparelWorld
+from mimicbench.datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+from mimicbench.datagen.apparel.params import ApparelParams, SimParams, params_from_json
+from mimicbench.datagen.apparel.springs import Springs, chain_mass_matrix
+from mimicbench.datagen.apparel.urdf import capsule_inertia
+from mimicbench.datagen.apparel.world import ApparelWorld
 
 DT = 1 / 240
 
@@ -130,9 +130,9 @@ def _strand_in_a_closing_crevice(contact_frequency: float, fps: float = 30.0, fr
     links below the root touch through a spring of ``contact_frequency`` rad/s (0: rigid), the
     root rigidly, as the stage's hair does. Returns the largest acceleration (m/s^2) of the strand's
     hull corners over the clip and after the front box stopped (frame 31 on)."""
-    from datagen.apparel.body_shapes import body_pieces
-    from datagen.apparel.simulate import simulate_clip
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.datagen.apparel.body_shapes import body_pieces
+    from mimicbench.datagen.apparel.simulate import simulate_clip
+    from mimicbench.geometry.kinematics import rest_transforms
     from tests.test_apparel_physics import STRIP, _strip_accelerations
 
     hair = ApparelParams().for_kind("hair")
@@ -178,7 +178,7 @@ def test_links_below_the_root_get_the_contact_spring_and_shell():
     # lies 3 mm further from its bone (the segment from head to tail) than without the shell;
     # the root keeps its hull and root_contact_frequency (0: rigid); skirt strips keep rigid
     # contacts below their spring-held root (version 10's tuning)
-    from datagen.apparel.setup import character_physics
+    from mimicbench.datagen.apparel.setup import character_physics
     from tests.apparel_toys import make_character
 
     rec = make_character()  # bones skirt_1..4: a skirt strip

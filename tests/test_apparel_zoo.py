@@ -9,8 +9,8 @@ import igl
 import numpy as np
 import pytest
 
-from datagen.apparel.stage import simulate_dataset
-from schemas.shards import read_records
+from mimicbench.datagen.apparel.stage import simulate_dataset
+from mimicbench.schemas.shards import read_records
 
 
 def _quat_matrices(q):
@@ -35,7 +35,7 @@ def _pose(c, transforms):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_zoo_apparel_simulated_moves_apparel_only_and_stays_outside_the_body(tmp_path, seed):
-    from datagen.zoo import build_zoo
+    from mimicbench.datagen.zoo.dataset import build_zoo
 
     zoo = tmp_path / "zoo"
     build_zoo(zoo, 3, seed=seed, categories=["apparel"], clips_per_character=1, progress=False)
@@ -80,8 +80,8 @@ def test_a_clip_gives_the_same_bytes_whether_its_world_was_reused_or_new(tmp_pat
     # the stage keeps one world per character across its clips (reset between them); a clip's
     # simulation must not depend on the clips simulated before it in that world: simulated alone
     # (a new world) it gives the same bytes as second in line (a reused world)
-    from datagen.zoo import build_zoo
-    from schemas.shards import write_records
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import write_records
 
     zoo = tmp_path / "zoo"
     build_zoo(zoo, 1, seed=0, categories=["apparel"], clips_per_character=2, frames_per_clip=24, progress=False)
@@ -106,8 +106,8 @@ def test_an_idle_clip_that_exploded_at_simulation_version_8_simulates(tmp_path):
     # frame 12, bound 25 m/s; its hair twisted by contacts and put back into the body every step).
     # It must simulate, its apparel moving (secondary motion) yet staying out of the body, and its
     # links stay far below the bound: no vertex faster than the bound's tenth on average over a frame
-    from datagen.zoo import build_zoo
-    from schemas.shards import write_records
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import write_records
 
     zoo = tmp_path / "zoo"
     build_zoo(zoo, 4, seed=505, categories=["apparel"], clips_per_character=2, progress=False)

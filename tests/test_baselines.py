@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from benchmark.aggregate import aggregate
-from benchmark.evaluator import run_benchmark
-from benchmark.request import Rig, TransferRequest
-from benchmark.results import method_dir, read_result_records
+from mimicbench.benchmark.aggregate import aggregate
+from mimicbench.benchmark.evaluator import run_benchmark
+from mimicbench.benchmark.request import Rig, TransferRequest
+from mimicbench.benchmark.results import method_dir, read_result_records
 from tests.bench_fixtures import make_bench_dataset
 
 METHODS = ["identity", "name_copy", "nearest_joint", "text_soft"]
@@ -61,7 +61,7 @@ def test_headline_columns_and_category_pairs_on_one_scale(scored):
 
 def _flat_pair():
     """A 2 m x 0.1 m x 0.5 m slab rigged to one bone, and a copy squashed to a tenth of its height."""
-    from schemas.weights import SparseWeights
+    from mimicbench.schemas.weights import SparseWeights
 
     corners = np.array([[x, y, z] for x in (0, 2.0) for y in (0, 0.1) for z in (0, 0.5)], np.float32)
     faces = np.array([[0, 1, 2], [1, 3, 2], [4, 6, 5], [5, 6, 7], [0, 4, 1], [1, 4, 5],
@@ -74,7 +74,7 @@ def _flat_pair():
 
 @pytest.mark.parametrize("name", ["name_copy", "nearest_joint", "text_soft"])
 def test_root_displacement_scales_by_size_not_height(name):
-    from benchmark.registry import get_method
+    from mimicbench.benchmark.registry import get_method
 
     a, b = _flat_pair()
     step = np.float32([0.3, 0.0, 0.1])  # the source slides 0.3 m along its length

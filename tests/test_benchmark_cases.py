@@ -3,13 +3,13 @@ import shutil
 import numpy as np
 import pytest
 
-from benchmark.cases import build_cases, write_cases
-from benchmark.normalisation import size_ratio
-from benchmark.protocols.h2h import ground_truth_transforms, local_translations
-from mimicbench.kinematics import array_to_transforms, local_from_global
-from mimicbench.quaternion import quat_angle, quat_apply
-from schemas.shards import read_records
-from schemas.validate import validate_dataset
+from mimicbench.benchmark.cases import build_cases, write_cases
+from mimicbench.benchmark.normalisation import size_ratio
+from mimicbench.benchmark.protocols.h2h import ground_truth_transforms, local_translations
+from mimicbench.geometry.kinematics import array_to_transforms, local_from_global
+from mimicbench.geometry.quaternion import quat_angle, quat_apply
+from mimicbench.schemas.shards import read_records
+from mimicbench.schemas.validate import validate_dataset
 from tests.family_fixtures import add_family
 
 HUMAN = ("humanoid", "apparel")
@@ -122,7 +122,7 @@ def test_ground_truth_refuses_different_skeletons(small_zoo):
 def test_cases_read_their_poses_from_the_motions_table_and_the_pool_holds_no_transforms(small_zoo):
     """The pool keeps clip IDs and lengths only; each case's source pose is read back by
     streaming the motions table. Checked against every motion loaded whole."""
-    from benchmark.protocols.base import CasePool, MotionInfo
+    from mimicbench.benchmark.protocols.base import CasePool, MotionInfo
 
     pool = CasePool.load(small_zoo, "all")
     infos = [m for ms in pool.motions.values() for m in ms]

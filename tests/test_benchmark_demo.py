@@ -24,10 +24,10 @@ def test_demo_prints_a_leaderboard_with_nine_methods_and_its_protocols(tmp_path,
     assert h2h["identity"] == max(h2h.values()) and h2h["name_copy"] < 1.0
     # the apparel table: the bundled apparel methods on every case of the zoo's 2 apparel characters;
     # lbs_kinematic moves body vertices exactly as the ground truth does (PMD_b = 0) but not apparel
-    from benchmark.aggregate import aggregate
-    from benchmark.demo import BUNDLED_APPAREL
+    from mimicbench.benchmark.aggregate import aggregate
+    from mimicbench.benchmark.demo import BUNDLED_APPAREL
 
-    from benchmark.registry import get_method
+    from mimicbench.benchmark.registry import get_method
 
     for name in BUNDLED_APPAREL:  # each row names the method's version (the shipped weights' for mmdmc)
         assert f"| {name} v{get_method(name).metadata.version} |" in printed, name

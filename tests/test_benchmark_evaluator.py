@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmark.aggregate import aggregate
-from benchmark.evaluator import run_benchmark
-from benchmark.registry import get_method, register
-from benchmark.results import method_dir, read_result_records
-from schemas.shards import read_records
+from mimicbench.benchmark.aggregate import aggregate
+from mimicbench.benchmark.evaluator import run_benchmark
+from mimicbench.benchmark.registry import get_method, register
+from mimicbench.benchmark.results import method_dir, read_result_records
+from mimicbench.schemas.shards import read_records
 from tests.bench_fixtures import FlakyMethod, KillerCopy, make_bench_dataset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,8 +76,8 @@ def test_missing_cases_give_no_average(bench_data, tmp_path):
 def test_killed_run_resumes_to_the_same_results(bench_data, tmp_path):
     script = (
         "import sys; sys.path.insert(0, %r)\n"
-        "from benchmark.registry import register\nfrom tests.bench_fixtures import KillerCopy\n"
-        "from benchmark.evaluator import run_benchmark\nregister('killer', KillerCopy)\n"
+        "from mimicbench.benchmark.registry import register\nfrom tests.bench_fixtures import KillerCopy\n"
+        "from mimicbench.benchmark.evaluator import run_benchmark\nregister('killer', KillerCopy)\n"
         "run_benchmark(%r, ['killer'], ['h2h', 'cct'], %r, batch_size=2, progress=False, in_process=True)\n"
     ) % (str(REPO), str(bench_data), str(tmp_path / "killed"))
     env = dict(os.environ, KILL_AFTER_BATCHES="3")

@@ -5,14 +5,14 @@ import logging
 import numpy as np
 import pytest
 
-from benchmark.evaluator import run_benchmark
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from benchmark.registry import get_method, register
-from benchmark.request import TransferRequest
-from benchmark.results import method_dir, read_result_records
-from benchmark.rigs import load_characters
-from benchmark.worker import WorkerRunner, import_path
-from schemas.shards import read_records
+from mimicbench.benchmark.evaluator import run_benchmark
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.registry import get_method, register
+from mimicbench.benchmark.request import TransferRequest
+from mimicbench.benchmark.results import method_dir, read_result_records
+from mimicbench.benchmark.rigs import load_characters
+from mimicbench.benchmark.worker import WorkerRunner, import_path
+from mimicbench.schemas.shards import read_records
 from tests.bench_fixtures import make_bench_dataset
 from tests.hostile_methods import ENV, AttributeSwapper, HostileMethod, MutatingMethod, hostile_env
 

@@ -2,11 +2,11 @@ import numpy as np
 import pytest
 import torch
 
-from benchmark.metrics import els, pmd, pmd_aligned, pmd_squared
-from benchmark.metrics_torch import els_torch, pmd_aligned_torch, pmd_squared_torch, pmd_torch
-from benchmark.normalisation import RestFrame, largest_extent, size_ratio
-from benchmark.scoring import score_pose
-from mimicbench.mesh import unique_edges
+from mimicbench.benchmark.metrics import els, pmd, pmd_aligned, pmd_squared
+from mimicbench.benchmark.metrics_torch import els_torch, pmd_aligned_torch, pmd_squared_torch, pmd_torch
+from mimicbench.benchmark.normalisation import RestFrame, largest_extent, size_ratio
+from mimicbench.benchmark.scoring import score_pose
+from mimicbench.geometry.mesh import unique_edges
 
 # a rest mesh whose bounding box is 4 m along x, 2 m tall (y) and 1 m deep (z)
 REST = np.array([[0, 0, 0], [4, 0, 0], [0, 2, 0], [0, 0, 1.0]])

@@ -3,16 +3,16 @@ that do not support a protocol, and same-skeleton ground truth end to end."""
 import numpy as np
 import pytest
 
-from benchmark.cases import build_cases, write_cases
-from benchmark.evaluator import run_benchmark
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from benchmark.protocols import available_protocols, get_protocol, register_protocol
-from benchmark.protocols.base import BenchmarkProtocol, Outcome
-from benchmark.registry import register
-from benchmark.results import method_dir, read_result_records
-from baselines.name_copy import NameCopy
-from benchmark.scoring import score_pose
-from schemas.case import CaseRecord
+from mimicbench.benchmark.cases import build_cases, write_cases
+from mimicbench.benchmark.evaluator import run_benchmark
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.protocols import available_protocols, get_protocol, register_protocol
+from mimicbench.benchmark.protocols.base import BenchmarkProtocol, Outcome
+from mimicbench.benchmark.registry import register
+from mimicbench.benchmark.results import method_dir, read_result_records
+from mimicbench.baselines.name_copy import NameCopy
+from mimicbench.benchmark.scoring import score_pose
+from mimicbench.schemas.case import CaseRecord
 from tests.family_fixtures import add_family
 
 

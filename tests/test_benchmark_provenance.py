@@ -12,19 +12,19 @@ from dataclasses import asdict, replace
 import pyarrow.parquet as pq
 import pytest
 
-from baselines.identity import Identity
-from baselines.name_copy import NameCopy
-from benchmark.aggregate import aggregate
-from benchmark.cases import build_cases, write_cases
-from benchmark.evaluator import run_benchmark
-from benchmark.provenance import META_FILE, ProvenanceError, check_results_provenance
-from benchmark.registry import register
-from benchmark.results import done_case_ids, method_dir, part_files, read_result_records
+from mimicbench.baselines.identity import Identity
+from mimicbench.baselines.name_copy import NameCopy
+from mimicbench.benchmark.aggregate import aggregate
+from mimicbench.benchmark.cases import build_cases, write_cases
+from mimicbench.benchmark.evaluator import run_benchmark
+from mimicbench.benchmark.provenance import META_FILE, ProvenanceError, check_results_provenance
+from mimicbench.benchmark.registry import register
+from mimicbench.benchmark.results import done_case_ids, method_dir, part_files, read_result_records
 from mimicbench import __version__
-from schemas.fingerprint import files_fingerprint, table_fingerprint
-from schemas.manifest import load_manifest, sha256_of
-from schemas.shards import read_records
-from schemas.validate import validate_dataset
+from mimicbench.schemas.fingerprint import files_fingerprint, table_fingerprint
+from mimicbench.schemas.manifest import load_manifest, sha256_of
+from mimicbench.schemas.shards import read_records
+from mimicbench.schemas.validate import validate_dataset
 from tests.bench_fixtures import make_bench_dataset
 from tests.hostile_methods import ENV, HostileMethod, hostile_env
 
@@ -66,7 +66,7 @@ def test_meta_json_records_fingerprints_metadata_and_version(bench_data, tmp_pat
 def test_cases_of_a_regenerated_zoo_are_refused(bench_data, tmp_path, capsys):
     """Issue: cases built from an earlier zoo were scored against a regenerated one (name_copy 7.9
     instead of 0.47) and validate said OK."""
-    from datagen.zoo import build_zoo
+    from mimicbench.datagen.zoo.dataset import build_zoo
 
     data = copy_dataset(bench_data, tmp_path / "data")
     build_zoo(data, 14, seed=1, progress=False)  # regenerate in place: the old cases stay behind
@@ -109,7 +109,7 @@ def test_results_of_another_dataset_are_not_resumed_or_mixed(bench_data, tmp_pat
     shutil.copytree(tmp_path / "res2" / "name_copy", res / "name_copy")
     with pytest.raises(ProvenanceError, match="different dataset states.*cases/h2h"):
         check_results_provenance(res)
-    from benchmark.leaderboard import write_leaderboard
+    from mimicbench.benchmark.leaderboard import write_leaderboard
 
     with pytest.raises(ProvenanceError):
         write_leaderboard(res)

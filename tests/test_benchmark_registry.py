@@ -2,8 +2,8 @@ import sys
 
 import pytest
 
-from benchmark.method import PoseTransferMethod
-from benchmark.registry import UnknownName, available_methods, get_method, register
+from mimicbench.benchmark.method import PoseTransferMethod
+from mimicbench.benchmark.registry import UnknownName, available_methods, get_method, register
 from mimicbench.cli import main
 from tests.bench_fixtures import make_bench_dataset
 from tests.bench_fixtures import FlakyMethod
@@ -25,14 +25,14 @@ def test_unknown_name_suggests_close_matches():
 
 
 def test_runtime_registration_and_entry_points(tmp_path, monkeypatch):
-    import benchmark.registry as registry
+    import mimicbench.benchmark.registry as registry
 
     monkeypatch.setattr(registry.METHODS, "_runtime", dict(registry.METHODS._runtime))  # names registered here stay here
     register("flaky", FlakyMethod)
     assert isinstance(get_method("flaky"), FlakyMethod)
     # a third-party package declaring `mimicbench.methods` in its entry points
     pkg = tmp_path / "thirdparty_pose.py"
-    pkg.write_text("from baselines.identity import Identity\nclass Mine(Identity):\n    pass\n")
+    pkg.write_text("from mimicbench.baselines.identity import Identity\nclass Mine(Identity):\n    pass\n")
     dist = tmp_path / "thirdparty_pose-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: thirdparty-pose\nVersion: 0.1\n")
@@ -44,7 +44,7 @@ def test_runtime_registration_and_entry_points(tmp_path, monkeypatch):
 
 
 def test_a_typo_in_methods_is_one_error_line_naming_the_close_match_exit_2(tmp_path, capsys, monkeypatch):
-    import benchmark.registry as registry
+    import mimicbench.benchmark.registry as registry
 
     monkeypatch.setattr(registry.METHODS, "_runtime", {})  # only the bundled names (other tests register more)
     code = main(["bench", "run", str(tmp_path / "D"), "--methods", "identity,name_cpy", "--out", str(tmp_path / "r")])

@@ -1,5 +1,5 @@
 """CARD.md's generated sections: replaced in place between their markers, appended otherwise."""
-from datagen.zoo.card import put_card_section
+from mimicbench.datagen.zoo.card import put_card_section
 
 A = "<!-- a -->\nfirst\n<!-- /a -->\n"
 A2 = "<!-- a -->\nsecond\n<!-- /a -->\n"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.cgt.sampling import farthest_points
+from mimicbench.baselines.cgt.sampling import farthest_points
 
 
 def gained(model):
@@ -19,8 +19,8 @@ def gained(model):
 
 @pytest.mark.parametrize("widths,stages", [((64, 128, 1024), (1024, 512, 512, 256)), ((8, 16, 32), (32, 16, 16, 8))])
 def test_four_cgp_blocks_sit_before_the_four_spadain_blocks_at_the_published_widths(widths, stages):
-    from baselines.cgt.model import Cgt, CGPBlock
-    from baselines.npt.spadain import SPAdaINResBlock
+    from mimicbench.baselines.cgt.model import Cgt, CGPBlock
+    from mimicbench.baselines.npt.spadain import SPAdaINResBlock
 
     model = Cgt(widths)
     assert [(c.in_channels, c.out_channels) for c in model.convs] == list(zip((widths[-1],) + stages[:-1], stages))
@@ -40,7 +40,7 @@ def test_four_cgp_blocks_sit_before_the_four_spadain_blocks_at_the_published_wid
 
 
 def test_the_attention_sits_between_each_stage_conv_and_its_spadain_block():
-    from baselines.cgt.model import Cgt
+    from mimicbench.baselines.cgt.model import Cgt
 
     torch.manual_seed(0)
     model = gained(Cgt((8, 16, 32)).eval())
@@ -59,7 +59,7 @@ def test_the_attention_sits_between_each_stage_conv_and_its_spadain_block():
 
 def test_cgp_block_matches_a_naive_loop():
     # energy[p, q] = query(pose_p) . key(identity_q); each target point q: softmax over p, gather value(pose_p)
-    from baselines.cgt.model import CGPBlock
+    from mimicbench.baselines.cgt.model import CGPBlock
 
     torch.manual_seed(0)
     block = CGPBlock(5)
@@ -80,7 +80,7 @@ def test_cgp_block_matches_a_naive_loop():
 
 
 def test_no_attention_switch_changes_the_answer_and_zero_gain_is_no_attention():
-    from baselines.cgt.model import Cgt
+    from mimicbench.baselines.cgt.model import Cgt
 
     torch.manual_seed(0)
     model = Cgt((8, 16, 32)).eval()
@@ -111,9 +111,9 @@ def test_capped_answer_moves_a_hair_when_a_target_point_moves_a_hair(tube):
     # a carry of attended features from a few nearest capped points jumps where the nearest change: two
     # points 1e-7 apart (a resampled real mesh's near-zero edge) would be sent far apart. Every target point
     # queries on its own: a smooth function of it.
-    from baselines.cgt.model import Cgt
-    from baselines.cgt.training import capped_rows
-    from baselines.npt.placement import centred
+    from mimicbench.baselines.cgt.model import Cgt
+    from mimicbench.baselines.cgt.training import capped_rows
+    from mimicbench.baselines.npt.placement import centred
 
     torch.manual_seed(0)
     model = gained(Cgt((8, 16, 32)).eval())
@@ -131,9 +131,9 @@ def test_capped_answer_moves_a_hair_when_a_target_point_moves_a_hair(tube):
 
 
 def test_capped_attention_is_the_dense_one_when_the_cap_holds_every_point_or_drops_only_duplicates(tube):
-    from baselines.cgt.model import Cgt
-    from baselines.cgt.training import capped_rows
-    from baselines.npt.placement import centred
+    from mimicbench.baselines.cgt.model import Cgt
+    from mimicbench.baselines.cgt.training import capped_rows
+    from mimicbench.baselines.npt.placement import centred
 
     torch.manual_seed(0)
     model = gained(Cgt((8, 16, 32)).eval())
@@ -165,7 +165,7 @@ def test_a_few_steps_lower_the_loss(small_zoo):
 
 
 def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
-    from baselines.cgt.method import Cgt
+    from mimicbench.baselines.cgt.method import Cgt
     from tests.test_npt import trained_method
 
     method = trained_method(Cgt, small_zoo, tmp_path / "run")[0]
@@ -173,7 +173,7 @@ def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
 
 
 def test_shipped_self_transfer_comes_back_close_to_the_posed_source(small_zoo):
-    from baselines.cgt.method import Cgt
+    from mimicbench.baselines.cgt.method import Cgt
     from tests.test_npt import self_transfer_pmd
 
     got, identity = self_transfer_pmd(Cgt(), small_zoo)

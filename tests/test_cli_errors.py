@@ -5,9 +5,9 @@ import argparse
 
 import pytest
 
-from mimicbench.argtypes import comma_choices, float_in, int_in, nonnegative_int, positive_float, positive_int
+from mimicbench.runtime.argtypes import comma_choices, float_in, int_in, nonnegative_int, positive_float, positive_int
 from mimicbench.cli import main
-from schemas.errors import DatasetError
+from mimicbench.schemas.errors import DatasetError
 
 
 def test_int_and_float_types_accept_the_range_and_name_it_when_rejecting():

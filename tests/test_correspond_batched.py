@@ -3,8 +3,8 @@ import itertools
 import numpy as np
 import pytest
 
-from datagen.correspond.batched import correspondence_batch
-from mimicbench.sinkhorn import sinkhorn_log
+from mimicbench.datagen.correspond.batched import correspondence_batch
+from mimicbench.geometry.sinkhorn import sinkhorn_log
 
 
 def unit_rows(rng, k, d=32):

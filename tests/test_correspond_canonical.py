@@ -1,7 +1,7 @@
 import pytest
 
-from datagen.correspond.canonical import canonicalize_bone_name, canonicalize_names
-from datagen.zoo.naming import bone_names
+from mimicbench.datagen.correspond.canonical import canonicalize_bone_name, canonicalize_names
+from mimicbench.datagen.zoo.naming import bone_names
 from tests.test_correspond_real_rigs import load_rig
 
 # A compact humanoid per zoo naming style (roles are the list positions; the stage test uses them)
@@ -10,7 +10,7 @@ HUMANOID_ROLES = ["hips", "spine/1", "spine/2", "left/shoulder", "left/upper_arm
 HUMANOID_STYLES = {style: bone_names(HUMANOID_ROLES, style, humanoid=True)
                    for style in ("mixamo", "blender", "biped", "gltf")}
 
-# Every zoo naming style: raw name (as datagen.zoo.naming writes it) -> canonical text, written by hand.
+# Every zoo naming style: raw name (as mimicbench.datagen.zoo.naming writes it) -> canonical text, written by hand.
 ZOO_TABLE = {
     "mixamo": [("mixamorig:Hips", "hips"), ("mixamorig:Spine", "spine"), ("mixamorig:Spine1", "spine 1"),
                ("mixamorig:LeftShoulder", "left shoulder"), ("mixamorig:LeftArm", "left arm"),

@@ -1,7 +1,7 @@
 import numpy as np
 import torch
 
-from datagen.correspond.encoders import ClipEncoder, get_encoder
+from mimicbench.datagen.correspond.encoders import ClipEncoder, get_encoder
 
 
 def test_minilm_ships_its_weights_and_separates_limbs_from_tails():

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datagen.correspond.pair import correspondence_for_skeletons
+from mimicbench.datagen.correspond.pair import correspondence_for_skeletons
 from tests.correspond_rig_tables import RIG_TABLES, table_rig
 
 
@@ -363,8 +363,8 @@ def test_text_method_sends_a_spine_to_a_finger_and_structure_does_not(rigs):
 
 
 def _features(rig):
-    from datagen.correspond.canonical import canonicalize_names
-    from datagen.correspond.structure import skeleton_features
+    from mimicbench.datagen.correspond.canonical import canonicalize_names
+    from mimicbench.datagen.correspond.structure import skeleton_features
 
     names, parents, kp = rig
     return skeleton_features(canonicalize_names(names), parents, kp)

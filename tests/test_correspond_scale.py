@@ -11,21 +11,21 @@ import pyarrow.parquet as pq
 import pytest
 import torch
 
-from datagen.correspond.batched import correspondence_batch, sinkhorn_padded
-from datagen.correspond.report import pair_scores
-from datagen.correspond.sampling import sample_pairs
-from schemas.pair import PairRecord
-from schemas.shards import read_records, write_records
+from mimicbench.datagen.correspond.batched import correspondence_batch, sinkhorn_padded
+from mimicbench.datagen.correspond.report import pair_scores
+from mimicbench.datagen.correspond.sampling import sample_pairs
+from mimicbench.schemas.pair import PairRecord
+from mimicbench.schemas.shards import read_records, write_records
 
 
 def _zoo_skeleton(character_id: str):
     """(canonical names, parents, rest keypoints) of one character of the 975-character zoo, seed 0,
     built alone (its spec from the zoo's plan; no dataset needed)."""
-    from datagen.correspond.canonical import canonicalize_names
-    from datagen.zoo.build import build_skeleton, naming_style
-    from datagen.zoo.naming import bone_names
-    from datagen.zoo.plan import plan_zoo
-    from schemas.character import HUMANOID_LIKE
+    from mimicbench.datagen.correspond.canonical import canonicalize_names
+    from mimicbench.datagen.zoo.build import build_skeleton, naming_style
+    from mimicbench.datagen.zoo.naming import bone_names
+    from mimicbench.datagen.zoo.plan import plan_zoo
+    from mimicbench.schemas.character import HUMANOID_LIKE
 
     spec = next(s for s in plan_zoo(975, seed=0) if s.character_id == character_id)
     skel, _ = build_skeleton(spec)
@@ -37,10 +37,10 @@ def test_a_pair_whose_relaxed_sweeps_overflow_is_redone_with_classic_sweeps():
     """apparel-0006 (81 bones) -> apparel-0047 (240) of the full-size zoo: the over-relaxed sweeps
     (w = 1.7) overflow to NaN; that failed its whole block of 2,048 pairs before. Now the pair is
     solved by classic sweeps and meets the marginals (rows at most 1, columns at most K1/K2 or 1)."""
-    from datagen.correspond.encoders import get_encoder
-    from datagen.correspond.methods import get_matcher
-    from datagen.correspond.structure import skeleton_features
-    from datagen.correspond.batched import feature_penalty
+    from mimicbench.datagen.correspond.encoders import get_encoder
+    from mimicbench.datagen.correspond.methods import get_matcher
+    from mimicbench.datagen.correspond.structure import skeleton_features
+    from mimicbench.datagen.correspond.batched import feature_penalty
 
     (na, pa, ka), (nb, pb, kb) = _zoo_skeleton("zoo/apparel-0006"), _zoo_skeleton("zoo/apparel-0047")
     enc = get_encoder("minilm")

@@ -5,14 +5,15 @@ import shutil
 import numpy as np
 import pytest
 
-from datagen.correspond import correspond_dataset, correspondence_for_names, correspondence_for_skeletons
-from datagen.correspond.sampling import sample_pairs
-from datagen.zoo.build import build_skeleton
-from datagen.zoo.naming import HUMANOID_STYLES, bone_names
-from datagen.zoo.plan import CharacterSpec
+from mimicbench.datagen.correspond.pair import correspondence_for_names, correspondence_for_skeletons
+from mimicbench.datagen.correspond.stage import correspond_dataset
+from mimicbench.datagen.correspond.sampling import sample_pairs
+from mimicbench.datagen.zoo.build import build_skeleton
+from mimicbench.datagen.zoo.naming import HUMANOID_STYLES, bone_names
+from mimicbench.datagen.zoo.plan import CharacterSpec
 from mimicbench.cli import main
-from schemas.shards import read_records, splits_of
-from schemas.validate import validate_dataset
+from mimicbench.schemas.shards import read_records, splits_of
+from mimicbench.schemas.validate import validate_dataset
 
 
 @pytest.fixture(scope="module")

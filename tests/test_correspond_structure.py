@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import torch
 
-from datagen.correspond.batched import correspondence_batch, feature_penalty, hungarian_pairs
-from datagen.correspond.methods import FEATURES, METHODS, get_matcher
-from datagen.correspond.roles import role_classes
-from datagen.correspond.structure import skeleton_features
-from mimicbench.sinkhorn import sinkhorn_log
+from mimicbench.datagen.correspond.batched import correspondence_batch, feature_penalty, hungarian_pairs
+from mimicbench.datagen.correspond.methods import FEATURES, METHODS, get_matcher
+from mimicbench.datagen.correspond.roles import role_classes
+from mimicbench.datagen.correspond.structure import skeleton_features
+from mimicbench.geometry.sinkhorn import sinkhorn_log
 
 # A small humanoid with a tail, facing +Z, left = +X, metres (hand-placed joint heads)
 TOY = [  # name, parent, head
@@ -162,7 +162,7 @@ def test_role_map_classes():
 
 
 def test_monotone_pairs_is_the_best_order_preserving_matching():
-    from datagen.correspond.batched import monotone_pairs
+    from mimicbench.datagen.correspond.batched import monotone_pairs
 
     rng = np.random.default_rng(5)
     for n, m in [(1, 1), (3, 4), (4, 3), (5, 5), (2, 6)]:
@@ -179,7 +179,7 @@ def test_monotone_pairs_is_the_best_order_preserving_matching():
 
 
 def test_chain_scores_equal_a_naive_loop():
-    from datagen.correspond.batched import chain_scores
+    from mimicbench.datagen.correspond.batched import chain_scores
 
     rng = np.random.default_rng(2)
     k1, k2 = 6, 7
@@ -206,7 +206,7 @@ def test_chain_scores_equal_a_naive_loop():
 
 
 def test_name_keys_and_chain_kinds_of_a_hand_built_skeleton():
-    from datagen.correspond.structure import CHAIN_KINDS, name_keys
+    from mimicbench.datagen.correspond.structure import CHAIN_KINDS, name_keys
 
     keys = name_keys(["hips", "pelvis", "body", "chest", "upper spine", "left foot", "right foot", "spine"])
     assert keys[0] == keys[1] == keys[2] and keys[3] == keys[4] and len(set(keys[[0, 3, 5, 6, 7]])) == 5
@@ -228,7 +228,7 @@ def test_name_keys_and_chain_kinds_of_a_hand_built_skeleton():
 def test_a_detached_ik_foot_joins_its_leg():
     """An IK foot kept as a root of its own (a Quaternius mech's): it continues the leg it sits at,
     or becomes the sibling of the bone whose head it shares; without keypoints, the main root's child."""
-    from datagen.correspond.structure import _attach_detached
+    from mimicbench.datagen.correspond.structure import _attach_detached
 
     names, parents, kp = toy()
     names = names + ["left ik foot", "right ik foot"]
@@ -244,7 +244,7 @@ def test_a_detached_ik_foot_joins_its_leg():
 
 
 def test_same_named_bones_left_free_are_paired():
-    from datagen.correspond.batched import same_name_pairs
+    from mimicbench.datagen.correspond.batched import same_name_pairs
 
     s = np.array([[0.9, 0.1, 0.2], [0.1, 0.1, 0.3], [0.2, 0.3, 0.1]])
     pairs = np.array([[0, 0]], np.int32)

@@ -18,14 +18,14 @@ from pathlib import Path
 
 import pytest
 
-from datagen.resample import resample_dataset
+from mimicbench.datagen.resample.stage import resample_dataset
 from mimicbench.cli import main
-from schemas import integrity
-from schemas.errors import DatasetError
-from schemas.fingerprint import stage_config, tables_fingerprint
-from schemas.manifest import load_manifest, load_manifest_for_write
-from schemas.shards import read_records, write_records
-from schemas.validate import validate_dataset
+from mimicbench.schemas import integrity
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.fingerprint import stage_config, tables_fingerprint
+from mimicbench.schemas.manifest import load_manifest, load_manifest_for_write
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.validate import validate_dataset
 from tests.test_resample import bend_motion
 from tests.test_schemas import make_character
 
@@ -170,7 +170,7 @@ def test_an_empty_or_absent_input_table_is_an_error(tube, tmp_path, capsys):
 # -- item 5: a stage that produced nothing never replaces existing data ---------------------------
 
 def test_a_zoo_where_every_character_fails_leaves_the_existing_zoo_untouched(tmp_path, capsys, monkeypatch):
-    import datagen.zoo.dataset as zoo_dataset
+    import mimicbench.datagen.zoo.dataset as zoo_dataset
 
     out = tmp_path / "zoo"
     assert main(["zoo", "--out", str(out), "--characters", "2", "--quiet", "--no-contact-sheet"]) == 0
@@ -240,7 +240,7 @@ def test_manifest_paths_outside_the_dataset_are_refused(tube, tmp_path, capsys, 
 
 KILLABLE = """
 import sys, time
-import datagen.resample.stage as stage
+import mimicbench.datagen.resample.stage as stage
 real, calls = stage.resample_character, []
 def slow(*args):
     calls.append(1)
@@ -336,7 +336,7 @@ def test_a_malformed_manifest_is_a_named_error_for_readers_and_validate(tmp_path
 
 def test_a_resample_where_every_character_fails_leaves_the_earlier_output_untouched(tube, tmp_path, capsys,
                                                                                      monkeypatch):
-    import datagen.resample.stage as stage
+    import mimicbench.datagen.resample.stage as stage
 
     src = toy_dataset(tmp_path / "in", tube)
     out = tmp_path / "out"

@@ -1,4 +1,4 @@
-"""schemas.dataset.Dataset: one manifest read, tables and fingerprints checked against manifest.json
+"""mimicbench.schemas.dataset.Dataset: one manifest read, tables and fingerprints checked against manifest.json
 and the shard files read here with plain json, hashlib and pyarrow."""
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-import schemas.manifest as manifest_module
-from schemas.dataset import Dataset
-from schemas.errors import DatasetError
-from schemas.manifest import mark_incomplete
-from schemas.shards import read_records
+import mimicbench.schemas.manifest as manifest_module
+from mimicbench.schemas.dataset import Dataset
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.manifest import mark_incomplete
+from mimicbench.schemas.shards import read_records
 
 
 @pytest.fixture
@@ -88,7 +88,7 @@ def test_not_a_dataset_and_an_incomplete_one_are_refused(small_zoo, tmp_path):
 
 def test_bench_run_reads_the_manifest_twice_before_its_first_case(small_zoo, tmp_path, manifest_reads, monkeypatch):
     """Once to check the cases are current, once for the handle (it was 10 separate reads)."""
-    import benchmark.evaluator as evaluator
+    import mimicbench.benchmark.evaluator as evaluator
     from tests.bench_fixtures import make_bench_dataset
 
     data = make_bench_dataset(small_zoo, tmp_path / "data", h2h_poses=1, cct_pairs=2, cct_poses=1)

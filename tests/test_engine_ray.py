@@ -19,14 +19,14 @@ import pytest
 ray = pytest.importorskip("ray")
 import cloudpickle  # noqa: E402  (ships with ray)
 
-from datagen.correspond.stage import correspond_dataset  # noqa: E402
+from mimicbench.datagen.correspond.stage import correspond_dataset  # noqa: E402
 from mimicbench.engines import TaskResources, get_engine  # noqa: E402
 from mimicbench.engines.ray_engine import RayEngine  # noqa: E402
-from datagen.resample.stage import resample_dataset  # noqa: E402
-from datagen.stage_runner import run_stage  # noqa: E402
-from datagen.zoo import build_zoo  # noqa: E402
+from mimicbench.datagen.resample.stage import resample_dataset  # noqa: E402
+from mimicbench.datagen.stage_runner import run_stage  # noqa: E402
+from mimicbench.datagen.zoo import build_zoo  # noqa: E402
 from mimicbench.cli import main  # noqa: E402
-from schemas.shards import read_records  # noqa: E402
+from mimicbench.schemas.shards import read_records  # noqa: E402
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the test's task functions travel by value
 
@@ -89,7 +89,7 @@ def test_correspond_on_ray_is_byte_identical_in_blocks(zoos):
 
 
 def test_apparel_on_ray_is_byte_identical(ray_instance, tmp_path):
-    from datagen.apparel.stage import simulate_dataset
+    from mimicbench.datagen.apparel.stage import simulate_dataset
 
     zoo = tmp_path / "zoo"
     build_zoo(zoo, 1, seed=0, categories=["apparel"], clips_per_character=1, frames_per_clip=12, progress=False)
@@ -115,8 +115,8 @@ class KillOnce:
 
 def zoo_character_bytes(i: int) -> bytes:
     """One zoo character's rest vertices and first clip, as bytes (a deterministic real stage result)."""
-    from datagen.zoo.build import build_character
-    from datagen.zoo.plan import plan_zoo
+    from mimicbench.datagen.zoo.build import build_character
+    from mimicbench.datagen.zoo.plan import plan_zoo
 
     built = build_character(plan_zoo(6, seed=1)[i], "train", 1, 10)
     return built.record.vertices.tobytes() + built.motions[0].transforms.tobytes()
@@ -172,8 +172,8 @@ def test_cli_stages_take_the_engine(ray_instance, zoos, tmp_path, capsys):
 
 def test_bench_run_on_ray_gives_the_local_rows(zoos, tmp_path):
     """Results rows of `bench run --engine ray` equal the local engine's (worker processes), all but seconds."""
-    from benchmark.evaluator import run_benchmark
-    from benchmark.results import method_dir, read_result_records
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.results import method_dir, read_result_records
     from tests.bench_fixtures import make_bench_dataset
 
     data = make_bench_dataset(zoos / "local", tmp_path / "data", h2h_poses=2, cct_pairs=4, cct_poses=2)
@@ -183,7 +183,7 @@ def test_bench_run_on_ray_gives_the_local_rows(zoos, tmp_path):
                            engine=RayEngine())
     assert local["computed"] == on_ray["computed"] > 0 and on_ray["failed"] == 0
 
-    from benchmark.registry import get_method
+    from mimicbench.benchmark.registry import get_method
 
     version = {m: get_method(m).metadata.version for m in methods}
 
@@ -209,7 +209,7 @@ def test_bench_run_on_ray_gives_the_local_rows(zoos, tmp_path):
 def test_ingest_on_ray_is_byte_identical(ray_instance, assets_dir, tmp_path):
     """Real glTF assets through Blender: a Ray task an asset (its worker's own Blender) gives the local shards."""
     pytest.importorskip("bpy")
-    from datagen.ingest.runner import ingest_assets
+    from mimicbench.datagen.ingest.runner import ingest_assets
 
     assets = [assets_dir / "glb" / n for n in ("Fox.glb", "Quaternius_Rat.glb", "CesiumMan.glb")]
     for name, engine in (("local", None), ("ray", RayEngine())):
@@ -222,9 +222,9 @@ def test_ingest_on_ray_is_byte_identical(ray_instance, assets_dir, tmp_path):
 def test_bench_run_on_ray_has_the_local_per_case_timeout(zoos, tmp_path):
     """A method hanging on one case, exiting on another and raising on a third: `bench run --engine ray`
     writes the local engine's rows for them ("timed out after 2 s", ...) and scores their batch-mates."""
-    from benchmark.evaluator import run_benchmark
-    from benchmark.registry import register
-    from benchmark.results import method_dir, read_result_records
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.registry import register
+    from mimicbench.benchmark.results import method_dir, read_result_records
     from tests.bench_fixtures import make_bench_dataset
     from tests.hostile_methods import ENV, HostileMethod, hostile_env
 

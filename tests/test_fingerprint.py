@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from schemas.fingerprint import digest_of, table_fingerprint, tables_fingerprint
-from schemas.manifest import save_manifest
+from mimicbench.schemas.fingerprint import digest_of, table_fingerprint, tables_fingerprint
+from mimicbench.schemas.manifest import save_manifest
 
 
 def test_digest_is_sha256_of_canonical_json_and_ignores_key_order():
@@ -36,7 +36,7 @@ def test_table_fingerprint_follows_the_shards_checksums(tmp_path):
 
 
 def test_stage_config_mismatch_names_the_changed_parameters_and_inputs():
-    from schemas.fingerprint import fingerprint_mismatch, stage_config
+    from mimicbench.schemas.fingerprint import fingerprint_mismatch, stage_config
 
     a = stage_config({"stage": "resample", "faces": 2000}, {"characters": "c1"}, info={"source": "/a"})
     assert a["fingerprint"]["config"] == digest_of({"stage": "resample", "faces": 2000}) and a["source"] == "/a"

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.protocols import answers
-from benchmark.protocols.h2h_xskel import cross_skeleton_ground_truth
-from mimicbench.kinematics import array_to_transforms, local_from_global
-from mimicbench.quaternion import quat_angle
+from mimicbench.benchmark.protocols import answers
+from mimicbench.benchmark.protocols.h2h_xskel import cross_skeleton_ground_truth
+from mimicbench.geometry.kinematics import array_to_transforms, local_from_global
+from mimicbench.geometry.quaternion import quat_angle
 from tests.role_rigs import pose, t_pose_humanoid
 
 

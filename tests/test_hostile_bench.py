@@ -11,12 +11,12 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from benchmark.aggregate import aggregate
-from benchmark.leaderboard import write_leaderboard
-from benchmark.results import append_results, read_run_info, write_run_info
+from mimicbench.benchmark.aggregate import aggregate
+from mimicbench.benchmark.leaderboard import write_leaderboard
+from mimicbench.benchmark.results import append_results, read_run_info, write_run_info
 from mimicbench.cli import main
 from mimicbench.pipeline import load_pipeline, step_argv
-from schemas.result import ResultRecord
+from mimicbench.schemas.result import ResultRecord
 from tests.bench_fixtures import make_bench_dataset
 
 
@@ -203,7 +203,7 @@ def test_a_finished_pipeline_with_bench_and_leaderboard_redoes_nothing(tmp_path,
 def _full_disk_writes(monkeypatch):
     """Make every Parquet and atomic file write go to /dev/full: the kernel's real ENOSPC (Linux, as CI)."""
     assert Path("/dev/full").exists(), "this test needs Linux's /dev/full (the character device 1,7)"
-    import schemas.manifest as manifest_mod
+    import mimicbench.schemas.manifest as manifest_mod
     import tempfile
 
     real_write_table = pq.write_table

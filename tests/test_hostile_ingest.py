@@ -12,14 +12,14 @@ import struct
 import numpy as np
 import pytest
 
-from datagen.ingest.clip_length import MAX_CLIP_FRAMES, ClipTooLong
-from datagen.ingest.gltf_resample import frame_times, load_gltf
-from datagen.ingest.runner import ingest_assets
-from datagen.ingest.uris import external_uri_problems
+from mimicbench.datagen.ingest.clip_length import MAX_CLIP_FRAMES, ClipTooLong
+from mimicbench.datagen.ingest.gltf_resample import frame_times, load_gltf
+from mimicbench.datagen.ingest.runner import ingest_assets
+from mimicbench.datagen.ingest.uris import external_uri_problems
 from mimicbench.cli import main
-from schemas.motion import MotionRecord
-from schemas.shards import read_records, write_records
-from schemas.validate import validate_dataset
+from mimicbench.schemas.motion import MotionRecord
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.validate import validate_dataset
 from tests.mmd_fixtures import pmd_bytes, pmx_bytes, vmd_bytes
 
 
@@ -203,7 +203,7 @@ def test_counts_and_status_rows_add_up_for_a_folder_with_a_hash(tmp_path, capsys
 # --- 7. NaN in stored values ----------------------------------------------------------------------
 
 def test_nonfinite_arrays_names_each_field_and_count():
-    from schemas.finite import nonfinite_arrays
+    from mimicbench.schemas.finite import nonfinite_arrays
 
     rec = MotionRecord("a/b", "a", "b", "train", 30.0, 2, 1, np.array([[[1, 0, 0, 0, 0, np.inf, 0]], [[np.nan] * 7]]))
     assert nonfinite_arrays(rec, ("transforms", "scale")) == ["transforms (8 values)"]

@@ -95,7 +95,7 @@ def test_a_wrong_bench_methods_value_fails_before_the_first_step(tmp_path, capsy
 @pytest.fixture(scope="module")
 def humanoids(tmp_path_factory) -> Path:
     """Four zoo humanoids, one 12-frame clip each (read only: copy before writing)."""
-    from datagen.zoo import build_zoo
+    from mimicbench.datagen.zoo.dataset import build_zoo
 
     root = tmp_path_factory.mktemp("humanoids") / "zoo"
     build_zoo(root, 4, seed=0, categories=["humanoid"], clips_per_character=1, frames_per_clip=12, progress=False)
@@ -107,7 +107,7 @@ def _broken_copy(src: Path, dst: Path, change) -> str:
     returns that character's ID."""
     import shutil
 
-    from schemas.shards import read_records, write_records
+    from mimicbench.schemas.shards import read_records, write_records
 
     shutil.copytree(src, dst)
     chars = read_records(dst, "characters")
@@ -135,10 +135,10 @@ def _flat(rec) -> None:
 # --- 5. a cyclic skeleton: validate fails it, retarget and resample fail the item -------------------------
 
 def test_a_cyclic_skeleton_fails_validate_retarget_and_resample(humanoids, tmp_path, capsys):
-    from datagen.resample.stage import resample_dataset
-    from datagen.retarget.stage import retarget_datasets
-    from schemas.shards import read_records
-    from schemas.validate import parents_problem, validate_dataset
+    from mimicbench.datagen.resample.stage import resample_dataset
+    from mimicbench.datagen.retarget.stage import retarget_datasets
+    from mimicbench.schemas.shards import read_records
+    from mimicbench.schemas.validate import parents_problem, validate_dataset
 
     assert parents_problem([-1, 0, 1, 1]) is None
     assert "parents[2] = 2 is not below 2" in parents_problem([-1, 0, 2, 1])
@@ -166,8 +166,8 @@ def test_a_cyclic_skeleton_fails_validate_retarget_and_resample(humanoids, tmp_p
 # --- 8. resample of a flat character: a failed row, never an inf --------------------------------------
 
 def test_resampling_a_flat_character_fails_its_row_and_stores_no_inf(humanoids, tmp_path):
-    from datagen.resample.stage import resample_dataset
-    from schemas.shards import read_records
+    from mimicbench.datagen.resample.stage import resample_dataset
+    from mimicbench.schemas.shards import read_records
 
     data = tmp_path / "flat"
     cid = _broken_copy(humanoids, data, _flat)
@@ -195,14 +195,14 @@ def test_retarget_globs_matching_nothing_is_an_error_and_writes_nothing(humanoid
 # --- 14. a flat character: validate, bench cases and bench run name it up front ---------------------------
 
 def test_a_flat_character_is_named_by_validate_cases_and_run_before_any_row(humanoids, tmp_path, capsys):
-    from schemas.validate import validate_dataset
+    from mimicbench.schemas.validate import validate_dataset
 
     data = tmp_path / "flat"
     cid = _broken_copy(humanoids, data, _flat)
     assert any(f"character {cid}: its rest mesh has no height" in p for p in validate_dataset(data, values=True))
     assert main(["bench", "cases", str(data), "--all-pairs", "--h2h-poses", "1", "--cct-poses", "1"]) == 2
     _one_line(capsys, "1 character(s) whose rest mesh has no height", cid)
-    from benchmark.cases import build_cases, write_cases
+    from mimicbench.benchmark.cases import build_cases, write_cases
 
     # cases made as `bench cases` made them before it checked heights (so a dataset of that time)
     write_cases(data, build_cases(data, "all", None, 1, 2, 1, 0, all_pairs=True), {"stage": "bench cases"})
@@ -239,7 +239,7 @@ def _two_writers_behind_ours(folder: Path, first: list[str], second: list[str]):
     this process, let them go, and return their (exit status, stdout, stderr)."""
     import os
 
-    from schemas.folder_lock import hold
+    from mimicbench.schemas.folder_lock import hold
 
     lock = hold(folder)
     procs = [_start(*first), _start(*second)]
@@ -258,8 +258,8 @@ def _two_writers_behind_ours(folder: Path, first: list[str], second: list[str]):
 
 @pytest.mark.parametrize("splits", [("train", "train"), ("train", "test")])
 def test_two_ingests_into_one_dataset_wait_for_each_other_and_lose_nothing(tmp_path, splits):
-    from schemas.shards import read_records
-    from schemas.validate import validate_dataset
+    from mimicbench.schemas.shards import read_records
+    from mimicbench.schemas.validate import validate_dataset
     from tests.mmd_fixtures import pmx_bytes
 
     for group in ("a", "b"):
@@ -363,7 +363,7 @@ def test_resume_refuses_another_seed_or_dataset_in_one_line(toy_data, tmp_path, 
 
     from mimicbench.training import checkpoint
     from mimicbench.training.loop import train_stage
-    from schemas.errors import UserError
+    from mimicbench.schemas.errors import UserError
     from tests import training_toys
 
     mine, theirs = tmp_path / "mine", tmp_path / "theirs"
@@ -396,7 +396,7 @@ def test_resume_refuses_another_seed_or_dataset_in_one_line(toy_data, tmp_path, 
 def test_a_needed_stage_without_its_digest_or_of_another_network_is_refused(toy_data, tmp_path):
     from mimicbench.training import checkpoint
     from mimicbench.training.loop import train_model, train_stage
-    from schemas.errors import UserError
+    from mimicbench.schemas.errors import UserError
 
     run = tmp_path / "run"
     train_model("toy", ["fit"], toy_data, run, _toy_config(), epochs=1, progress=False)
@@ -445,8 +445,8 @@ def test_a_pickle_garbage_or_foreign_clip_checkpoint_is_one_line(tmp_path, kind,
 
     import torch
 
-    from datagen.correspond.encoders import _clip_state
-    from mimicbench.errors import UserError
+    from mimicbench.datagen.correspond.encoders import _clip_state
+    from mimicbench.runtime.errors import UserError
 
     path = tmp_path / f"{kind}.pt"
     if kind == "pickle":
@@ -487,9 +487,9 @@ import sys
 
 import numpy as np
 
-from benchmark.evaluator import run_benchmark
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from benchmark.registry import register
+from mimicbench.benchmark.evaluator import run_benchmark
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.registry import register
 
 
 class MyMethod(PoseTransferMethod):
@@ -598,8 +598,8 @@ def _signed_volume(v, f) -> float:
 def test_an_fbx_armature_with_negative_scale_stores_outward_faces(tmp_path):
     import numpy as np
 
-    from datagen.ingest.runner import ingest_assets
-    from schemas.shards import read_records
+    from mimicbench.datagen.ingest.runner import ingest_assets
+    from mimicbench.schemas.shards import read_records
     from tests.fbx_reference import ufbx_vertices
 
     assert _signed_volume([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]],
@@ -620,8 +620,8 @@ def test_an_fbx_armature_with_negative_scale_stores_outward_faces(tmp_path):
 
 @pytest.mark.slow
 def test_an_fbx_whose_skin_weights_are_all_zero_is_a_failed_row_not_an_empty_character(tmp_path):
-    from datagen.ingest.runner import ingest_assets
-    from schemas.shards import read_records
+    from mimicbench.datagen.ingest.runner import ingest_assets
+    from mimicbench.schemas.shards import read_records
 
     zero = _box_fbx(tmp_path / "zero.fbx", 1.0, 0.0)
     good = _box_fbx(tmp_path / "good.fbx", 1.0, 1.0)
@@ -640,7 +640,7 @@ def test_an_fbx_whose_skin_weights_are_all_zero_is_a_failed_row_not_an_empty_cha
 def test_clip_bounds_name_the_bound_a_clip_breaks():
     import numpy as np
 
-    from datagen.apparel.clip_bounds import MAX_EDGE_STRETCH, MAX_SECONDARY_MOTION_PCT, ClipOutOfBounds, check_clip_bounds
+    from mimicbench.datagen.apparel.clip_bounds import MAX_EDGE_STRETCH, MAX_SECONDARY_MOTION_PCT, ClipOutOfBounds, check_clip_bounds
 
     t = np.zeros((3, 2, 7))
     t[..., 0] = 1.0
@@ -660,10 +660,10 @@ def test_clip_bounds_name_the_bound_a_clip_breaks():
 
 @pytest.mark.slow
 def test_apparel_with_an_absurd_link_mass_fails_its_clips_naming_the_bound(tmp_path):
-    from datagen.apparel.params import load_params
-    from datagen.apparel.stage import simulate_dataset
-    from datagen.zoo import build_zoo
-    from schemas.shards import read_records
+    from mimicbench.datagen.apparel.params import load_params
+    from mimicbench.datagen.apparel.stage import simulate_dataset
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import read_records
 
     zoo = tmp_path / "zoo"
     build_zoo(zoo, 1, seed=0, categories=["apparel"], clips_per_character=1, frames_per_clip=30, progress=False)
@@ -703,7 +703,7 @@ def _correspond_under(limit_bytes: int, data: Path):
 def test_address_space_settings_follow_the_limit(monkeypatch):
     import resource
 
-    from mimicbench import address_space
+    from mimicbench.runtime import address_space
 
     monkeypatch.setattr(resource, "getrlimit", lambda what: (resource.RLIM_INFINITY, resource.RLIM_INFINITY))
     assert address_space.address_space_limit() is None and address_space.limit_text() == ""
@@ -723,7 +723,7 @@ def test_address_space_settings_follow_the_limit(monkeypatch):
 def test_correspond_under_a_3_gib_address_space_limit_finishes_and_under_1_gib_names_it(humanoids, tmp_path):
     import shutil
 
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
 
     data = tmp_path / "data"
     shutil.copytree(humanoids, data)

@@ -3,7 +3,7 @@ import itertools
 import numpy as np
 import pytest
 
-from mimicbench.hungarian import hungarian_match
+from mimicbench.geometry.hungarian import hungarian_match
 
 
 def brute_force_best(s):

@@ -1,27 +1,48 @@
-"""The import graph of the five packages, read from the source with `ast` (nothing is imported).
+"""The floors of the one import root ``mimicbench``, read from the source with ``ast`` (nothing is imported).
 
-Every `import` and `from ... import` counts, at module level or inside a function: a lazy import
-that breaks a circle at run time is still a circle in the design. Two rules:
-- no circles (a strongly connected component of more than one module, or a module importing itself);
-- `schemas` (the data contract, the lowest layer) imports nothing from the packages built on it.
+Every ``import`` and ``from ... import`` counts, at module level or inside a function (a lazy import
+that breaks a circle at run time is still a circle in the design), and so does every string constant
+that names a module exactly (``"mimicbench.baselines.npt.training:TRAINABLE"``, ``-m`` targets): a
+name held as a string is an import an import reader would not see. The rules:
+- no circles (a strongly connected component of more than one module);
+- floors, lowest first: the package root (``__version__``), the data contract ``schemas``, the
+  ``geometry`` core, the ``runtime`` (registry, options, errors, engines, training), ``datagen``,
+  ``benchmark``, ``baselines``, and the roof (CLI, commands, pipeline), which alone knows every
+  floor; no arrow runs from a floor to one above it, checked for every pair of floors;
+- no import names a user folder bare (``import datagen``): those folders install as
+  ``mimicbench.datagen`` and so on, and a bare name would load a second copy from a source checkout.
 """
 from __future__ import annotations
 
 import ast
+import itertools
+import re
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("mimicbench", "schemas", "datagen", "benchmark", "baselines")
+USER_FOLDERS = ("schemas", "datagen", "benchmark", "baselines")
+# floor name -> the module prefixes on it, lowest floor first
+FLOORS = {
+    "root": ("mimicbench",),
+    "schemas": ("mimicbench.schemas",),
+    "geometry": ("mimicbench.geometry",),
+    "runtime": ("mimicbench.runtime", "mimicbench.engines", "mimicbench.training"),
+    "datagen": ("mimicbench.datagen",),
+    "benchmark": ("mimicbench.benchmark",),
+    "baselines": ("mimicbench.baselines",),
+    "roof": ("mimicbench.cli", "mimicbench.__main__", "mimicbench.commands", "mimicbench.pipeline"),
+}
+MODULE_STRING = re.compile(r"^(?P<module>[A-Za-z_][\w]*(?:\.[A-Za-z_]\w*)+)(?::[A-Za-z_][\w.]*)?$")
 
 
 def module_files(root: Path = ROOT) -> dict[str, Path]:
-    """Dotted module name -> source file, for every .py file of the five packages."""
+    """Dotted module name (as installed) -> source file: ``mimicbench/`` and the four user folders."""
     out = {}
-    for pkg in PACKAGES:
-        for path in sorted((root / pkg).rglob("*.py")):
-            parts = list(path.relative_to(root).with_suffix("").parts)
+    for folder, prefix in [("mimicbench", [])] + [(f, ["mimicbench"]) for f in USER_FOLDERS]:
+        for path in sorted((root / folder).rglob("*.py")):
+            parts = prefix + list(path.relative_to(root).with_suffix("").parts)
             if parts[-1] == "__init__":
                 parts = parts[:-1]
             out[".".join(parts)] = path
@@ -29,7 +50,7 @@ def module_files(root: Path = ROOT) -> dict[str, Path]:
 
 
 def _resolve(name: str, modules: dict[str, Path]) -> str | None:
-    """The deepest known module that `name` (a dotted name, maybe ending in an attribute) lies in."""
+    """The deepest known module that ``name`` (a dotted name, maybe ending in an attribute) lies in."""
     parts = name.split(".")
     while parts:
         dotted = ".".join(parts)
@@ -40,7 +61,7 @@ def _resolve(name: str, modules: dict[str, Path]) -> str | None:
 
 
 def imports_of(module: str, path: Path, modules: dict[str, Path]) -> set[str]:
-    """The modules of the five packages that `module` names in any import statement."""
+    """The modules of the root that ``module`` names in an import statement or an exact string."""
     is_package = path.name == "__init__.py"
     out = set()
     for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
@@ -55,6 +76,9 @@ def imports_of(module: str, path: Path, modules: dict[str, Path]) -> set[str]:
                 prefix = node.module
             # `from a.b import c`: c is the submodule a.b.c when that file exists, else a name in a.b
             names = [f"{prefix}.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            match = MODULE_STRING.match(node.value)
+            names = [match["module"]] if match and match["module"] in modules else []
         else:
             continue
         for name in names:
@@ -64,9 +88,39 @@ def imports_of(module: str, path: Path, modules: dict[str, Path]) -> set[str]:
     return out
 
 
+def bare_imports(path: Path) -> list[str]:
+    """Import statements of ``path`` that name a user folder bare (``import datagen``, ``from schemas import x``)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            names = [node.module or ""]
+        else:
+            continue
+        out += [f"{path.name}:{node.lineno}: {n}" for n in names if n.split(".")[0] in USER_FOLDERS]
+    return out
+
+
 def import_graph(root: Path = ROOT) -> dict[str, set[str]]:
     modules = module_files(root)
     return {m: imports_of(m, p, modules) for m, p in modules.items()}
+
+
+def floor_of(module: str) -> str:
+    """The floor whose longest prefix ``module`` starts with."""
+    best, length = None, -1
+    for floor, prefixes in FLOORS.items():
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > length:
+                best, length = floor, len(prefix)
+    return best
+
+
+def arrows(graph: dict[str, set[str]], lower: str, upper: str) -> list[str]:
+    """Every import from a module on floor ``lower`` to one on floor ``upper``."""
+    return sorted(f"{m} -> {t}" for m, ts in graph.items() if floor_of(m) == lower for t in ts
+                  if floor_of(t) == upper)
 
 
 def circles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -110,27 +164,27 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
     return sorted(out)
 
 
-def test_the_walker_sees_a_circle_and_an_upward_import(tmp_path):
-    """The checker itself, on a small tree written here: a -> b -> c -> a, and schemas -> benchmark."""
-    for pkg in PACKAGES:
+
+def test_the_walker_sees_circles_upward_arrows_and_names_held_as_strings(tmp_path):
+    """The checker itself, on a small tree written here."""
+    for pkg in ("mimicbench",) + USER_FOLDERS:
         (tmp_path / pkg).mkdir()
         (tmp_path / pkg / "__init__.py").write_text("")
-    (tmp_path / "datagen" / "a.py").write_text("from datagen import b\n")
+    (tmp_path / "datagen" / "a.py").write_text("from mimicbench.datagen import b\n")
     (tmp_path / "datagen" / "b.py").write_text("def f():\n    from .c import g\n")
-    (tmp_path / "datagen" / "c.py").write_text("import datagen.a as a\nimport numpy\ng = 1\n")
-    (tmp_path / "datagen" / "d.py").write_text("from datagen.c import g\n")
+    (tmp_path / "datagen" / "c.py").write_text("import mimicbench.datagen.a as a\nimport numpy\ng = 1\n")
+    (tmp_path / "datagen" / "d.py").write_text("from mimicbench.datagen.c import g\nimport datagen.a\n")
     (tmp_path / "schemas" / "x.py").write_text("from ..benchmark import y\n")
-    (tmp_path / "benchmark" / "y.py").write_text("from schemas.x import z\n")
+    (tmp_path / "benchmark" / "y.py").write_text("TABLE = {'m': 'mimicbench.schemas.x:z', 'n': 'mimicbench.zoo'}\n")
     graph = import_graph(tmp_path)
-    assert graph["datagen.b"] == {"datagen.c"} and graph["datagen.c"] == {"datagen.a"}
-    assert graph["schemas.x"] == {"benchmark.y"}
-    assert circles(graph) == [["benchmark.y", "schemas.x"], ["datagen.a", "datagen.b", "datagen.c"]]
-    assert upward_from_schemas(graph) == ["schemas.x -> benchmark.y"]
-
-
-def upward_from_schemas(graph: dict[str, set[str]]) -> list[str]:
-    return sorted(f"{m} -> {t}" for m, ts in graph.items() if m.split(".")[0] == "schemas"
-                  for t in ts if t.split(".")[0] != "schemas")
+    assert graph["mimicbench.datagen.b"] == {"mimicbench.datagen.c"}
+    assert graph["mimicbench.datagen.c"] == {"mimicbench.datagen.a"}
+    assert graph["mimicbench.schemas.x"] == {"mimicbench.benchmark.y"}
+    assert graph["mimicbench.benchmark.y"] == {"mimicbench.schemas.x"}  # held as a string
+    assert circles(graph) == [["mimicbench.benchmark.y", "mimicbench.schemas.x"],
+                              ["mimicbench.datagen.a", "mimicbench.datagen.b", "mimicbench.datagen.c"]]
+    assert arrows(graph, "schemas", "benchmark") == ["mimicbench.schemas.x -> mimicbench.benchmark.y"]
+    assert bare_imports(tmp_path / "datagen" / "d.py") == ["d.py:2: datagen.a"]
 
 
 @pytest.fixture(scope="module")
@@ -138,10 +192,13 @@ def graph():
     return import_graph()
 
 
-def test_every_package_is_walked(graph):
-    assert {m.split(".")[0] for m in graph} == set(PACKAGES) and len(graph) > 200
-    assert {"schemas.errors", "schemas.weights"} <= graph["schemas.character"] | graph["schemas.shards"] | graph["schemas.manifest"]
-    assert "benchmark.batch" in graph["benchmark.ray_runner"]  # a lazy import inside a function counts
+def test_every_module_is_walked_and_on_one_floor(graph):
+    assert {m.split(".")[1] for m in graph if "." in m} >= set(USER_FOLDERS) | {"geometry", "runtime", "cli"}
+    assert len(graph) > 200
+    assert {m for m in graph if floor_of(m) is None} == set()
+    assert "mimicbench.benchmark.batch" in graph["mimicbench.benchmark.ray_runner"]  # a lazy import counts
+    assert "mimicbench.datagen.ingest.command" in graph["mimicbench.cli"]
+    assert graph["mimicbench"] == set(), "the package root imports nothing"
 
 
 def test_no_import_circles(graph):
@@ -149,6 +206,14 @@ def test_no_import_circles(graph):
     assert not found, "import circles:\n" + "\n".join(" <-> ".join(c) for c in found)
 
 
-def test_schemas_imports_nothing_built_on_it(graph):
-    up = upward_from_schemas(graph)
-    assert not up, "schemas imports up into the packages built on it:\n" + "\n".join(up)
+@pytest.mark.parametrize("lower, upper", list(itertools.combinations(FLOORS, 2)))
+def test_no_arrow_runs_up(graph, lower, upper):
+    up = arrows(graph, lower, upper)
+    assert not up, f"the {lower} floor imports the {upper} floor above it:\n" + "\n".join(up)
+
+
+def test_no_user_folder_is_imported_bare():
+    paths = [p for folder in ("mimicbench", "tests", "analyses", "benchmarks", "tools", "examples") + USER_FOLDERS
+             for p in sorted((ROOT / folder).rglob("*.py"))]
+    found = [line for p in paths for line in bare_imports(p)]
+    assert not found, "bare imports of a user folder (write mimicbench.<folder>...):\n" + "\n".join(found)

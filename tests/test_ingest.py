@@ -10,12 +10,13 @@ import sys
 import numpy as np
 import pytest
 
-from datagen.ingest import blender_pool, ingest_assets
+from mimicbench.datagen.ingest import blender_pool
+from mimicbench.datagen.ingest.runner import ingest_assets
 from mimicbench.cli import main
-from mimicbench.skinning import linear_blend_skinning
-from schemas.manifest import load_manifest
-from schemas.shards import read_records
-from schemas.validate import validate_dataset
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.manifest import load_manifest
+from mimicbench.schemas.shards import read_records
+from mimicbench.schemas.validate import validate_dataset
 from tests.gltf_edit import make_variant
 from tests.gltf_reference import GltfReference
 
@@ -228,7 +229,7 @@ def test_skeleton_families_and_inferred_categories(ingested):
 def test_categories_survive_renamed_bones(ingested):
     """The same skeletons under other naming conventions infer the same category; with names that
     say nothing, the skeleton's geometry decides where it can (feet on the ground)."""
-    from datagen.ingest.category import infer_category
+    from mimicbench.datagen.ingest.category import infer_category
 
     out, _ = ingested
     styles = [lambda n: "mixamorig:" + n, lambda n: "DEF-" + n.replace(".", "_"),
@@ -347,7 +348,7 @@ def test_broken_files_timeouts_and_crashes_become_status_rows(assets_dir, tmp_pa
     assert [c.character_id for c in read_records(tmp_path / "out", "characters")] == ["assets/CesiumMan"]
     assert not list((tmp_path / "out" / ".ingest").glob("HangingDolphin*"))  # its partial result was dropped
     # a re-run with the real child skips what is done and retries the failures
-    monkeypatch.setattr(blender_pool, "CHILD_MODULE", "datagen.ingest.blender_child")
+    monkeypatch.setattr(blender_pool, "CHILD_MODULE", "mimicbench.datagen.ingest.blender_child")
     again = ingest_assets([good, hang], tmp_path / "out", timeout=120, progress=False)
     assert again["skipped"] == 1 and again["ingested"] == 1
 
@@ -425,11 +426,11 @@ def test_non_armature_modifiers_are_applied(assets_dir, tmp_path):
 
 @pytest.mark.slow
 def test_ingested_assets_flow_through_resample_correspond_and_benchmark(ingested, assets_dir, tmp_path):
-    from benchmark.aggregate import aggregate
-    from benchmark.cases import build_cases, write_cases
-    from benchmark.evaluator import run_benchmark
-    from datagen.correspond import correspond_dataset
-    from datagen.resample import resample_dataset
+    from mimicbench.benchmark.aggregate import aggregate
+    from mimicbench.benchmark.cases import build_cases, write_cases
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.datagen.correspond.stage import correspond_dataset
+    from mimicbench.datagen.resample.stage import resample_dataset
 
     src, _ = ingested
     data = tmp_path / "assets5k"

@@ -9,9 +9,10 @@ a hand-made rig (:mod:`tests.fbx_fixtures`), written once per session."""
 import numpy as np
 import pytest
 
-from datagen.ingest import blender_pool, ingest_assets
-from mimicbench.skinning import linear_blend_skinning
-from schemas.shards import read_records
+from mimicbench.datagen.ingest import blender_pool
+from mimicbench.datagen.ingest.runner import ingest_assets
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.shards import read_records
 from tests.fbx_fixtures import RIG_STACKS, RIG_UNWEIGHTED, export_glb_as_fbx, write_rig_fbx
 from tests.fbx_reference import ufbx_vertices
 from tests.test_ingest import load  # (character, motions, child JSON, child arrays) of an ingested asset

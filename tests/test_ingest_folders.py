@@ -3,10 +3,10 @@ import shutil
 
 import pytest
 
-from datagen.ingest import ingest_assets
-from datagen.ingest.asset_paths import expand_asset_paths
+from mimicbench.datagen.ingest.runner import ingest_assets
+from mimicbench.datagen.ingest.asset_paths import expand_asset_paths
 from mimicbench.cli import main
-from schemas.shards import read_records
+from mimicbench.schemas.shards import read_records
 
 
 def test_the_shared_assets_folder_lists_every_model_and_no_motion_or_text(assets_dir):

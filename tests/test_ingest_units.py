@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import torch
 
-from datagen.ingest.category import infer_category
-from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
-from datagen.ingest.runner import category_from_map, ingest_assets
-from datagen.ingest.uris import external_uri_problems
+from mimicbench.datagen.ingest.category import infer_category
+from mimicbench.datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
+from mimicbench.datagen.ingest.runner import category_from_map, ingest_assets
+from mimicbench.datagen.ingest.uris import external_uri_problems
 from mimicbench.cli import main
-from mimicbench.skinning import linear_blend_skinning
-from mimicbench.skinning_torch import linear_blend_skinning_torch
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.geometry.skinning_torch import linear_blend_skinning_torch
 from tests.gltf_edit import add_accessor, write_glb
 from tests.gltf_reference import GltfReference, _interpolate, slerp
 
@@ -143,7 +143,7 @@ def test_cli_rejects_bad_options(tmp_path, capsys, args, needle):
 
 
 def test_cli_export_formats_match_the_runner():
-    from datagen.ingest import command, runner
+    from mimicbench.datagen.ingest import command, runner
 
     assert command.EXPORT_FORMATS == runner.EXPORT_FORMATS
 
@@ -185,7 +185,7 @@ def test_lbs_honours_a_bone_stretch_by_hand():
 # --- categories on the zoo ---------------------------------------------------------------------
 
 def test_categories_are_inferred_on_the_zoo_and_on_renamed_copies(small_zoo):
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
 
     chars = read_records(small_zoo, "characters")
     assert len({c.category for c in chars}) >= 5
@@ -290,7 +290,7 @@ Frame Time: 0.033333
 
 
 def test_bvh_rest_height_and_auto_unit_by_hand(tmp_path):
-    from datagen.ingest.bvh_units import auto_bvh_scale, bvh_rest_height
+    from mimicbench.datagen.ingest.bvh_units import auto_bvh_scale, bvh_rest_height
 
     path = tmp_path / "person.bvh"
     path.write_text(BVH_HEAD)
@@ -311,7 +311,7 @@ def test_bvh_rest_height_and_auto_unit_by_hand(tmp_path):
 
 
 def test_ingest_option_bvh_scale_accepts_auto_or_a_positive_number():
-    from datagen.ingest.runner import IngestOptions
+    from mimicbench.datagen.ingest.runner import IngestOptions
 
     IngestOptions(bvh_scale="auto").check()
     IngestOptions(bvh_scale=0.01).check()

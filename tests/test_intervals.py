@@ -8,12 +8,12 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from benchmark.aggregate import aggregate
-from benchmark.intervals import (bootstrap_interval, cluster_bootstrap_means, pair_clustered_se, pair_of,
+from mimicbench.benchmark.aggregate import aggregate
+from mimicbench.benchmark.intervals import (bootstrap_interval, cluster_bootstrap_means, pair_clustered_se, pair_of,
                                  paired_difference, tie_ranks)
-from benchmark.leaderboard import write_leaderboard
-from benchmark.results import append_results, write_run_info
-from schemas.result import ResultRecord
+from mimicbench.benchmark.leaderboard import write_leaderboard
+from mimicbench.benchmark.results import append_results, write_run_info
+from mimicbench.schemas.result import ResultRecord
 
 
 def _naive_interval(values, pairs, draws, seed, level=0.95):

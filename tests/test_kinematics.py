@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from mimicbench.kinematics import (
+from mimicbench.geometry.kinematics import (
     array_to_transforms, forward_kinematics, local_from_global, rest_transforms, transforms_to_array,
 )
-from mimicbench.quaternion import quat_angle, quat_normalize, quat_to_matrix
+from mimicbench.geometry.quaternion import quat_angle, quat_normalize, quat_to_matrix
 
 
 def naive_fk(local_q, rest, parents, root_pos):

@@ -14,13 +14,13 @@ from html.parser import HTMLParser
 import numpy as np
 import pytest
 
-from benchmark.aggregate import aggregate, category_column, headline_metric, method_info
-from benchmark.leaderboard import write_leaderboard
-from benchmark.plots import uses_log_axis
-from benchmark.results import append_results, write_run_info
-from benchmark.samples import SampleSink, read_sample, sample_case_ids, sample_path
-from schemas.case import CaseRecord
-from schemas.result import ResultRecord
+from mimicbench.benchmark.aggregate import aggregate, category_column, headline_metric, method_info
+from mimicbench.benchmark.leaderboard import write_leaderboard
+from mimicbench.benchmark.plots import uses_log_axis
+from mimicbench.benchmark.results import append_results, write_run_info
+from mimicbench.benchmark.samples import SampleSink, read_sample, sample_case_ids, sample_path
+from mimicbench.schemas.case import CaseRecord
+from mimicbench.schemas.result import ResultRecord
 
 
 def row(case_id, method, src, tgt, pmd, status="ok", protocol="cct", els=0.9):
@@ -151,7 +151,7 @@ def _embedded_images(page: str) -> list[np.ndarray]:
 
 @pytest.fixture(scope="module")
 def pictured_board(small_zoo, tmp_path_factory):
-    from benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.evaluator import run_benchmark
     from tests.bench_fixtures import make_bench_dataset
 
     root = tmp_path_factory.mktemp("board")
@@ -291,7 +291,7 @@ def test_ties_and_intervals_in_a_headless_browser(tmp_path):
 
 
 def test_run_dataset_found_from_another_folder(tmp_path, monkeypatch):
-    from benchmark.leaderboard_strips import find_dataset
+    from mimicbench.benchmark.leaderboard_strips import find_dataset
 
     (tmp_path / "out" / "data").mkdir(parents=True)
     (tmp_path / "out" / "data" / "manifest.json").write_text("{}")

@@ -1,6 +1,6 @@
 import numpy as np
 
-from mimicbench.mesh import edge_lengths, mesh_pieces, normalize_unit_height, unique_edges, unit_height_frame
+from mimicbench.geometry.mesh import edge_lengths, mesh_pieces, normalize_unit_height, unique_edges, unit_height_frame
 
 
 def test_unique_edges_of_a_tetrahedron_and_a_quad():

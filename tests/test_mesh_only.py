@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmark.batch import evaluate_batch
-from benchmark.evaluator import load_cases
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from benchmark.protocols.base import EvalData
-from benchmark.request import MeshOnlyRig, MotionRequest, Rig, RigWithheld, TransferRequest, mesh_only
-from schemas.weights import SparseWeights
+from mimicbench.benchmark.batch import evaluate_batch
+from mimicbench.benchmark.evaluator import load_cases
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.protocols.base import EvalData
+from mimicbench.benchmark.request import MeshOnlyRig, MotionRequest, Rig, RigWithheld, TransferRequest, mesh_only
+from mimicbench.schemas.weights import SparseWeights
 
 
 class MeshRecorder(PoseTransferMethod):
@@ -108,7 +108,7 @@ def test_motion_requests_keep_their_rig_and_metadata_is_checked():
 @pytest.mark.slow
 def test_bundled_mesh_only_methods_answer_without_the_rig(bench):
     """Every registered method that declares meshes only answers stripped cct requests (both legs)."""
-    from benchmark.registry import METHODS, get_method
+    from mimicbench.benchmark.registry import METHODS, get_method
 
     cases, data = bench
     declared = []

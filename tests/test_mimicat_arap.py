@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.mimicat.arap import ArapRefiner
-from mimicbench.quaternion import quat_from_axis_angle, quat_to_matrix
+from mimicbench.baselines.mimicat.arap import ArapRefiner
+from mimicbench.geometry.quaternion import quat_from_axis_angle, quat_to_matrix
 from tests.mimicat_toys import bend, posed, tube_rig
 
 
@@ -125,10 +125,10 @@ def test_edges_shorter_than_the_weld_deform_as_lbs_did():
     ratio to the LBS one is 1; without the weld, ARAP moves the two sides independently and the
     short edges' lengths change by orders of magnitude (what sent mimicat's ELS to -600 on real
     characters). Vertices away from the seam stay within the refinement's reach of LBS."""
-    from benchmark.metrics import els
-    from mimicbench.mesh import unique_edges
-    from mimicbench.skinning import linear_blend_skinning
-    from mimicbench.weights import SparseWeights
+    from mimicbench.benchmark.metrics import els
+    from mimicbench.geometry.mesh import unique_edges
+    from mimicbench.geometry.skinning import linear_blend_skinning
+    from mimicbench.geometry.weights import SparseWeights
 
     t, v, f, values, ring, copy = _zipped_tube(1e-9)
     idx = np.concatenate([np.asarray(t["weights"].indices), np.asarray(t["weights"].indices)[ring]])

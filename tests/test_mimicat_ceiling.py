@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mimicbench.kinematics import array_to_transforms
-from mimicbench.quaternion import quat_from_axis_angle, quat_to_matrix
+from mimicbench.geometry.kinematics import array_to_transforms
+from mimicbench.geometry.quaternion import quat_from_axis_angle, quat_to_matrix
 
 _spec = importlib.util.spec_from_file_location("mimicat_ceiling",
                                                Path(__file__).resolve().parents[1] / "analyses" / "mimicat_ceiling.py")

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.mimicat.corr_data import KEYPOINT_FEATURES, keypoint_features
-from baselines.mimicat.correspondence import CorrespondenceTransformer, correspondence_loss
-from baselines.mimicat.transfer_data import CharacterTensors, pad
+from mimicbench.baselines.mimicat.corr_data import KEYPOINT_FEATURES, keypoint_features
+from mimicbench.baselines.mimicat.correspondence import CorrespondenceTransformer, correspondence_loss
+from mimicbench.baselines.mimicat.transfer_data import CharacterTensors, pad
 from tests.mimicat_toys import TinyEncoder, tube_rig
 
 

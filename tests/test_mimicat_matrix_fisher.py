@@ -7,7 +7,7 @@ import torch
 from scipy.spatial.transform import Rotation
 from scipy.special import logsumexp
 
-from baselines.mimicat.matrix_fisher import (log_normaliser, log_normaliser_of_singular_values, mean_rotation, mode,
+from mimicbench.baselines.mimicat.matrix_fisher import (log_normaliser, log_normaliser_of_singular_values, mean_rotation, mode,
                                              negative_log_likelihood, proper_svd)
 
 
@@ -114,8 +114,8 @@ def test_float32_batch_and_bad_shapes():
 
 
 def test_bingham_matrix_is_the_quadratic_form_of_the_trace():
-    from baselines.mimicat.matrix_fisher import bingham_matrix
-    from mimicbench.quaternion import quat_to_matrix
+    from mimicbench.baselines.mimicat.matrix_fisher import bingham_matrix
+    from mimicbench.geometry.quaternion import quat_to_matrix
 
     F = rotated((5.0, 2.0, -1.0), 4) + np.random.default_rng(0).normal(size=(3, 3))
     q = Rotation.random(50, random_state=3).as_quat()[:, [3, 0, 1, 2]]  # (w, x, y, z)
@@ -127,7 +127,7 @@ def test_bingham_matrix_is_the_quadratic_form_of_the_trace():
                                (2e3, 2e3, 2e3), (30.0, 30.0, -30.0)])
 def test_samples_are_rotations_with_the_mean_of_the_normaliser_gradient(s):
     """Rejection sampling (Bingham, Kent et al.) and d log c / dF = E[R] are independent routes to E[R]."""
-    from baselines.mimicat.matrix_fisher import sample
+    from mimicbench.baselines.mimicat.matrix_fisher import sample
 
     F = rotated(s, 9)
     R = sample(F[None], 20_000, np.random.default_rng(1))[:, 0]
@@ -143,7 +143,7 @@ def test_samples_are_rotations_with_the_mean_of_the_normaliser_gradient(s):
 def test_sampling_loss_gradient_matches_the_expected_distance():
     """The surrogate's gradient estimates d E[||R' - R||^2 / 8] / dF, here by finite differences of
     the exact expectation (6 - 2 tr(E[R']^T R)) / 8 with E[R'] = d log c / dF."""
-    from baselines.mimicat.matrix_fisher import sampling_loss
+    from mimicbench.baselines.mimicat.matrix_fisher import sampling_loss
 
     F0 = torch.tensor(rotated((3.0, 2.0, 1.0), 5))
     R = torch.tensor(Rotation.random(1, random_state=6).as_matrix()[0])

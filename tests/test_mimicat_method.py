@@ -6,8 +6,8 @@ import shutil
 import numpy as np
 import pytest
 
-from baselines.mimicat.method import BUNDLED, Mimicat
-from benchmark.registry import available_methods, get_method
+from mimicbench.baselines.mimicat.method import BUNDLED, Mimicat
+from mimicbench.benchmark.registry import available_methods, get_method
 from tests.mimicat_toys import request, tube_rig
 
 STAGES = ("shape", "corr", "transfer", "transfer_no_prior")
@@ -78,11 +78,11 @@ def test_initialisation_of_the_shipped_checkpoint_and_of_init_only(requests):
     posed by LBS outside the method."""
     import torch
 
-    from baselines.mimicat.initialisation import structured_pose
-    from baselines.mimicat.method import MimicatInitOnly
-    from baselines.mimicat.transfer import pose_mesh
-    from baselines.mimicat.transfer_data import CharacterTensors
-    from baselines.posing import source_pose
+    from mimicbench.baselines.mimicat.initialisation import structured_pose
+    from mimicbench.baselines.mimicat.method import MimicatInitOnly
+    from mimicbench.baselines.mimicat.transfer import pose_mesh
+    from mimicbench.baselines.mimicat.transfer_data import CharacterTensors
+    from mimicbench.baselines.posing import source_pose
     from mimicbench.training.checkpoint import read_header
 
     assert read_header(BUNDLED / "transfer.safetensors")["config"]["transfer"]["init"] == "structured"
@@ -92,7 +92,7 @@ def test_initialisation_of_the_shipped_checkpoint_and_of_init_only(requests):
     only = MimicatInitOnly(arap=False)
     only.setup("cpu")
     assert only._modules["transfer"].init == "structured"
-    from baselines.mimicat.transfer import correspondences
+    from mimicbench.baselines.mimicat.transfer import correspondences
 
     for r, got in zip(requests, only.transfer(requests)):
         s, t = CharacterTensors.of_rig(r.source, only.points), CharacterTensors.of_rig(r.target, only.points)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.mimicat import data
-from baselines.mimicat.pose_prior import PosePrior, bone_vectors
-from mimicbench.quaternion import quat_to_matrix
+from mimicbench.baselines.mimicat import data
+from mimicbench.baselines.mimicat.pose_prior import PosePrior, bone_vectors
+from mimicbench.geometry.quaternion import quat_to_matrix
 from tests.test_mimicat_shape_encoder import tiny_config
 
 

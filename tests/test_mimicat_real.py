@@ -12,12 +12,12 @@ ASSETS = ("Quaternius_Dolphin", "Quaternius_MantaRay", "CesiumMan")
 
 @pytest.mark.slow
 def test_mimicat_keeps_real_meshes_whole(assets_dir, tmp_path):
-    from benchmark.cases import build_cases, write_cases
-    from benchmark.evaluator import run_benchmark
-    from benchmark.results import method_dir, read_result_records
-    from datagen.correspond import correspond_dataset
-    from datagen.ingest import ingest_assets
-    from datagen.resample import resample_dataset
+    from mimicbench.benchmark.cases import build_cases, write_cases
+    from mimicbench.benchmark.evaluator import run_benchmark
+    from mimicbench.benchmark.results import method_dir, read_result_records
+    from mimicbench.datagen.correspond.stage import correspond_dataset
+    from mimicbench.datagen.ingest.runner import ingest_assets
+    from mimicbench.datagen.resample.stage import resample_dataset
 
     raw, data = tmp_path / "real", tmp_path / "real5k"
     ingest_assets([assets_dir / "glb" / f"{a}.glb" for a in ASSETS], raw, category_map={"*MantaRay*": "fish"},
@@ -30,7 +30,7 @@ def test_mimicat_keeps_real_meshes_whole(assets_dir, tmp_path):
     out = tmp_path / "results"
     run_benchmark(data, ["mimicat", "text_soft"], ("h2h", "cct"), out=out, in_process=True)
     def els(method: str, protocol: str) -> dict:
-        from benchmark.registry import get_method
+        from mimicbench.benchmark.registry import get_method
 
         rows = read_result_records(method_dir(out, method, get_method(method).metadata.version))
         return {r.case_id: r.els for r in rows if r.protocol == protocol and r.status == "ok"}

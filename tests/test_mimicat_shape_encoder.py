@@ -8,9 +8,9 @@ import pytest
 import torch
 import trimesh
 
-from baselines.mimicat import data
-from baselines.mimicat.config import preset
-from baselines.mimicat.shape_encoder import ShapeAutoencoder
+from mimicbench.baselines.mimicat import data
+from mimicbench.baselines.mimicat.config import preset
+from mimicbench.baselines.mimicat.shape_encoder import ShapeAutoencoder
 
 
 def tiny_config(**shape):

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from baselines.mimicat.config import (BUDGET_KEYS, SHIPPED_OVERRIDES, SHIPPED_STAGES, STAGE_SECTIONS, preset,
+from mimicbench.baselines.mimicat.config import (BUDGET_KEYS, SHIPPED_OVERRIDES, SHIPPED_STAGES, STAGE_SECTIONS, preset,
                                       shipped_config)
-from baselines.mimicat.method import BUNDLED
+from mimicbench.baselines.mimicat.method import BUNDLED
 from mimicbench.training.checkpoint import read_header
 
 LOOP_KEYS = ("lr", "weight_decay", "grad_clip")
@@ -62,7 +62,7 @@ def test_shipped_checkpoint_config_is_the_documented_config(stage):
 def test_the_shipped_method_reads_the_structured_pipeline_from_its_checkpoint():
     """``mimicat`` reads ``init``, ``m_decode``, ``m_temperature`` and ``points`` from the transfer
     checkpoint; with the documented config that is the presets' structured pipeline."""
-    from baselines.mimicat.method import Mimicat, MimicatNoPrior
+    from mimicbench.baselines.mimicat.method import Mimicat, MimicatNoPrior
 
     small = preset("small")
     for cls in (Mimicat, MimicatNoPrior):

@@ -1,14 +1,14 @@
 """The documented MimiCAT training commands (docs/methods/mimicat-current.md) parse, cover every
 shipped stage, and give exactly the documented config of each shipped checkpoint
-(``baselines.mimicat.config.shipped_config``), which its safetensors header holds with its seed."""
+(``mimicbench.baselines.mimicat.config.shipped_config``), which its safetensors header holds with its seed."""
 from __future__ import annotations
 
 import re
 import shlex
 from pathlib import Path
 
-from baselines.mimicat.config import SHIPPED_STAGES, STAGE_SECTIONS, shipped_config
-from baselines.mimicat.method import BUNDLED
+from mimicbench.baselines.mimicat.config import SHIPPED_STAGES, STAGE_SECTIONS, shipped_config
+from mimicbench.baselines.mimicat.method import BUNDLED
 from mimicbench.training.checkpoint import read_header
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "methods" / "mimicat-current.md"

@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.mimicat.initialisation import (forward_kinematics_global, initial_pose, quaternion_average,
+from mimicbench.baselines.mimicat.initialisation import (forward_kinematics_global, initial_pose, quaternion_average,
                                               structured_pose)
-from baselines.mimicat.transfer import PoseTransferTransformer, pose_mesh
-from baselines.mimicat.transfer_data import CharacterTensors
-from baselines.posing import source_pose
-from baselines.text_soft import TextSoft
-from mimicbench.kinematics import forward_kinematics, local_from_global, transforms_to_array
-from mimicbench.quaternion import quat_from_axis_angle
+from mimicbench.baselines.mimicat.transfer import PoseTransferTransformer, pose_mesh
+from mimicbench.baselines.mimicat.transfer_data import CharacterTensors
+from mimicbench.baselines.posing import source_pose
+from mimicbench.baselines.text_soft import TextSoft
+from mimicbench.geometry.kinematics import forward_kinematics, local_from_global, transforms_to_array
+from mimicbench.geometry.quaternion import quat_from_axis_angle
 from tests.mimicat_toys import TinyEncoder, bend, posed, request, tube_rig
 
 
@@ -83,8 +83,8 @@ def _h_inputs(pairs, enc):
 def structured_by_loop(q_src, t_src, src, tgt, m, ratio):
     """The structured initialisation's transforms (Kt, 7) by a loop over target bones, from the
     NumPy rotation average and the h2h ground truth's local translations (a naive reference)."""
-    from benchmark.protocols.h2h import local_translations, transforms_from_local
-    from mimicbench.rotation_average import weighted_quaternion_average
+    from mimicbench.benchmark.protocols.h2h import local_translations, transforms_from_local
+    from mimicbench.geometry.rotation_average import weighted_quaternion_average
 
     ps, pt = np.asarray(src.parents), np.asarray(tgt.parents)
     local = local_translations(transforms_to_array(q_src, t_src), src.keypoints, ps) * ratio
@@ -155,7 +155,7 @@ def test_structured_initialisation_by_hand():
 def test_structured_initialisation_with_one_to_one_matches_is_nearest_joint():
     """A one-hot M of nearest_joint's own Hungarian pairs: the same posed target as nearest_joint
     (which builds it bone by bone in NumPy)."""
-    from baselines.nearest_joint import NearestJoint, nearest_joint_pairs
+    from mimicbench.baselines.nearest_joint import NearestJoint, nearest_joint_pairs
 
     for k, (src, tgt) in enumerate([(tube_rig("s", 6, 1.3), tube_rig("t", 4, 0.8)),
                                     (tube_rig("s", 3, 1.0), tube_rig("t", 6, 1.6, branch=False))]):
@@ -173,8 +173,8 @@ def test_structured_initialisation_with_one_to_one_matches_is_nearest_joint():
 def test_self_transfer_through_the_structured_initialisation(small_zoo):
     """A zoo character posed by its own clips (root walking, every bone) onto itself with M = I:
     PMD x100 below 1e-3 on every frame tried."""
-    from benchmark.metrics import pmd
-    from schemas.shards import read_records
+    from mimicbench.benchmark.metrics import pmd
+    from mimicbench.schemas.shards import read_records
 
     chars = {c.character_id: c for c in read_records(small_zoo, "characters")}
     motions = [mo for mo in read_records(small_zoo, "motions")][:6]
@@ -260,7 +260,7 @@ def test_training_steps_lower_the_cycle_losses():
 def test_training_steps_lower_the_prior_term():
     """L_reg: the forward leg's rotations under a frozen pose prior F (a random, non-uniform one),
     lowered by a few AdamW steps on H."""
-    from baselines.mimicat.pose_prior import PosePrior
+    from mimicbench.baselines.mimicat.pose_prior import PosePrior
 
     torch.manual_seed(0)
     enc = TinyEncoder()
@@ -302,7 +302,7 @@ def test_hungarian_decoding_is_the_best_one_to_one_assignment():
     random M); ``soft`` returns M untouched; an unknown decoding is refused."""
     import itertools
 
-    from baselines.mimicat.transfer import decode_correspondence
+    from mimicbench.baselines.mimicat.transfer import decode_correspondence
 
     rng = np.random.default_rng(3)
     for ks, kt in ((3, 5), (5, 3), (4, 4)):
@@ -337,7 +337,7 @@ def test_symmetric_decoding_is_one_assignment_both_ways():
     wrongly shaped reversed M is refused."""
     import itertools
 
-    from baselines.mimicat.transfer import decode_correspondence
+    from mimicbench.baselines.mimicat.transfer import decode_correspondence
 
     rng = np.random.default_rng(5)
     disagreed = 0
@@ -366,8 +366,8 @@ def test_presets_decode_one_to_one_and_old_configs_stay_soft():
     """The presets' structured initialisation reads G's M of both directions as one one-to-one
     assignment; a config without the key (the checkpoints of methods version 4 and before) keeps
     the soft M it was trained with."""
-    from baselines.mimicat.config import preset
-    from baselines.mimicat.transfer_training import section
+    from mimicbench.baselines.mimicat.config import preset
+    from mimicbench.baselines.mimicat.transfer_training import section
 
     for name in ("small", "paper"):
         assert section(preset(name), "transfer")["m_decode"] == "hungarian_sym"

@@ -9,8 +9,8 @@ import torch
 
 @pytest.fixture()
 def stage_context(small_zoo):
-    import baselines.mimicat.transfer_training as tt
-    from baselines.mimicat.method import BUNDLED, checkpoint_path
+    import mimicbench.baselines.mimicat.transfer_training as tt
+    from mimicbench.baselines.mimicat.method import BUNDLED, checkpoint_path
     from mimicbench.training.checkpoint import load_module, read_header
     from mimicbench.training.registry import trainable
     from mimicbench.training.stage import StageContext
@@ -62,7 +62,7 @@ def test_shared_correspondences_match_one_pair_at_a_time(stage_context, monkeypa
     """Batched with other pairs (padding, masks) and split over two ranks by hand, G's M equals
     the M of each pair computed alone."""
     import mimicbench.training.distributed as dist
-    from baselines.mimicat.transfer import correspondences
+    from mimicbench.baselines.mimicat.transfer import correspondences
     from mimicbench.training.stage import StageContext
 
     monkeypatch.setattr(dist, "gather_objects", lambda obj, world_size: [obj])  # each rank's own share
@@ -134,7 +134,7 @@ def test_symmetric_decoding_brings_every_matched_chain_back(stage_context):
     themselves with its own rotation and position: the construction undoes itself where the two
     legs agree on the matches (checked by a loop over the bones, on the stage's own draws), and
     every bone matched going out comes back to itself."""
-    from baselines.mimicat.transfer import correspondences, decode_correspondence
+    from mimicbench.baselines.mimicat.transfer import correspondences, decode_correspondence
 
     tt, model, config, ctx = stage_context
     config = {**config, "transfer": {**config["transfer"], "init": "structured", "m_decode": "hungarian_sym"}}

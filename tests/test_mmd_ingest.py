@@ -1,12 +1,12 @@
-"""``datagen ingest`` routes .pmx/.pmd/.vmd files to datagen.mmd (no Blender): characters, motions,
+"""``datagen ingest`` routes .pmx/.pmd/.vmd files to mimicbench.datagen.mmd (no Blender): characters, motions,
 rigid bodies, joints and status rows."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from datagen.ingest.runner import ingest_assets
-from schemas.shards import read_records
+from mimicbench.datagen.ingest.runner import ingest_assets
+from mimicbench.schemas.shards import read_records
 from tests.mmd_fixtures import pmd_bytes, pmx_bytes, vmd_bytes
 
 
@@ -51,7 +51,7 @@ def test_mmd_physics_rows_follow_the_chosen_split(tmp_path):
     hashed split would be train: ``assets/small``)."""
     import json
 
-    from schemas.shards import shard_entries
+    from mimicbench.schemas.shards import shard_entries
 
     (tmp_path / "small.pmx").write_bytes(pmx_bytes())
     (tmp_path / "splits.json").write_text(json.dumps({"val": ["assets/small"]}))

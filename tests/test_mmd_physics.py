@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.mmd.physics import physics_records
-from datagen.mmd.pmx import parse_pmx, read_pmx
-from mimicbench.quaternion import quat_to_matrix
+from mimicbench.datagen.mmd.physics import physics_records
+from mimicbench.datagen.mmd.pmx import parse_pmx, read_pmx
+from mimicbench.geometry.quaternion import quat_to_matrix
 from tests.mmd_fixtures import pmx_bytes
 
 M = np.diag([1.0, 1.0, -1.0])

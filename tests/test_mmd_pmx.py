@@ -9,10 +9,10 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.pmd import parse_pmd
-from datagen.mmd.pmx import parse_pmx, read_pmx
-from datagen.mmd.records import character_from_mmd
+from mimicbench.datagen.mmd.errors import MMDFormatError
+from mimicbench.datagen.mmd.pmd import parse_pmd
+from mimicbench.datagen.mmd.pmx import parse_pmx, read_pmx
+from mimicbench.datagen.mmd.records import character_from_mmd
 from tests.mmd_fixtures import SDEF_C_R0_R1, pmd_bytes, pmx_bytes
 
 
@@ -229,7 +229,7 @@ def test_fuzz_gene_only_named_errors(gene_path):
 def test_english_names_without_the_dictionary(monkeypatch):
     import sys
 
-    from datagen.mmd.names import english_name
+    from mimicbench.datagen.mmd.names import english_name
 
     assert english_name("左ひざ") == ("knee_L", "standard")
     monkeypatch.setitem(sys.modules, "mmd_bone_tools.translate", None)  # not installed

@@ -1,16 +1,16 @@
 """Round trips through PMX: Gene (with its physics) and a zoo apparel character (with physics made
-here for its apparel chains) are written with datagen.mmd.pmx_writer and read back."""
+here for its apparel chains) are written with mimicbench.datagen.mmd.pmx_writer and read back."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from datagen.mmd.physics import physics_records
-from datagen.mmd.pmx import parse_pmx, read_pmx
-from datagen.mmd.pmx_writer import pmx_bytes, write_pmx
-from datagen.mmd.records import character_from_mmd
-from schemas.joint import JointRecord
-from schemas.rigid_body import RigidBodyRecord
+from mimicbench.datagen.mmd.physics import physics_records
+from mimicbench.datagen.mmd.pmx import parse_pmx, read_pmx
+from mimicbench.datagen.mmd.pmx_writer import pmx_bytes, write_pmx
+from mimicbench.datagen.mmd.records import character_from_mmd
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
 
 
 def _read_back(data: bytes, cid: str):
@@ -56,7 +56,7 @@ def test_gene_round_trip(assets_dir, tmp_path):
 def _zoo_apparel_physics(c):
     """Capsules on every apparel bone (dynamic) and on each chain's parent (static), a joint from
     each body to its parent's, with limits and springs (written here, independently of
-    datagen.mmd.chain_physics, with asymmetric limits and a tilted orientation)."""
+    mimicbench.datagen.mmd.chain_physics, with asymmetric limits and a tilted orientation)."""
     bodies, joints, body_of = [], [], {}
     kp = np.asarray(c.keypoints, np.float64)
     parents = np.asarray(c.parents)
@@ -80,8 +80,8 @@ def _zoo_apparel_physics(c):
 
 
 def test_zoo_apparel_character_round_trip():
-    from datagen.zoo.build import build_character
-    from datagen.zoo.plan import plan_zoo
+    from mimicbench.datagen.zoo.build import build_character
+    from mimicbench.datagen.zoo.plan import plan_zoo
 
     spec = [s for s in plan_zoo(24, seed=0) if s.category == "apparel"][0]
     c = build_character(spec, "train", 0, 10).record
@@ -108,9 +108,9 @@ def test_zoo_apparel_character_round_trip():
 def test_zoo_export_pmx_brings_the_apparel_back(tmp_path):
     """``zoo --export pmx``: the apparel chains travel as rigid bodies and joints, and ingesting the
     file finds the same apparel bones and vertices."""
-    from datagen.mmd.ingest import ingest_mmd
-    from datagen.zoo import build_zoo
-    from schemas.shards import read_records
+    from mimicbench.datagen.mmd.ingest import ingest_mmd
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import read_records
 
     build_zoo(tmp_path / "zoo", 2, seed=3, categories=["apparel"], clips_per_character=1, export=("pmx",),
               progress=False)

@@ -8,12 +8,12 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from datagen.mmd.bezier import bezier_weight, control_points
-from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.model import BONE_GRANT_ROTATION, IKChain, IKLink, MMDBone, MMDModel
-from datagen.mmd.motion import match_bones, pose_clip, sample_channels
-from datagen.mmd.pose import MMDPoser
-from datagen.mmd.vmd import parse_vmd, read_vmd
+from mimicbench.datagen.mmd.bezier import bezier_weight, control_points
+from mimicbench.datagen.mmd.errors import MMDFormatError
+from mimicbench.datagen.mmd.model import BONE_GRANT_ROTATION, IKChain, IKLink, MMDBone, MMDModel
+from mimicbench.datagen.mmd.motion import match_bones, pose_clip, sample_channels
+from mimicbench.datagen.mmd.pose import MMDPoser
+from mimicbench.datagen.mmd.vmd import parse_vmd, read_vmd
 from tests.mmd_fixtures import vmd_bytes
 
 
@@ -30,7 +30,7 @@ def test_gene_stand_facts(assets_dir):
     assert len(v.morph_frames) == 184 and v.num_camera_keys == 0
     # "2 keys repeat the same bone and frame": 3 keys on one (bone, frame), 2 of them repeats
     assert sum(n - 1 for n in Counter(zip(v.bone_names, v.frames.tolist())).values()) == 2
-    from datagen.mmd.pmx import read_pmx
+    from mimicbench.datagen.mmd.pmx import read_pmx
 
     gene = read_pmx(assets_dir / "mmd" / "Gene.pmx")
     names = {b.name for b in gene.bones}
@@ -145,7 +145,7 @@ def test_hostile_vmd():
 
 @pytest.mark.slow
 def test_gene_stand_plays_with_feet_on_the_ik_goals(assets_dir):
-    from datagen.mmd.pmx import read_pmx
+    from mimicbench.datagen.mmd.pmx import read_pmx
 
     gene = read_pmx(assets_dir / "mmd" / "Gene.pmx")
     v = read_vmd(assets_dir / "mmd" / "Gene_stand.vmd")
@@ -160,7 +160,7 @@ def test_gene_stand_plays_with_feet_on_the_ik_goals(assets_dir):
 
 
 def test_rest_pose_evaluates_to_rest(assets_dir):
-    from datagen.mmd.pmx import read_pmx
+    from mimicbench.datagen.mmd.pmx import read_pmx
 
     gene = read_pmx(assets_dir / "mmd" / "Gene.pmx")
     p = MMDPoser(gene)
@@ -177,10 +177,10 @@ def test_rest_pose_evaluates_to_rest(assets_dir):
 def test_motion_record_skins_like_mmd_in_the_dataset_frame():
     """The stored transforms, used by the dataset's linear blend skinning, give the vertices that
     MMD's own BDEF skinning gives in MMD's frame, mirrored and scaled (a small evaluator here)."""
-    from datagen.mmd.motion import motion_from_vmd
-    from datagen.mmd.pmx import parse_pmx
-    from datagen.mmd.records import character_from_mmd
-    from mimicbench.skinning import linear_blend_skinning
+    from mimicbench.datagen.mmd.motion import motion_from_vmd
+    from mimicbench.datagen.mmd.pmx import parse_pmx
+    from mimicbench.datagen.mmd.records import character_from_mmd
+    from mimicbench.geometry.skinning import linear_blend_skinning
     from tests.mmd_fixtures import pmx_bytes
 
     m = parse_pmx(pmx_bytes(), "f.pmx")
@@ -225,7 +225,7 @@ def test_gene_stand_show_ik_section_names_its_six_ik_bones(assets_dir):
 
 @pytest.mark.slow
 def test_ik_off_keys_leave_the_leg_to_its_keys(assets_dir):
-    from datagen.mmd.pmx import read_pmx
+    from mimicbench.datagen.mmd.pmx import read_pmx
 
     gene = read_pmx(assets_dir / "mmd" / "Gene.pmx")
     names = [b.name for b in gene.bones]

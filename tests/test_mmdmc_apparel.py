@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, apparel_components, component_neighbours
+from mimicbench.baselines.mmdmc.apparel import HISTORY, ApparelDynamics, apparel_components, component_neighbours
 
 
 def two_patches():
@@ -138,8 +138,8 @@ def test_training_rollout_from_rest_is_the_inference_rollout():
     are one code path: on the same inputs both equal a naive step-by-step rollout from rest."""
     from types import SimpleNamespace
 
-    from baselines.mmdmc.pipeline import rollout_from_body
-    from baselines.mmdmc.training import apparel_states
+    from mimicbench.baselines.mmdmc.pipeline import rollout_from_body
+    from mimicbench.baselines.mmdmc.training import apparel_states
 
     torch.manual_seed(0)
     v, f = two_patches()
@@ -160,7 +160,7 @@ def test_training_rollout_from_rest_is_the_inference_rollout():
 
 
 def test_truncated_backpropagation_keeps_the_values_and_cuts_the_gradient():
-    from baselines.mmdmc.pipeline import rollout_from_rest
+    from mimicbench.baselines.mmdmc.pipeline import rollout_from_rest
 
     v, f = two_patches()
     nb = torch.as_tensor(component_neighbours(v, apparel_components(f, np.ones(10, bool)), k=4))
@@ -185,9 +185,9 @@ def test_truncated_backpropagation_keeps_the_values_and_cuts_the_gradient():
 def test_from_rest_rollouts_cover_every_scored_window_of_the_apparel_protocol():
     """rollout_span / scored_frames against the protocol's own request starts (burn_in_start): every
     window a case can score is the scored tail of a training rollout that starts where its request does."""
-    from baselines.mmdmc.config import CONFIGS
-    from baselines.mmdmc.training import rollout_span, scored_frames
-    from benchmark.protocols.apparel import BURN_IN, WINDOW, burn_in_start
+    from mimicbench.baselines.mmdmc.config import CONFIGS
+    from mimicbench.baselines.mmdmc.training import rollout_span, scored_frames
+    from mimicbench.benchmark.protocols.apparel import BURN_IN, WINDOW, burn_in_start
 
     for cfg in CONFIGS.values():
         assert (cfg["burn_in"], cfg["scored_window"]) == (BURN_IN, WINDOW)
@@ -233,9 +233,9 @@ def test_overfit_a_few_from_rest_windows_of_a_lag():
     (rolled out through the same path as a request, with the presets' truncated backpropagation)
     removes much of the zero displacement's error. (Full backpropagation through the 30 frames,
     bptt 0, left it within 1% of the zero displacement's after the same 150 steps.)"""
-    from baselines.mmdmc.config import CONFIGS
-    from baselines.mmdmc.losses import vertex_l1
-    from baselines.mmdmc.training import apparel_states
+    from mimicbench.baselines.mmdmc.config import CONFIGS
+    from mimicbench.baselines.mmdmc.losses import vertex_l1
+    from mimicbench.baselines.mmdmc.training import apparel_states
 
     config = {"bptt": CONFIGS["small"]["bptt"]}
     assert config["bptt"] == CONFIGS["paper"]["bptt"] > 0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from baselines.mmdmc.apparel_arap import edges_among, fit_rotations, laplacian, nearest_rotations, restore
+from mimicbench.baselines.mmdmc.apparel_arap import edges_among, fit_rotations, laplacian, nearest_rotations, restore
 
 
 def _strip(n: int = 11, length: float = 1.0, width: float = 0.05) -> tuple[np.ndarray, np.ndarray]:

@@ -5,7 +5,7 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from baselines.mmdmc.apparel_history import (FEATURES, LAGS, POSITION_SCALE, REST_SCALE, ROTATION_SCALE,
+from mimicbench.baselines.mmdmc.apparel_history import (FEATURES, LAGS, POSITION_SCALE, REST_SCALE, ROTATION_SCALE,
                                              BodyHistoryApparel, frame_bones, frame_rotations, history_features,
                                              rest_offsets)
 
@@ -130,7 +130,7 @@ def test_it_learns_a_lag_that_only_the_history_shows():
 
 
 def test_offset_smoothing_averages_over_component_neighbours_by_hand():
-    from baselines.mmdmc.apparel_history import smooth_offsets
+    from mimicbench.baselines.mmdmc.apparel_history import smooth_offsets
 
     # a strip of 4 vertices, each with itself and its next along the strip; the last with itself twice
     nb = torch.tensor([[0, 1], [1, 2], [2, 3], [3, 3]])
@@ -145,7 +145,7 @@ def test_offset_smoothing_averages_over_component_neighbours_by_hand():
 
 
 def test_the_modules_smoothing_passes_average_its_offsets():
-    from baselines.mmdmc.apparel_history import smooth_offsets
+    from mimicbench.baselines.mmdmc.apparel_history import smooth_offsets
 
     body, rot, rest = [torch.as_tensor(x, dtype=torch.float32) for x in _random_motion(np.random.default_rng(5), a=4)]
     nb = torch.tensor([[0, 1], [1, 2], [2, 3], [3, 3]])
@@ -164,8 +164,8 @@ def test_the_modules_smoothing_passes_average_its_offsets():
 
 
 def test_the_configs_arap_weight_reaches_the_module_and_a_negative_one_is_refused():
-    from baselines.mmdmc.apparel_arap import ITERATIONS
-    from baselines.mmdmc.training import build_apparel
+    from mimicbench.baselines.mmdmc.apparel_arap import ITERATIONS
+    from mimicbench.baselines.mmdmc.training import build_apparel
 
     plain = build_apparel({"apparel_model": "body_history", "history_hidden": 8, "history_layers": 1})
     assert plain.arap == 0.0 and plain.arap_iterations == ITERATIONS

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.mmdmc.chain_attachment import attached_weights, chain_attachment
-from baselines.mmdmc.data import prepare
-from baselines.mmdmc.pipeline import apparel_probability, mesh_weights
-from baselines.mmdmc.segmentation import ApparelSegmenter, segmenter_inputs
+from mimicbench.baselines.mmdmc.chain_attachment import attached_weights, chain_attachment
+from mimicbench.baselines.mmdmc.data import prepare
+from mimicbench.baselines.mmdmc.pipeline import apparel_probability, mesh_weights
+from mimicbench.baselines.mmdmc.segmentation import ApparelSegmenter, segmenter_inputs
 
 # body: 0 root (0,0,0) -> 1 (1,0,0) -> 2 leaf (1,1,0); apparel chain A: 3 (1,0,1) -> 4 (1,0,2), hanging
 # from body bone 1; apparel chain B: 5 (0,-1,0) -> 6 (0,-2,0), hanging from the root 0

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.mmdmc.body import PRIOR_TAU, BodySkinning
-from baselines.mmdmc.bone_distance import bone_distances, mesh_box
-from baselines.mmdmc.data import body_target_weights, prepare
-from baselines.mmdmc.rig import attachment_bones
-from schemas.weights import SparseWeights
+from mimicbench.baselines.mmdmc.body import PRIOR_TAU, BodySkinning
+from mimicbench.baselines.mmdmc.bone_distance import bone_distances, mesh_box
+from mimicbench.baselines.mmdmc.data import body_target_weights, prepare
+from mimicbench.baselines.mmdmc.rig import attachment_bones
+from mimicbench.schemas.weights import SparseWeights
 
 # joints: 0 root (0,0,0) -> 1 (1,0,0) -> 2 leaf (1,1,0); 3 apparel child of 1 at (1,0,1) -> 4 apparel (1,0,2)
 KEYPOINTS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [1, 0, 1], [1, 0, 2]], np.float64)
@@ -100,7 +100,7 @@ def test_untrained_body_module_is_the_bone_distance_prior():
 
 
 def test_weight_smoothing_matches_a_naive_loop():
-    from baselines.mmdmc.weight_smoothing import smooth_weights
+    from mimicbench.baselines.mmdmc.weight_smoothing import smooth_weights
 
     rng = np.random.default_rng(0)
     w = rng.dirichlet(np.ones(3), size=5)
@@ -138,7 +138,7 @@ def _strip(step: float, length: float = 2.0, width: float = 0.2):
 
 @pytest.mark.parametrize("step", [0.01, 0.04])
 def test_weight_diffusion_matches_the_screened_poisson_solution_at_any_resolution(step):
-    from baselines.mmdmc.weight_smoothing import diffuse_weights
+    from mimicbench.baselines.mmdmc.weight_smoothing import diffuse_weights
 
     # a step in the weights along x; (1 - r^2 d^2/dx^2) u = step has the closed form
     # u = 1 - exp(-x/r)/2 for x >= 0 and exp(x/r)/2 for x < 0, on a fine mesh and a coarse one alike
@@ -156,7 +156,7 @@ def test_weight_diffusion_matches_the_screened_poisson_solution_at_any_resolutio
 
 
 def test_weight_diffusion_keeps_pieces_apart_and_lonely_vertices():
-    from baselines.mmdmc.weight_smoothing import diffuse_weights
+    from mimicbench.baselines.mmdmc.weight_smoothing import diffuse_weights
 
     v, f = _strip(0.05)
     n = len(v)

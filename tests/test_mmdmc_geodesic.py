@@ -5,7 +5,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from baselines.mmdmc.geodesic import anchor_vertices, geodesic_distances, surface_graph
+from mimicbench.baselines.mmdmc.geodesic import anchor_vertices, geodesic_distances, surface_graph
 from tests.toys import make_tube
 
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.mmdmc.losses import edge_stretch
-from baselines.mmdmc.training import _mesh_edge_subsample, body_edge_loss
-from mimicbench.mesh import unique_edges
+from mimicbench.baselines.mmdmc.losses import edge_stretch
+from mimicbench.baselines.mmdmc.training import _mesh_edge_subsample, body_edge_loss
+from mimicbench.geometry.mesh import unique_edges
 
 # two triangles sharing the edge 1-2: a unit square cut along its diagonal
 SQUARE = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float64)

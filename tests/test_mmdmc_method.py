@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from benchmark.registry import get_method
-from benchmark.request import MotionRequest, Rig
-from mimicbench.quaternion import quat_to_matrix
-from schemas.weights import SparseWeights
+from mimicbench.benchmark.registry import get_method
+from mimicbench.benchmark.request import MotionRequest, Rig
+from mimicbench.geometry.quaternion import quat_to_matrix
+from mimicbench.schemas.weights import SparseWeights
 
 NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_refine", "mmdmc_no_apparel", "mmdmc_gt_mask")
 
@@ -19,8 +19,8 @@ NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_refine", "mmdmc_no_apparel", "mmd
 @pytest.fixture(scope="module")
 def character(tmp_path_factory):
     """A zoo apparel character's rig, a 6-frame window of its first clip and its record."""
-    from datagen.zoo import build_zoo
-    from schemas.shards import read_records
+    from mimicbench.datagen.zoo.dataset import build_zoo
+    from mimicbench.schemas.shards import read_records
 
     root = tmp_path_factory.mktemp("mmdmc_zoo")
     build_zoo(root, 1, seed=11, categories=["apparel"], clips_per_character=1, progress=False)
@@ -56,7 +56,7 @@ def test_methods_are_registered_for_the_apparel_protocol():
 
 
 def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(character):
-    from baselines.mmdmc.pipeline import apparel_probability, mesh_weights
+    from mimicbench.baselines.mmdmc.pipeline import apparel_probability, mesh_weights
 
     rig, window, rec = character
     outs = {}
@@ -116,8 +116,8 @@ def test_gt_mask_variant_uses_the_mask_it_is_given(character):
 def test_no_apparel_is_the_full_model_with_f_d_left_out(character):
     # mmdmc_no_apparel: f_c's mask and f_s's skinning with it (as mmdmc), no displacement from f_d,
     # then f_j; without f_j it is plain LBS of those weights (a loop over joints, the spec)
-    from baselines.mmdmc.apparel_history import OUTPUT_SCALE
-    from baselines.mmdmc.pipeline import apparel_probability, mesh_weights
+    from mimicbench.baselines.mmdmc.apparel_history import OUTPUT_SCALE
+    from mimicbench.baselines.mmdmc.pipeline import apparel_probability, mesh_weights
 
     rig, window, rec = character
     m = get_method("mmdmc_no_apparel")
@@ -156,8 +156,8 @@ def test_the_apparel_is_restored_by_soft_arap_as_the_modules_weight_asks(charact
     # f_d's prediction with and without the restoration (baselines/mmdmc/apparel_arap.py): the
     # restored apparel is restore() of the unrestored one in metres (ARAP is the same in any unit and
     # place), nothing else moves, and the apparel's edges come closer to their rest lengths
-    from baselines.mmdmc.apparel_arap import edges_among, restore
-    from baselines.mmdmc.pipeline import apparel_probability
+    from mimicbench.baselines.mmdmc.apparel_arap import edges_among, restore
+    from mimicbench.baselines.mmdmc.pipeline import apparel_probability
 
     rig, window, rec = character
     m = get_method("mmdmc_no_refine")

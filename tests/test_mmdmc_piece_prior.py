@@ -9,9 +9,9 @@ import torch
 import trimesh
 from scipy.special import softmax
 
-from baselines.mmdmc.body import PRIOR_TAU, BodySkinning
-from baselines.mmdmc.bone_distance import bone_distances
-from baselines.mmdmc.piece_prior import OUTSIDE, body_parents, piece_prior, skeleton_hops
+from mimicbench.baselines.mmdmc.body import PRIOR_TAU, BodySkinning
+from mimicbench.baselines.mmdmc.bone_distance import bone_distances
+from mimicbench.baselines.mmdmc.piece_prior import OUTSIDE, body_parents, piece_prior, skeleton_hops
 
 
 def softmax_rows(scores: np.ndarray) -> np.ndarray:
@@ -109,7 +109,7 @@ def test_a_piece_spanning_the_body_or_a_fragment_gets_no_prior():
 def test_piece_prior_is_near_the_zoo_weights_the_bone_prior_is_not(tmp_path):
     """The zoo weights its capsules (one piece a bone) from true segment tails and capsule radii
     (datagen/zoo/skin_weights.py), which the prior never reads: an independent reference."""
-    from baselines.mmdmc.data import TrainingData, body_target_weights
+    from mimicbench.baselines.mmdmc.data import TrainingData, body_target_weights
     from mimicbench.cli import main
 
     assert main(["zoo", "--out", str(tmp_path / "z"), "--characters", "2", "--categories", "apparel",
@@ -176,8 +176,8 @@ class RoughSkinning(torch.nn.Module):
 
 
 def test_mesh_weights_leave_the_pieces_the_prior_wraps_unsmoothed():
-    from baselines.mmdmc.data import prepare
-    from baselines.mmdmc.pipeline import mesh_weights, skinning_weights
+    from mimicbench.baselines.mmdmc.data import prepare
+    from mimicbench.baselines.mmdmc.pipeline import mesh_weights, skinning_weights
 
     tube = trimesh.creation.cylinder(radius=0.05, height=0.9, sections=12)
     tube.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))

@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from schemas.shards import read_records
+from mimicbench.schemas.shards import read_records
 
 
 @pytest.mark.slow
 def test_gene_pmx_at_rest_stays_at_rest(assets_dir, tmp_path):
-    from baselines.mmdmc.geodesic import anchor_vertices, geodesic_distances
-    from benchmark.registry import get_method
-    from benchmark.request import MotionRequest, Rig
+    from mimicbench.baselines.mmdmc.geodesic import anchor_vertices, geodesic_distances
+    from mimicbench.benchmark.registry import get_method
+    from mimicbench.benchmark.request import MotionRequest, Rig
     from mimicbench.cli import main
-    from mimicbench.kinematics import rest_transforms
+    from mimicbench.geometry.kinematics import rest_transforms
 
     assert main(["datagen", "ingest", str(assets_dir / "mmd" / "Gene.pmx"), "--out", str(tmp_path / "gene"),
                  "--quiet"]) == 0
@@ -40,7 +40,7 @@ def test_gene_pmx_at_rest_stays_at_rest(assets_dir, tmp_path):
     # Gene's front cloak bone has a physics weight bone (錘) 7.5 m below the model: a bone segment to
     # it would run down through the legs. The file's own physics put no apparel below 0.97 m, and
     # f_c must label none of the legs and shoes (below 0.5 m) apparel.
-    from baselines.mmdmc.pipeline import apparel_probability
+    from mimicbench.baselines.mmdmc.pipeline import apparel_probability
 
     m = get_method("mmdmc")
     m.setup()

@@ -30,8 +30,8 @@ def tiny_config() -> dict:
 @pytest.fixture(scope="module")
 def apparel_data(tmp_path_factory):
     """One zoo apparel character with one clip, simulated by the apparel stage."""
-    from datagen.apparel.stage import simulate_dataset
-    from datagen.zoo import build_zoo
+    from mimicbench.datagen.apparel.stage import simulate_dataset
+    from mimicbench.datagen.zoo.dataset import build_zoo
 
     root = tmp_path_factory.mktemp("mmdmc")
     build_zoo(root / "zoo", 1, seed=5, categories=["apparel"], clips_per_character=1, progress=False)
@@ -141,8 +141,8 @@ def test_seg_and_body_train_on_a_zoo_never_simulated(apparel_data, tmp_path):
     """With seg_body_clips="kinematic" seg and body read only kinematic clips and the apparel mask: they
     train on the unsimulated zoo, which the default (simulated pairs) refuses with a message naming
     `datagen apparel`."""
-    from baselines.mmdmc.data import TrainingData
-    from schemas.shards import read_records
+    from mimicbench.baselines.mmdmc.data import TrainingData
+    from mimicbench.schemas.shards import read_records
 
     zoo = apparel_data.parent / "zoo"
     data = TrainingData.load(zoo, simulated=False)
@@ -164,12 +164,12 @@ def test_attachment_options_train_and_skin_apparel_to_its_chains_body_bone(appar
     with all their weight on the body bone their nearest apparel chain hangs from (a naive loop)."""
     import copy
 
-    from baselines.mmdmc.apparel import ApparelDynamics
-    from baselines.mmdmc.body import skin
-    from baselines.mmdmc.data import TrainingData
-    from baselines.mmdmc.rig import attachment_bones
-    from baselines.mmdmc.method import load_modules
-    from baselines.mmdmc.pipeline import apparel_probability, predict, skinning_weights
+    from mimicbench.baselines.mmdmc.apparel import ApparelDynamics
+    from mimicbench.baselines.mmdmc.body import skin
+    from mimicbench.baselines.mmdmc.data import TrainingData
+    from mimicbench.baselines.mmdmc.rig import attachment_bones
+    from mimicbench.baselines.mmdmc.method import load_modules
+    from mimicbench.baselines.mmdmc.pipeline import apparel_probability, predict, skinning_weights
 
     cfg = {**tiny_config(), "seg_inputs": "bones", "apparel_skinning": "attachment", "mask_by_piece": True}
     for s in STAGES:
@@ -213,8 +213,8 @@ def test_mesh_stretch_edge_term_is_the_relative_stretch_on_mesh_edges_and_a_few_
     body vertices (weights_on="body"; a naive loop), and a few steps on it lower it."""
     from collections import defaultdict
 
-    from baselines.mmdmc.body import skin
-    from baselines.mmdmc.data import TrainingData
+    from mimicbench.baselines.mmdmc.body import skin
+    from mimicbench.baselines.mmdmc.data import TrainingData
 
     cfg = {**tiny_config(), "body_edge_loss": "mesh_stretch", "weights_on": "body", "w_edge": 100.0}
     ctx = context(apparel_data, run, "body", cfg)
@@ -274,10 +274,10 @@ def test_apparel_rollouts_start_at_rest_at_the_clips_first_frame_as_a_request_do
     """apparel_start="clip": a batch is the whole clip (45 frames, within the burn-in),
     every frame scored, its truth the simulated clip posed with the dataset's weights, and f_d's
     rollout on it is the rollout `predict` answers a request of that clip with (the full pipeline)."""
-    from baselines.mmdmc.data import TrainingData, posed
-    from baselines.mmdmc.method import load_modules
-    from baselines.mmdmc.pipeline import apparel_probability, predict
-    from baselines.mmdmc.training import apparel_states
+    from mimicbench.baselines.mmdmc.data import TrainingData, posed
+    from mimicbench.baselines.mmdmc.method import load_modules
+    from mimicbench.baselines.mmdmc.pipeline import apparel_probability, predict
+    from mimicbench.baselines.mmdmc.training import apparel_states
 
     cfg = {**tiny_config(), "apparel_points": 0, "apparel_start": "clip"}  # every apparel vertex, as at inference
     ctx = context(apparel_data, run, "apparel", cfg)
@@ -322,11 +322,11 @@ def test_body_history_model_trains_and_its_batches_are_what_a_request_is_answere
     `predict` answers a request of the clip with."""
     import shutil
 
-    from baselines.mmdmc.apparel_history import BodyHistoryApparel
-    from baselines.mmdmc.data import TrainingData
-    from baselines.mmdmc.method import load_modules
-    from baselines.mmdmc.pipeline import apparel_probability, predict
-    from baselines.mmdmc.training import apparel_states
+    from mimicbench.baselines.mmdmc.apparel_history import BodyHistoryApparel
+    from mimicbench.baselines.mmdmc.data import TrainingData
+    from mimicbench.baselines.mmdmc.method import load_modules
+    from mimicbench.baselines.mmdmc.pipeline import apparel_probability, predict
+    from mimicbench.baselines.mmdmc.training import apparel_states
 
     cfg = {**tiny_config(), "apparel_points": 0, "apparel_model": "body_history", "history_hidden": 16,
            "history_frames": 5}

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmark.motion_range import (MARGIN_DEG, convex_hull_2d, distance_to_hull_2d, out_of_range_share,
+from mimicbench.benchmark.motion_range import (MARGIN_DEG, convex_hull_2d, distance_to_hull_2d, out_of_range_share,
                                     ranges_for_clips, ranges_for_dataset, swing_twist)
-from benchmark.request import Rig
-from mimicbench.kinematics import forward_kinematics, transforms_to_array
-from mimicbench.quaternion import quat_angle, quat_from_axis_angle, quat_multiply, quat_normalize
-from mimicbench.skinning import linear_blend_skinning
-from schemas.weights import SparseWeights
+from mimicbench.benchmark.request import Rig
+from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+from mimicbench.geometry.quaternion import quat_angle, quat_from_axis_angle, quat_multiply, quat_normalize
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.weights import SparseWeights
 
 X, Y, Z = np.eye(3)
 
@@ -158,7 +158,7 @@ def test_ranges_for_dataset_streams_what_a_whole_read_gives(small_zoo):
     and each character's own clip frames are inside."""
     import pyarrow.parquet as pq
 
-    from benchmark.rigs import load_characters
+    from mimicbench.benchmark.rigs import load_characters
 
     chars = load_characters(small_zoo)
     streamed = ranges_for_dataset(small_zoo, chars)
@@ -184,9 +184,9 @@ def test_ranges_for_dataset_leaves_out_simulated_clips_and_characters_without_cl
     """A dataset of the leg (its clip, and a simulated ``@sim`` twin that bends the knee 30 degrees
     backwards) and a second leg without clips: only the first gets ranges, from its kinematic clip
     alone, so the twin's pose is out of range."""
-    from schemas.character import CharacterRecord
-    from schemas.motion import MotionRecord
-    from schemas.shards import write_records
+    from mimicbench.schemas.character import CharacterRecord
+    from mimicbench.schemas.motion import MotionRecord
+    from mimicbench.schemas.shards import write_records
 
     rig = leg()
     records = [CharacterRecord(

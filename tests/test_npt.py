@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.npt.placement import box_centre, centred, place
-from baselines.npt.spadain import SPAdaIN
+from mimicbench.baselines.npt.placement import box_centre, centred, place
+from mimicbench.baselines.npt.spadain import SPAdaIN
 
 
 def test_spadain_is_instance_norm_scaled_and_shifted_by_convs_of_the_identity_points():
@@ -58,7 +58,7 @@ def test_placement_puts_a_centred_answer_back_where_the_target_stands_moved_as_t
 
 
 def test_pose_code_takes_any_vertex_count_and_ignores_vertex_order():
-    from baselines.npt.model import NeuralPoseTransfer
+    from mimicbench.baselines.npt.model import NeuralPoseTransfer
 
     torch.manual_seed(0)
     model = NeuralPoseTransfer((8, 16, 32)).eval()
@@ -73,8 +73,8 @@ def test_pose_code_takes_any_vertex_count_and_ignores_vertex_order():
 def test_decoder_has_the_published_blocks_and_widths(widths, decoder):
     # the published max-pool decoder: conv b->b, block, conv b->b/2, block, conv b/2->b/4, block, conv->3,
     # b = c3 + 3 (the code and the xyz); only the first block goes without instance norm
-    from baselines.npt.model import NeuralPoseTransfer
-    from baselines.npt.spadain import SPAdaINResBlock
+    from mimicbench.baselines.npt.model import NeuralPoseTransfer
+    from mimicbench.baselines.npt.spadain import SPAdaINResBlock
 
     model = NeuralPoseTransfer(widths)
     dec = model.decoder
@@ -89,7 +89,7 @@ def test_decoder_has_the_published_blocks_and_widths(widths, decoder):
 
 
 def test_paper_preset_builds_the_published_network():
-    from baselines.npt.training import build_npt
+    from mimicbench.baselines.npt.training import build_npt
     from mimicbench.training.registry import trainable
 
     cfg = trainable("npt").config("paper")
@@ -102,8 +102,8 @@ def test_paper_preset_builds_the_published_network():
 def test_the_answer_follows_the_pose_through_the_unnormalised_first_block():
     # the code is a per-channel constant over the target points: with instance norm in the first block
     # (a network of normalised blocks only) it is subtracted and two poses give one answer
-    from baselines.npt.model import NeuralPoseTransfer
-    from baselines.npt.spadain import SPAdaINResBlock
+    from mimicbench.baselines.npt.model import NeuralPoseTransfer
+    from mimicbench.baselines.npt.spadain import SPAdaINResBlock
 
     identity = torch.randn(1, 120, 3)
     pose_a, pose_b = torch.randn(1, 300, 3), 0.5 * torch.randn(1, 300, 3)
@@ -118,7 +118,7 @@ def test_the_answer_follows_the_pose_through_the_unnormalised_first_block():
 
 
 def test_constant_code_switch_changes_the_answer():
-    from baselines.npt.model import NeuralPoseTransfer
+    from mimicbench.baselines.npt.model import NeuralPoseTransfer
 
     torch.manual_seed(0)
     model = NeuralPoseTransfer((8, 16, 32)).eval()
@@ -131,7 +131,7 @@ def test_constant_code_switch_changes_the_answer():
 
 
 def test_residual_network_starts_at_the_identity_points_and_keeps_the_range():
-    from baselines.npt.model import NeuralPoseTransfer
+    from mimicbench.baselines.npt.model import NeuralPoseTransfer
 
     torch.manual_seed(0)
     model = NeuralPoseTransfer((8, 16, 32), residual=True).eval()
@@ -197,9 +197,9 @@ def trained_method(cls, zoo, run):
 
 
 def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
-    from baselines.npt.method import Npt
-    from benchmark.request import Rig, TransferRequest
-    from schemas.shards import read_records
+    from mimicbench.baselines.npt.method import Npt
+    from mimicbench.benchmark.request import Rig, TransferRequest
+    from mimicbench.schemas.shards import read_records
 
     method, trained = trained_method(Npt, small_zoo, tmp_path / "run")
     rec = next(iter(read_records(small_zoo, "characters")))
@@ -218,8 +218,8 @@ def test_checkpoint_round_trips_through_the_method(small_zoo, tmp_path):
 def self_transfer_pmd(method, zoo) -> tuple[float, float]:
     """Mean over the zoo's first characters of the self-transfer's PMD x100 (by height) against the
     posed source, and identity's (the rest mesh)."""
-    from baselines.pose_pairs import PosePool
-    from benchmark.request import Rig, TransferRequest
+    from mimicbench.baselines.pose_pairs import PosePool
+    from mimicbench.benchmark.request import Rig, TransferRequest
 
     pool = PosePool.load(zoo)
     got, rest = [], []
@@ -236,7 +236,7 @@ def self_transfer_pmd(method, zoo) -> tuple[float, float]:
 
 
 def test_shipped_self_transfer_comes_back_close_to_the_posed_source(small_zoo):
-    from baselines.npt.method import Npt
+    from mimicbench.baselines.npt.method import Npt
 
     got, identity = self_transfer_pmd(Npt(), small_zoo)
     assert got < identity, (got, identity)

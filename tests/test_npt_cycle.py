@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.npt.cycle import box_centred, cross_category_pairs, cycle_batch, cycle_item, cycle_terms
+from mimicbench.baselines.npt.cycle import box_centred, cross_category_pairs, cycle_batch, cycle_item, cycle_terms
 
 
 def self_pair(zoo, category: str = "humanoid"):
     """(A rest, A posed) (N, 3) float32 of the first ``category`` character of ``zoo``, posed by a frame of a clip,
     both in the centred unit-size frame of its rest mesh (every vertex)."""
-    from baselines.npt.placement import centred
-    from baselines.pose_pairs import PosePool
+    from mimicbench.baselines.npt.placement import centred
+    from mimicbench.baselines.pose_pairs import PosePool
 
     pool = PosePool.load(zoo)
     cid = next(c for c in pool.ids if pool.records[c].category == category)
@@ -31,7 +31,7 @@ def naive_edge_ratio(x: np.ndarray, ref: np.ndarray, edges: np.ndarray) -> float
 
 
 def test_cycle_is_zero_for_an_exact_transfer_on_a_self_pair_and_the_edge_term_is_the_hand_one(small_zoo):
-    from baselines.pose_pairs import knn_pairs
+    from mimicbench.baselines.pose_pairs import knn_pairs
 
     rest, posed = self_pair(small_zoo)
     edges = knn_pairs(rest, 6)
@@ -75,7 +75,7 @@ def test_the_return_leg_sees_the_forward_answer_recentred_at_its_box_centre():
 def test_cross_category_pairs_are_the_cct_protocols_pairs(small_zoo):
     import pandas as pd
 
-    from baselines.pose_pairs import PosePool
+    from mimicbench.baselines.pose_pairs import PosePool
 
     pool = PosePool.load(small_zoo)
     chars = pd.concat([pd.read_parquet(f, columns=["character_id", "category"])
@@ -87,9 +87,9 @@ def test_cross_category_pairs_are_the_cct_protocols_pairs(small_zoo):
 
 
 def test_cycle_examples_keep_the_rows_of_a_in_step_and_a_dataset_without_pairs_is_a_clear_error(small_zoo):
-    from baselines.npt.placement import centred
-    from baselines.pose_pairs import PosePool
-    from mimicbench.errors import UserError
+    from mimicbench.baselines.npt.placement import centred
+    from mimicbench.baselines.pose_pairs import PosePool
+    from mimicbench.runtime.errors import UserError
 
     pool = PosePool.load(small_zoo)
     cfg = {"points": 128, "knn": 4, "cycle_batch": 3}
@@ -114,7 +114,7 @@ def test_a_few_steps_lower_the_cycle_term_and_the_term_is_off_without_cycle_batc
     from tests.test_mmdmc_training import after_steps
     from tests.test_npt import first_batch, tiny
 
-    from baselines.npt.config import CYCLE
+    from mimicbench.baselines.npt.config import CYCLE
 
     cfg = {**tiny(stage), **CYCLE}  # the cycle term (ours, off in every preset)
     st, module, batch, ctx = first_batch(stage, small_zoo, cfg)

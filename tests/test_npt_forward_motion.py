@@ -46,7 +46,7 @@ def pair():
 
 
 def test_a_model_that_answers_the_rest_mesh_moves_the_target_by_nothing():
-    from baselines.npt.placement import centred
+    from mimicbench.baselines.npt.placement import centred
 
     a_rest, a_posed, b_rest = pair()
     r = forward_motion.measure(RestModel(), [(a_rest, a_posed, b_rest)])

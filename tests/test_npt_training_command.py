@@ -26,7 +26,7 @@ def doc_commands() -> list[list[str]]:
 
 
 def shipped_header(name: str) -> dict:
-    from benchmark.registry import get_method
+    from mimicbench.benchmark.registry import get_method
 
     return read_header(get_method(name).shipped / f"{name}.safetensors")
 

@@ -9,9 +9,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from mimicbench.cli import build_parser, command_parser, main
-from mimicbench.options import from_mapping, from_namespace, options_class
+from mimicbench.runtime.options import from_mapping, from_namespace, options_class
 from mimicbench.pipeline import load_pipeline, run_pipeline, step_options
-from mimicbench.summary import StageSummary
+from mimicbench.runtime.summary import StageSummary
 
 HEAD = "[pipeline]\nname = 'p'\n"
 ZOO = "[[steps]]\nrun = 'zoo'\nout = 'zoo'\ncharacters = 3\nclips_per_character = 1\nframes_per_clip = 12\n" \
@@ -100,7 +100,7 @@ def test_a_summary_says_its_exit_status():
 def test_the_demo_is_its_bundled_pipeline_file_and_its_help_states_the_files_values():
     import re
 
-    from benchmark.demo import DEMO_PIPELINE, OPTION_STEPS
+    from mimicbench.benchmark.demo import DEMO_PIPELINE, OPTION_STEPS
 
     pipeline = load_pipeline(DEMO_PIPELINE, workdir="demo-output")  # every step's options checked
     steps = {s.name: s for s in pipeline.steps}

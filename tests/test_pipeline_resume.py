@@ -94,13 +94,13 @@ def test_steps_are_skipped_until_their_inputs_or_options_change(tmp_path, capsys
 def test_a_finished_step_runs_again_when_its_code_version_changes(tmp_path, capsys, monkeypatch):
     """A new resample version (a toolkit upgrade) makes the pipeline run resample again, not skip it
     on the old output; the zoo, whose code did not change, stays skipped."""
-    import datagen.resample
+    import mimicbench.datagen.resample
 
     work = tmp_path / "work"
     toml = write_pipeline(tmp_path)
     assert main(["pipeline", str(toml), "--workdir", str(work), "--quiet"]) == 0
     capsys.readouterr()
-    monkeypatch.setattr(datagen.resample, "RESAMPLE_VERSION", datagen.resample.RESAMPLE_VERSION + "-next")
+    monkeypatch.setattr(mimicbench.datagen.resample, "RESAMPLE_VERSION", mimicbench.datagen.resample.RESAMPLE_VERSION + "-next")
     assert main(["pipeline", str(toml), "--workdir", str(work), "--quiet"]) == 0
     out = summary_statuses(capsys.readouterr().out)
     assert out["zoo"] == "skipped" and out["resample"] == "done"
@@ -113,7 +113,7 @@ def test_a_finished_step_runs_again_when_its_code_version_changes(tmp_path, caps
 def test_a_bench_steps_fingerprint_holds_its_methods_versions(tmp_path, monkeypatch):
     from dataclasses import replace
 
-    from baselines.identity import Identity
+    from mimicbench.baselines.identity import Identity
     from mimicbench.pipeline.spec import Step
     from mimicbench.pipeline.state import code_versions
 
@@ -128,14 +128,14 @@ def test_a_bench_steps_fingerprint_holds_its_methods_versions(tmp_path, monkeypa
 
 def test_a_cases_steps_fingerprint_holds_the_apparel_cases_version(monkeypatch):
     """New apparel case rows (cases version 2: the burn-in frames) make a finished cases step run again."""
-    import benchmark.protocols.apparel as apparel
+    import mimicbench.benchmark.protocols.apparel as apparel
     from mimicbench.pipeline.spec import Step
     from mimicbench.pipeline.state import code_versions
 
     step = Step("cases", "cases", {"dataset": "d"})
-    assert code_versions(step)["benchmark.protocols.apparel:CASES_VERSION"] == "2"
+    assert code_versions(step)["mimicbench.benchmark.protocols.apparel:CASES_VERSION"] == "2"
     monkeypatch.setattr(apparel, "CASES_VERSION", 3)
-    assert code_versions(step)["benchmark.protocols.apparel:CASES_VERSION"] == "3"
+    assert code_versions(step)["mimicbench.benchmark.protocols.apparel:CASES_VERSION"] == "3"
 
 
 def test_a_killed_pipeline_resumes_without_redoing_finished_steps(tmp_path, capsys):
@@ -160,7 +160,7 @@ def test_a_killed_pipeline_resumes_without_redoing_finished_steps(tmp_path, caps
     statuses = summary_statuses(capsys.readouterr().out)
     assert statuses == {s: ("skipped" if s in finished else "done") for s in ("zoo", "resample", "correspond")}
     assert mtimes(work / "zoo") == zoo_files  # nothing of the finished step was redone
-    from schemas.validate import validate_dataset
+    from mimicbench.schemas.validate import validate_dataset
 
     assert validate_dataset(work / "zoo1k") == []
 
@@ -194,7 +194,7 @@ def test_a_pipeline_retargets_motion_capture_onto_a_character(tmp_path, assets_d
     # the retarget step takes two folders of earlier steps (the clips' dataset and the characters'),
     # as `datagen retarget MOTIONS CHARACTERS OUT` does, and is skipped once done; the clip keeps
     # every frame of the BVH file (its "Frames:" line, read here as text)
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
 
     bvh = assets_dir / "bvh" / "CMU_02_01.bvh"
     path = tmp_path / "rt.toml"

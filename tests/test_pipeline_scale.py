@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from schemas.shards import read_table
+from mimicbench.schemas.shards import read_table
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -1,17 +1,17 @@
-"""The one read-off (mimicbench/transform_estimation.py's joint fit, mimicbench/pose_readoff.py's
+"""The one read-off (mimicbench/geometry/transform_estimation.py's joint fit, mimicbench/geometry/pose_readoff.py's
 completion from the skeleton) against the transforms a mesh was posed with."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from mimicbench.kabsch import kabsch_transforms
-from mimicbench.kinematics import forward_kinematics, transforms_to_array
-from mimicbench.pose_readoff import read_pose
-from mimicbench.quaternion import quat_angle, quat_apply, quat_from_axis_angle, quat_multiply, quat_normalize
-from mimicbench.skinning import linear_blend_skinning
-from mimicbench.transform_estimation import estimate_transforms, weight_support
-from schemas.weights import SparseWeights
+from mimicbench.geometry.kabsch import kabsch_transforms
+from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+from mimicbench.geometry.pose_readoff import read_pose
+from mimicbench.geometry.quaternion import quat_angle, quat_apply, quat_from_axis_angle, quat_multiply, quat_normalize
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.geometry.transform_estimation import estimate_transforms, weight_support
+from mimicbench.schemas.weights import SparseWeights
 
 FLOAT_DEG = 1e-3
 """Float precision of a read-off from float32 vertices: posed vertices carry about 1e-7 m of
@@ -173,8 +173,8 @@ def test_a_shared_asset_posed_by_its_own_clips_is_read_back(assets_dir, tmp_path
     own clip as ingested: the read-off returns the clip's transforms on every supported bone."""
     import pyarrow.parquet as pq
 
-    from benchmark.protocols.base import EvalData
-    from datagen.ingest import ingest_assets
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.datagen.ingest.runner import ingest_assets
 
     raw = tmp_path / "raw"
     ingest_assets([assets_dir / "glb" / "CesiumMan.glb"], raw, progress=False, split="test")

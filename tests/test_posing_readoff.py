@@ -4,12 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmark.request import Rig, TransferRequest
-from baselines.posing import source_pose
-from mimicbench.kinematics import forward_kinematics, transforms_to_array
-from mimicbench.quaternion import quat_angle, quat_from_axis_angle
-from mimicbench.skinning import linear_blend_skinning
-from schemas.weights import SparseWeights
+from mimicbench.benchmark.request import Rig, TransferRequest
+from mimicbench.baselines.posing import source_pose
+from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+from mimicbench.geometry.quaternion import quat_angle, quat_from_axis_angle
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.weights import SparseWeights
 
 
 def _rig(owned_body: bool = False) -> Rig:
@@ -77,8 +77,8 @@ def test_the_triceratops_body_is_read_off_its_legs(assets_dir, tmp_path):
     misses by 108.9 on average."""
     import pyarrow.parquet as pq
 
-    from benchmark.protocols.base import EvalData
-    from datagen.ingest import ingest_assets
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.datagen.ingest.runner import ingest_assets
 
     raw = tmp_path / "raw"
     ingest_assets([assets_dir / "glb" / "Quaternius_Triceratops.glb"], raw, progress=False, split="test")

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from baselines.probes import corruptions
-from baselines.probes.methods import (NearestJointMirrored, ProbeForeHind, ProbeFrozenLimb, ProbeHalfAngle,
+from mimicbench.baselines.probes import corruptions
+from mimicbench.baselines.probes.methods import (NearestJointMirrored, ProbeForeHind, ProbeFrozenLimb, ProbeHalfAngle,
                                       ProbeMirror, ProbeNoise15, ProbeRest, ProbeRoleTransfer)
-from benchmark.request import TransferRequest
-from benchmark.role_match import bone_mass, match_by_role
-from benchmark.semantic import character_role_classes
+from mimicbench.benchmark.request import TransferRequest
+from mimicbench.benchmark.role_match import bone_mass, match_by_role
+from mimicbench.benchmark.semantic import character_role_classes
 from tests.role_rigs import pose, quadruped, t_pose_humanoid
 
 
@@ -105,7 +105,7 @@ def test_nearest_joint_mirrored_matches_across_sides():
 
 
 def test_class_mass_position_by_hand():
-    from benchmark.role_match import class_mass_position
+    from mimicbench.benchmark.role_match import class_mass_position
 
     # one class of three depths (masses 1, 4, 5) under an unlabelled root
     classes = [None, "left/forelimb", "left/forelimb", "left/forelimb"]

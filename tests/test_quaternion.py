@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mimicbench.quaternion import (
+from mimicbench.geometry.quaternion import (
     matrix_to_quat, quat_angle, quat_apply, quat_canonical, quat_from_axis_angle, quat_inverse,
     quat_multiply, quat_normalize, quat_slerp, quat_to_matrix,
 )

@@ -77,7 +77,7 @@ def test_readme_plugin_example_runs_as_a_script(small_zoo, tmp_path):
     """The README's Python block, saved as a file and run as `python my_method.py DATASET RESULTS` in a
     fresh interpreter: its own method runs in process, `name_copy` in a worker process, and both score
     every case (no worker died, nothing failed)."""
-    from benchmark.aggregate import aggregate
+    from mimicbench.benchmark.aggregate import aggregate
 
     code = re.search(r"```python\n(.*?)```", README.read_text(), re.S).group(1)
     script = tmp_path / "my_method.py"

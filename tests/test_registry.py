@@ -1,4 +1,4 @@
-"""mimicbench.registry.Registry: lazy entries, entry points, collisions, did-you-mean, load errors."""
+"""mimicbench.runtime.registry.Registry: lazy entries, entry points, collisions, did-you-mean, load errors."""
 from __future__ import annotations
 
 import sys
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from mimicbench.registry import LoadError, NameCollision, Registry, UnknownName, load_target, parse_target
-from schemas.errors import UserError
+from mimicbench.runtime.registry import LoadError, NameCollision, Registry, UnknownName, load_target, parse_target
+from mimicbench.schemas.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -110,33 +110,47 @@ def test_parse_target_by_hand():
     assert load_target("os.path:join") is __import__("os").path.join
 
 
-def test_pyproject_declares_exactly_the_builtin_methods():
-    """The entry points in pyproject.toml (read as TOML here) match the targets the code seeds."""
-    from benchmark.registry import BUILTIN
+def test_pyproject_entry_points_are_the_bundled_methods_and_models():
+    """Each entry point in pyproject.toml (read as TOML here) names a class under mimicbench.baselines whose
+    metadata carries the same name, and the registries list exactly those names."""
+    from mimicbench.benchmark.method import PoseTransferLike
+    from mimicbench.benchmark.registry import METHODS
+    from mimicbench.training.registry import TRAINABLES
 
-    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]["mimicbench.methods"]
-    assert declared == BUILTIN
+    groups = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]
+    methods, models = groups["mimicbench.methods"], groups["mimicbench.trainables"]
+    assert {"identity", "nearest_joint", "mimicat", "npt", "cgt", "sfpt", "probe_mirror"} <= set(methods)
+    assert set(models) == {"mimicat", "mmdmc", "npt", "cgt", "sfpt"}
+    for name, target in methods.items():
+        assert target.startswith("mimicbench.baselines."), target
+        method = load_target(target)()
+        assert isinstance(method, PoseTransferLike) and method.metadata.name == name
+    for name, target in models.items():
+        assert target == f"mimicbench.baselines.{name}.training:TRAINABLE"
+        assert load_target(target).name == name
+    assert set(METHODS.names()) >= set(methods) and set(TRAINABLES.names()) >= set(models)
 
 
 def test_every_registry_resolves_its_builtins_without_installed_metadata(monkeypatch):
-    """Built-ins come from code: with no entry points at all, every kind still finds its names."""
-    import mimicbench.registry as registry
-    from benchmark.protocols import get_protocol
-    from benchmark.registry import get_method
-    from datagen.correspond.encoders import ENCODERS, ClipEncoder
-    from datagen.correspond.methods import get_matcher
+    """Built-ins come from code: with no entry points at all, protocols, matchers, encoders and engines still
+    find their names; methods and trainable models are entry points only, so none is found."""
+    import mimicbench.runtime.registry as registry
+    from mimicbench.benchmark.protocols import get_protocol
+    from mimicbench.benchmark.registry import get_method
+    from mimicbench.datagen.correspond.encoders import ENCODERS, ClipEncoder
+    from mimicbench.datagen.correspond.methods import get_matcher
     from mimicbench.engines import LocalEngine, get_engine
     from mimicbench.training.registry import trainable
 
     monkeypatch.setattr(registry, "entry_points", lambda group: [])
-    assert get_method("name_copy").metadata.name == "name_copy"
+    for lookup, name in ((get_method, "name_copy"), (trainable, "mmdmc")):
+        with pytest.raises(UnknownName):
+            lookup(name)
     assert get_protocol("cct").name == "cct"
-    assert trainable("mmdmc").name == "mmdmc"
     assert get_matcher("text").name == "text"
     assert ENCODERS.get("clip") is ClipEncoder
     assert isinstance(get_engine("local", 1), LocalEngine)
-    for lookup, name, kind in ((get_method, "name_cpy", "method"), (get_protocol, "ctt", "protocol"),
-                               (trainable, "mmdm", "trainable model"), (get_matcher, "structur", "matching method"),
+    for lookup, name, kind in ((get_protocol, "ctt", "protocol"), (get_matcher, "structur", "matching method"),
                                (get_engine, "rey", "engine")):
         with pytest.raises(UnknownName, match=f"unknown {kind} '{name}'. Did you mean"):
             lookup(name)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.render.camera import MARGIN, fit_camera
-from datagen.render.panel import Panel
-from datagen.render.render import compose_sheet
+from mimicbench.datagen.render.camera import MARGIN, fit_camera
+from mimicbench.datagen.render.panel import Panel
+from mimicbench.datagen.render.render import compose_sheet
 
 
 def box(lo, hi):
@@ -47,7 +47,7 @@ def test_fit_camera_frames_every_point():
 
 
 def test_shared_frame_keeps_offsets_and_survives_an_outlier():
-    from datagen.render.render import GROUP_CAP, frame_panels
+    from mimicbench.datagen.render.render import GROUP_CAP, frame_panels
 
     ref = box((0, 0, 0), (1, 1, 1))
     near = box((0.1, 0, 0), (1.1, 1, 1))  # 10 cm off: stays in the shared frame, offset visible
@@ -94,8 +94,8 @@ def test_render_matches_orthographic_projection():
     """Silhouettes from Blender against the projection worked out here: the area of a unit cube's
     silhouette seen along unit d is |dx| + |dy| + |dz| m²; a small cube sharing the big one's
     frame lands where the camera's own projection puts it."""
-    from datagen.render.camera import VIEW_DIRECTION
-    from datagen.render.render import frame_panels, render_panels
+    from mimicbench.datagen.render.camera import VIEW_DIRECTION
+    from mimicbench.datagen.render.render import frame_panels, render_panels
 
     big = box((-0.5, 0, -0.5), (0.5, 1, 0.5))
     small = box((0.3, 0.8, 0.3), (0.5, 1.0, 0.5))
@@ -124,7 +124,7 @@ def test_render_command_and_contact_sheet(small_zoo, tmp_path, capsys):
 
     from PIL import Image
 
-    from datagen.zoo.card import add_contact_sheet
+    from mimicbench.datagen.zoo.card import add_contact_sheet
     from mimicbench.cli import main
 
     out = tmp_path / "walk.png"

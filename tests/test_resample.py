@@ -5,16 +5,17 @@ import numpy as np
 import pytest
 import trimesh
 
-from datagen.resample import resample_character, resample_dataset
-from datagen.resample.clean import clean_mesh
-from datagen.resample.closest_point import closest_points, closest_points_brute_force
-from datagen.resample.quality import transfer_error_percent
-from datagen.resample.reskin import nearest_vertex_weights
+from mimicbench.datagen.resample.character import resample_character
+from mimicbench.datagen.resample.stage import resample_dataset
+from mimicbench.datagen.resample.clean import clean_mesh
+from mimicbench.datagen.resample.closest_point import closest_points, closest_points_brute_force
+from mimicbench.datagen.resample.quality import transfer_error_percent
+from mimicbench.datagen.resample.reskin import nearest_vertex_weights
 from mimicbench.cli import main
-from schemas.motion import MotionRecord
-from schemas.shards import read_records, write_records
-from schemas.validate import validate_dataset
-from schemas.weights import SparseWeights
+from mimicbench.schemas.motion import MotionRecord
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.validate import validate_dataset
+from mimicbench.schemas.weights import SparseWeights
 from tests.test_schemas import make_character
 
 
@@ -24,8 +25,8 @@ def tube_record(tube, rings=24, cid="toy/tube"):
 
 
 def bend_motion(record, frames=6):
-    from mimicbench.kinematics import forward_kinematics, transforms_to_array
-    from mimicbench.quaternion import quat_from_axis_angle
+    from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+    from mimicbench.geometry.quaternion import quat_from_axis_angle
 
     k = record.num_joints
     angles = np.linspace(0, 0.8, frames)
@@ -53,8 +54,8 @@ def test_coarse_tube_is_refined_to_target_with_valid_weights(tube, backend):
 
 def stretch_motion(record, frames=4):
     """Bones pulled apart along their chain with a small twist: skin between rings must blend."""
-    from mimicbench.kinematics import transforms_to_array
-    from mimicbench.quaternion import quat_from_axis_angle
+    from mimicbench.geometry.kinematics import transforms_to_array
+    from mimicbench.geometry.quaternion import quat_from_axis_angle
 
     k = record.num_joints
     q = quat_from_axis_angle(np.array([0, 1.0, 0]), np.linspace(0, 0.15, frames)[:, None] * np.arange(k)[None, :])
@@ -100,8 +101,8 @@ def test_fast_closest_points_match_brute_force():
 def test_hausdorff_matches_meshlabs_filter_sampling_every_vertex():
     import pymeshlab
 
-    from datagen.resample.quality import hausdorff_percent
-    from datagen.resample.simplify import decimate
+    from mimicbench.datagen.resample.quality import hausdorff_percent
+    from mimicbench.datagen.resample.simplify import decimate
 
     mesh = trimesh.creation.capsule(height=1.0, radius=0.2, count=[24, 24])
     v, f, _ = decimate(mesh.vertices, mesh.faces, 300, "fast")
@@ -213,7 +214,7 @@ def test_resampled_vertices_take_weights_from_their_own_piece_only(monkeypatch):
     assert out.meta["resample"]["own_piece_vertices"] == 17
     anywhere = closest_points(v, f, moved[end])
     np.testing.assert_allclose(anywhere.distances, 0.004, atol=1e-6)  # on A's end cap
-    from datagen.resample.pieces import own_piece_points
+    from mimicbench.datagen.resample.pieces import own_piece_points
 
     own = own_piece_points(v, f, moved, on_b.astype(int))  # pieces numbered by first vertex: A 0, B 1
     np.testing.assert_allclose(own.distances[end], 0.006, atol=1e-6)  # on B's end
@@ -294,7 +295,7 @@ def test_pymeshlab_decimation_ignores_parameters_left_by_an_earlier_call():
     """pymeshlab keeps a filter's last parameters in the process; ours are all spelled out."""
     import pymeshlab
 
-    from datagen.resample.simplify import decimate
+    from mimicbench.datagen.resample.simplify import decimate
 
     mesh = trimesh.creation.icosphere(subdivisions=4)
     before = decimate(mesh.vertices, mesh.faces, 800, "pymeshlab")
@@ -324,7 +325,7 @@ def test_streamed_in_batches_gives_the_same_shards(small_zoo, tmp_path, monkeypa
     back by row group) rewrites them identically."""
     import hashlib
 
-    import datagen.resample.stage as stage
+    import mimicbench.datagen.resample.stage as stage
 
     def shards(root):
         return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted((root / "characters").glob("*.parquet"))}

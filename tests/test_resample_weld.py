@@ -1,4 +1,4 @@
-"""Resampled meshes have no degenerate faces: :func:`datagen.resample.clean.weld_short_edges`
+"""Resampled meshes have no degenerate faces: :func:`mimicbench.datagen.resample.clean.weld_short_edges`
 against a hand edge collapse, and resampling (a low-poly sphere; every shared real asset) checked
 with areas and lengths computed here."""
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from datagen.resample.clean import weld_short_edges
-from datagen.resample.simplify import decimate, resample_to
+from mimicbench.datagen.resample.clean import weld_short_edges
+from mimicbench.datagen.resample.simplify import decimate, resample_to
 
 
 def face_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -101,9 +101,9 @@ def test_resampling_a_subdivided_low_poly_sphere_leaves_no_degenerate_faces():
 
 @pytest.mark.slow
 def test_every_shared_asset_resamples_without_degenerate_faces(assets_dir, tmp_path):
-    from datagen.ingest import ingest_assets
-    from datagen.resample import resample_dataset
-    from schemas.shards import read_records
+    from mimicbench.datagen.ingest.runner import ingest_assets
+    from mimicbench.datagen.resample.stage import resample_dataset
+    from mimicbench.schemas.shards import read_records
 
     raw, data = tmp_path / "raw", tmp_path / "r5k"
     ingest_assets([assets_dir], raw, jobs=2, timeout=600, progress=False)

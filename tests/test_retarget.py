@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from datagen.retarget.retarget import retarget_clip, rotation_between
-from datagen.retarget.roles import direction_children, humanoid_roles
-from datagen.zoo.build import build_character, build_skeleton
-from datagen.zoo.naming import HUMANOID_STYLES, bone_names
-from datagen.zoo.plan import plan_zoo
-from mimicbench.quaternion import quat_apply
+from mimicbench.datagen.retarget.retarget import retarget_clip, rotation_between
+from mimicbench.datagen.retarget.roles import direction_children, humanoid_roles
+from mimicbench.datagen.zoo.build import build_character, build_skeleton
+from mimicbench.datagen.zoo.naming import HUMANOID_STYLES, bone_names
+from mimicbench.datagen.zoo.plan import plan_zoo
+from mimicbench.geometry.quaternion import quat_apply
 
 
 @pytest.fixture(scope="module")
@@ -24,8 +24,8 @@ def zoo_walker():
 
 @pytest.fixture(scope="module")
 def gene(assets_dir):
-    from datagen.mmd.pmx import read_pmx
-    from datagen.mmd.records import character_from_mmd
+    from mimicbench.datagen.mmd.pmx import read_pmx
+    from mimicbench.datagen.mmd.records import character_from_mmd
 
     return character_from_mmd(read_pmx(assets_dir / "mmd" / "Gene.pmx"), "assets/Gene", "Gene.pmx", "train")
 
@@ -105,13 +105,13 @@ def test_a_clip_onto_its_own_skeleton_is_unchanged(zoo_walker):
 
 
 def test_retarget_stage_writes_a_dataset(zoo_walker, gene, tmp_path):
-    from datagen.retarget.stage import retarget_datasets
-    from schemas.shards import read_records, write_records
+    from mimicbench.datagen.retarget.stage import retarget_datasets
+    from mimicbench.schemas.shards import read_records, write_records
 
     src, clip, _ = zoo_walker
     write_records(tmp_path / "a", "characters", [src], "train")
     write_records(tmp_path / "a", "motions", [clip], "train")
-    from datagen.zoo.build import build_character as _bc
+    from mimicbench.datagen.zoo.build import build_character as _bc
 
     fish = _bc([s for s in plan_zoo(12, seed=0) if s.category == "fish"][0], "train", 0, 10).record
     write_records(tmp_path / "b", "characters", [gene, fish], "train")
@@ -130,8 +130,8 @@ def test_retarget_stage_writes_a_dataset(zoo_walker, gene, tmp_path):
 def test_cmu_bvh_onto_gene(tmp_path, assets_dir, gene):
     """The issue's check: a CMU clip (ingested through Blender) on an MMD humanoid keeps limb
     directions within 10 degrees after rest alignment and its feet on the ground."""
-    from datagen.ingest.runner import ingest_assets
-    from schemas.shards import read_records
+    from mimicbench.datagen.ingest.runner import ingest_assets
+    from mimicbench.schemas.shards import read_records
 
     s = ingest_assets([assets_dir / "bvh" / "CMU_02_01.bvh"], tmp_path / "cmu", progress=False)
     assert s["failed"] == 0

@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datagen.correspond.roles import record_role_classes, role_classes
-from datagen.ingest.category import infer_category
-from datagen.roles.attach import attach_roles, carry_labels
-from datagen.roles.labels import RoleLabelError, load_labels, parse_labels
-from schemas.shards import read_records, write_records
-from schemas.validate import validate_dataset
+from mimicbench.datagen.correspond.roles import record_role_classes, role_classes
+from mimicbench.datagen.ingest.category import infer_category
+from mimicbench.datagen.roles.attach import attach_roles, carry_labels
+from mimicbench.datagen.roles.labels import RoleLabelError, load_labels, parse_labels
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.validate import validate_dataset
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_LABELS = REPO / "examples" / "roles" / "shared_assets.toml"
@@ -114,7 +114,7 @@ def test_role_classes_take_class_names_and_unlabelled_bones():
 
 
 def test_correspondence_report_ignores_unlabelled_bones():
-    from datagen.correspond.report import pair_scores
+    from mimicbench.datagen.correspond.report import pair_scores
 
     rec = dataclasses.make_dataclass("R", ["character_id", "bone_roles", "category"])
     a = rec("a", ["hips", "", "left/upper_arm"], "humanoid")
@@ -194,8 +194,8 @@ def test_labels_that_do_not_fit_write_nothing(tiny, tmp_path):
 
 
 def test_a_killed_run_is_finished_by_a_rerun_and_another_stages_is_refused(tiny, tmp_path):
-    from schemas.errors import DatasetError
-    from schemas.manifest import is_complete, load_manifest, mark_complete, mark_incomplete
+    from mimicbench.schemas.errors import DatasetError
+    from mimicbench.schemas.manifest import is_complete, load_manifest, mark_complete, mark_incomplete
 
     root, hum, _ = tiny
     labels = _write(tmp_path, _labels_for(hum, "Biped"))
@@ -229,8 +229,8 @@ def test_reingested_characters_keep_their_labels(tiny, tmp_path):
 
 
 def test_a_request_for_a_labelled_character_carries_no_roles(tiny, tmp_path):
-    from benchmark.protocols.base import EvalData
-    from benchmark.request import Rig, TransferRequest
+    from mimicbench.benchmark.protocols.base import EvalData
+    from mimicbench.benchmark.request import Rig, TransferRequest
 
     root, hum, quad = tiny
     attach_roles(root, [_write(tmp_path, _labels_for(hum, "Biped") + _labels_for(quad, "Dog", "quadruped"))])

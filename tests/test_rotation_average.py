@@ -1,8 +1,8 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mimicbench.quaternion import quat_angle, quat_from_axis_angle, quat_normalize
-from mimicbench.rotation_average import weighted_quaternion_average
+from mimicbench.geometry.quaternion import quat_angle, quat_from_axis_angle, quat_normalize
+from mimicbench.geometry.rotation_average import weighted_quaternion_average
 
 
 def test_average_of_q_and_minus_q_is_q():

@@ -6,20 +6,20 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from schemas.case import CaseRecord
-from schemas.character import CharacterRecord
-from schemas.columns import records_to_table, table_to_records
-from schemas.format_doc import FORMAT_MD, render
-from schemas.joint import JointRecord
-from schemas.manifest import load_manifest
-from schemas.motion import MotionRecord
-from schemas.pair import PairRecord
-from schemas.result import ResultRecord
-from schemas.rigid_body import RigidBodyRecord
-from schemas.shards import read_records, write_records
-from schemas.status import StatusRecord
-from schemas.tables import RECORD_TYPES
-from schemas.version import METADATA_KEY, SCHEMA_VERSION
+from mimicbench.schemas.case import CaseRecord
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.columns import records_to_table, table_to_records
+from mimicbench.schemas.format_doc import FORMAT_MD, render
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.manifest import load_manifest
+from mimicbench.schemas.motion import MotionRecord
+from mimicbench.schemas.pair import PairRecord
+from mimicbench.schemas.result import ResultRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.status import StatusRecord
+from mimicbench.schemas.tables import RECORD_TYPES
+from mimicbench.schemas.version import METADATA_KEY, SCHEMA_VERSION
 
 
 def make_character(tube, cid="toy/tube-0000", split="train"):
@@ -136,14 +136,14 @@ def test_exception_mid_write_leaves_no_shard_and_manifest_unchanged(tube, tmp_pa
 
 def test_format_md_is_up_to_date_and_documents_every_column():
     text = FORMAT_MD.read_text()
-    assert render(text) == text, "schemas/FORMAT.md is stale: run `python -m schemas.format_doc`"
+    assert render(text) == text, "schemas/FORMAT.md is stale: run `python -m mimicbench.schemas.format_doc`"
     for rtype in RECORD_TYPES.values():
         for c in rtype.COLUMNS:
             assert f"| `{c.name}` |" in text
 
 
 def test_dominant_is_the_dense_argmax_ties_to_the_lowest_keypoint():
-    from schemas.weights import SparseWeights
+    from mimicbench.schemas.weights import SparseWeights
 
     rng = np.random.default_rng(0)
     dense = rng.random((200, 9)) * (rng.random((200, 9)) < 0.4)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmark.semantic import (character_role_classes, part_motion, part_regions, semantic_disagreement,
+from mimicbench.benchmark.semantic import (character_role_classes, part_motion, part_regions, semantic_disagreement,
                                 semantic_scores, shortest_rotation)
 from tests.role_rigs import pose, quadruped, t_pose_humanoid
 

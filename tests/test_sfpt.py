@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from baselines.sfpt.handles import deform, fitted_rotations, handle_centres
-from mimicbench.quaternion import quat_from_axis_angle, quat_to_matrix
+from mimicbench.baselines.sfpt.handles import deform, fitted_rotations, handle_centres
+from mimicbench.geometry.quaternion import quat_from_axis_angle, quat_to_matrix
 
 
 def grid_mesh(n: int = 5):
@@ -23,7 +23,7 @@ def grid_mesh(n: int = 5):
 
 
 def test_mesh_edges_are_each_triangle_side_both_ways_plus_self_loops():
-    from baselines.sfpt.mesh_graph import mesh_edges
+    from mimicbench.baselines.sfpt.mesh_graph import mesh_edges
 
     edges = mesh_edges(np.array([[0, 1, 2], [2, 1, 3]]), 5)
     expect = {(0, 1), (1, 2), (0, 2), (1, 3), (2, 3)}
@@ -34,7 +34,7 @@ def test_mesh_edges_are_each_triangle_side_both_ways_plus_self_loops():
 
 
 def test_vertex_normals_are_the_normalised_sums_of_unit_face_normals():
-    from baselines.sfpt.mesh_graph import vertex_normals
+    from mimicbench.baselines.sfpt.mesh_graph import vertex_normals
 
     v, f = grid_mesh()
     got = vertex_normals(torch.as_tensor(v, dtype=torch.float64), torch.as_tensor(f)).numpy()
@@ -48,8 +48,8 @@ def test_vertex_normals_are_the_normalised_sums_of_unit_face_normals():
 
 
 def test_mesh_edgeconv_is_a_max_over_mesh_neighbours_of_the_mlp_of_centre_and_difference():
-    from baselines.sfpt.mesh_graph import mesh_edges
-    from baselines.sfpt.model import MeshEdgeConv
+    from mimicbench.baselines.sfpt.mesh_graph import mesh_edges
+    from mimicbench.baselines.sfpt.model import MeshEdgeConv
 
     torch.manual_seed(0)
     v, f = grid_mesh()
@@ -63,8 +63,8 @@ def test_mesh_edgeconv_is_a_max_over_mesh_neighbours_of_the_mlp_of_centre_and_di
 
 
 def test_handle_weights_are_rows_summing_to_one_and_read_normals():
-    from baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
-    from baselines.sfpt.model import SkinningPredictor
+    from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
+    from mimicbench.baselines.sfpt.model import SkinningPredictor
 
     torch.manual_seed(0)
     v, f = grid_mesh()
@@ -80,7 +80,7 @@ def test_handle_weights_are_rows_summing_to_one_and_read_normals():
 @pytest.mark.parametrize("hidden,code,convs", [(64, 128, [(6, 64), (64, 128), (128, 256)]),
                                                (4, 8, [(6, 4), (4, 8), (8, 16)])])
 def test_networks_have_the_published_widths(hidden, code, convs):
-    from baselines.sfpt.model import SkeletonFreePoseTransfer
+    from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer
 
     model = SkeletonFreePoseTransfer(hidden, 40, code)
     for features in (model.skinning.features, model.encoder.features):
@@ -94,7 +94,7 @@ def test_networks_have_the_published_widths(hidden, code, convs):
 
 
 def paper_sized_parameters():
-    from baselines.sfpt.training import build_sfpt
+    from mimicbench.baselines.sfpt.training import build_sfpt
     from mimicbench.training.registry import trainable
 
     return sum(p.numel() for p in build_sfpt(trainable("sfpt").config("paper")).parameters())
@@ -106,7 +106,7 @@ def test_paper_preset_is_the_published_size():
 
 def toy_source():
     """A bent grid at rest and bent further: rest, posed (N, 3), their normals, its edges (E, 2)."""
-    from baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
+    from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
 
     v, f = grid_mesh()
     rest = torch.as_tensor(v)
@@ -117,8 +117,8 @@ def toy_source():
 
 
 def test_decoder_receives_the_target_shape_code_and_the_kabsch_fit():
-    from baselines.sfpt.handles import kabsch_transforms
-    from baselines.sfpt.model import SkeletonFreePoseTransfer
+    from mimicbench.baselines.sfpt.handles import kabsch_transforms
+    from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer
 
     torch.manual_seed(0)
     model = SkeletonFreePoseTransfer(4, 6, 8).eval()
@@ -136,8 +136,8 @@ def test_decoder_receives_the_target_shape_code_and_the_kabsch_fit():
 
 
 def test_kabsch_only_switch_returns_the_fit_and_changes_the_answer():
-    from baselines.sfpt.handles import kabsch_transforms
-    from baselines.sfpt.model import SkeletonFreePoseTransfer
+    from mimicbench.baselines.sfpt.handles import kabsch_transforms
+    from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer
 
     torch.manual_seed(0)
     model = SkeletonFreePoseTransfer(4, 6, 8).eval()
@@ -152,7 +152,7 @@ def test_kabsch_only_switch_returns_the_fit_and_changes_the_answer():
 
 
 def test_matrix_to_quat_round_trips_random_rotations():
-    from baselines.sfpt.handles import matrix_to_quat_torch
+    from mimicbench.baselines.sfpt.handles import matrix_to_quat_torch
 
     rng = np.random.default_rng(4)
     q = rng.normal(size=(200, 4))
@@ -165,7 +165,7 @@ def test_matrix_to_quat_round_trips_random_rotations():
 
 
 def test_kabsch_transforms_recover_each_handles_motion():
-    from baselines.sfpt.handles import kabsch_transforms
+    from mimicbench.baselines.sfpt.handles import kabsch_transforms
 
     rng = np.random.default_rng(2)
     v = rng.normal(size=(60, 3))
@@ -181,7 +181,7 @@ def test_kabsch_transforms_recover_each_handles_motion():
 
 
 def test_loss_terms_against_hand_values():
-    from baselines.sfpt.losses import arap_edges, chamfer, kl, quaternion_loss
+    from mimicbench.baselines.sfpt.losses import arap_edges, chamfer, kl, quaternion_loss
 
     rest = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 2, 0]])
     pred = torch.tensor([[0.0, 0, 0], [2, 0, 0], [0, 2, 0]])
@@ -239,10 +239,10 @@ def test_a_few_steps_lower_each_loss(small_zoo, term):
 
 
 def test_checkpoint_round_trips_and_arap_holds_the_rigidly_bound_vertices(small_zoo, tmp_path):
-    from baselines.sfpt.method import Sfpt
-    from benchmark.request import Rig, TransferRequest
+    from mimicbench.baselines.sfpt.method import Sfpt
+    from mimicbench.benchmark.request import Rig, TransferRequest
     from tests.test_npt import trained_method
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
 
     method = trained_method(Sfpt, small_zoo, tmp_path / "run")[0]
     plain = Sfpt(checkpoint=tmp_path / "run", arap=False)
@@ -261,7 +261,7 @@ def test_checkpoint_round_trips_and_arap_holds_the_rigidly_bound_vertices(small_
 
 
 def test_shipped_self_transfer_comes_back_close_to_the_posed_source(small_zoo):
-    from baselines.sfpt.method import Sfpt
+    from mimicbench.baselines.sfpt.method import Sfpt
     from tests.test_npt import self_transfer_pmd
 
     got, identity = self_transfer_pmd(Sfpt(), small_zoo)
@@ -271,12 +271,12 @@ def test_shipped_self_transfer_comes_back_close_to_the_posed_source(small_zoo):
 def test_motion_requests_transfer_each_frames_body_pose_onto_the_character(small_zoo):
     """Each frame of a motion answer is the transfer request of that frame: the character posed by its
     body bones alone (body_only's weights, LBS) as the source, its own rest mesh as the target."""
-    from baselines.body_only import body_weights
-    from baselines.sfpt.method import Sfpt
-    from benchmark.request import MotionRequest, Rig, TransferRequest
-    from mimicbench.skinning import linear_blend_skinning
-    from mimicbench.weights import SparseWeights
-    from schemas.shards import read_records
+    from mimicbench.baselines.body_only import body_weights
+    from mimicbench.baselines.sfpt.method import Sfpt
+    from mimicbench.benchmark.request import MotionRequest, Rig, TransferRequest
+    from mimicbench.geometry.skinning import linear_blend_skinning
+    from mimicbench.geometry.weights import SparseWeights
+    from mimicbench.schemas.shards import read_records
 
     rec = next(r for r in read_records(small_zoo, "characters") if r.category == "apparel")
     motion = next(m for m in read_records(small_zoo, "motions") if m.character_id == rec.character_id)

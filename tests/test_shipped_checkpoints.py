@@ -10,11 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from baselines.mimicat.method import BUNDLED, Mimicat, MimicatInitOnly, MimicatNaiveAvg, MimicatNoPrior
-from baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMask, MmdmcNoRefine
-from baselines.cgt.method import Cgt, CgtNoAttention
-from baselines.npt.method import Npt, NptConstantCode
-from baselines.sfpt.method import Sfpt, SfptKabschOnly
+from mimicbench.baselines.mimicat.method import BUNDLED, Mimicat, MimicatInitOnly, MimicatNaiveAvg, MimicatNoPrior
+from mimicbench.baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMask, MmdmcNoRefine
+from mimicbench.baselines.cgt.method import Cgt, CgtNoAttention
+from mimicbench.baselines.npt.method import Npt, NptConstantCode
+from mimicbench.baselines.sfpt.method import Sfpt, SfptKabschOnly
 
 # version of every method reading the folder -> sha256 over its .safetensors files (sorted by name,
 # each as name + NUL + bytes)
@@ -56,7 +56,7 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
     import json
     import shutil
 
-    from baselines.mmdmc.method import ENV as MMDMC_ENV
+    from mimicbench.baselines.mmdmc.method import ENV as MMDMC_ENV
 
     by_hand = lambda files: hashlib.sha256(json.dumps(  # noqa: E731
         {k: hashlib.sha256(Path(v).read_bytes()).hexdigest() for k, v in files.items()},

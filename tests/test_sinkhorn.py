@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import torch
 
-from mimicbench.sinkhorn import sinkhorn_log
+from mimicbench.geometry.sinkhorn import sinkhorn_log
 
 
 def naive_sinkhorn(scores, temperature, a, b, iters=2000):
@@ -50,7 +50,7 @@ def test_stated_marginals_and_low_temperature_stability():
 @pytest.mark.parametrize("k1,k2,temperature", [(5, 5, 1.0), (7, 4, 0.2), (41, 60, 0.1), (120, 29, 0.1)])
 def test_matrix_scaling_twin_matches_the_log_space_iteration(k1, k2, temperature):
     """The scaling iteration against the plain NumPy loop (small sizes) and the log-space one (all)."""
-    from mimicbench.sinkhorn import sinkhorn_scaling_torch
+    from mimicbench.geometry.sinkhorn import sinkhorn_scaling_torch
 
     s = np.random.default_rng(k1 + k2).normal(scale=3.0, size=(k1, k2))
     got = sinkhorn_scaling_torch(torch.tensor(s), temperature, num_iters=600, tol=1e-7).numpy()
@@ -66,7 +66,7 @@ def test_matrix_scaling_twin_matches_the_log_space_iteration(k1, k2, temperature
 def test_matrix_scaling_falls_back_where_the_kernel_underflows():
     """Scores 1000 apart at T = 0.1: exp underflows in float64 (a column no row reaches); the
     answer is still the balanced matrix of the log-space iteration."""
-    from mimicbench.sinkhorn import sinkhorn_scaling_torch
+    from mimicbench.geometry.sinkhorn import sinkhorn_scaling_torch
 
     s = np.random.default_rng(5).normal(size=(6, 4))
     s[:, 0] += 1000.0

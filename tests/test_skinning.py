@@ -2,11 +2,11 @@ import numpy as np
 import pytest
 import torch
 
-from mimicbench.kinematics import forward_kinematics, transforms_to_array
-from mimicbench.quaternion import quat_normalize, quat_to_matrix
-from mimicbench.skinning import linear_blend_skinning, posed_keypoints_from_vertices
-from mimicbench.skinning_torch import linear_blend_skinning_torch
-from schemas.weights import SparseWeights
+from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+from mimicbench.geometry.quaternion import quat_normalize, quat_to_matrix
+from mimicbench.geometry.skinning import linear_blend_skinning, posed_keypoints_from_vertices
+from mimicbench.geometry.skinning_torch import linear_blend_skinning_torch
+from mimicbench.schemas.weights import SparseWeights
 
 
 def naive_lbs(verts, keypoints, dense, transforms):

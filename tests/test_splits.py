@@ -3,7 +3,7 @@ from collections import Counter
 
 import pytest
 
-from datagen.splits import load_split_file, split_of
+from mimicbench.datagen.splits import load_split_file, split_of
 
 
 def test_split_is_a_function_of_the_id_with_stated_fractions():
@@ -29,7 +29,7 @@ def test_split_file(tmp_path):
 def test_split_rule_changes_with_the_fractions_the_salt_and_the_split_file_content(tmp_path):
     import hashlib
 
-    from datagen.splits import split_rule
+    from mimicbench.datagen.splits import split_rule
 
     assert split_rule() == {"rule": "sha256-bucket", "fractions": {"train": 0.8, "val": 0.1, "test": 0.1}, "salt": ""}
     assert split_rule(salt="b") != split_rule() and split_rule({"train": 0.5, "test": 0.5}) != split_rule()

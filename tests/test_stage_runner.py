@@ -1,4 +1,4 @@
-from datagen.stage_runner import run_stage, summarize_statuses
+from mimicbench.datagen.stage_runner import run_stage, summarize_statuses
 
 
 def flaky(x):

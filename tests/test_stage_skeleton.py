@@ -14,12 +14,12 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from datagen.stage_runner import Stage, StageRun, copy_table, omitted_unless_set
-from schemas.errors import DatasetError, UserError
-from schemas.manifest import MANIFEST
-from schemas.shards import read_records, write_records
-from schemas.status import StatusRecord
-from schemas.tables import ROWS_PER_SHARD, ROWS_PER_SHARD_OF_STAGE, rows_per_shard
+from mimicbench.datagen.stage_runner import Stage, StageRun, copy_table, omitted_unless_set
+from mimicbench.schemas.errors import DatasetError, UserError
+from mimicbench.schemas.manifest import MANIFEST
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.status import StatusRecord
+from mimicbench.schemas.tables import ROWS_PER_SHARD, ROWS_PER_SHARD_OF_STAGE, rows_per_shard
 
 
 @dataclass(frozen=True)

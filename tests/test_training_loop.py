@@ -16,7 +16,7 @@ from PIL import Image
 from mimicbench.training import checkpoint
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.loop import seed_everything, train_model, train_stage
-from schemas.errors import UserError
+from mimicbench.schemas.errors import UserError
 from tests import training_toys
 
 REPO = Path(__file__).resolve().parents[1]

@@ -1,10 +1,10 @@
 import numpy as np
 
-from mimicbench.kinematics import transforms_to_array
-from mimicbench.quaternion import quat_angle, quat_normalize
-from mimicbench.skinning import linear_blend_skinning
-from mimicbench.transform_estimation import estimate_transforms
-from schemas.weights import SparseWeights
+from mimicbench.geometry.kinematics import transforms_to_array
+from mimicbench.geometry.quaternion import quat_angle, quat_normalize
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.geometry.transform_estimation import estimate_transforms
+from mimicbench.schemas.weights import SparseWeights
 
 
 def rigid_character(k=6, per_bone=10, seed=0):

@@ -6,8 +6,8 @@ import sys
 import pytest
 
 from mimicbench.cli import main
-from schemas.shards import write_records
-from schemas.validate import validate_dataset
+from mimicbench.schemas.shards import write_records
+from mimicbench.schemas.validate import validate_dataset
 from tests.test_schemas import make_character
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmark.results import append_results, method_dir
-from benchmark.validity import markdown_validity, validity_table
-from schemas.result import ResultRecord
+from mimicbench.benchmark.results import append_results, method_dir
+from mimicbench.benchmark.validity import markdown_validity, validity_table
+from mimicbench.schemas.result import ResultRecord
 
 
 def rows(method, values, semantic):

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from datagen.zoo.templates.humanoid import H2H_SKELETON_ID
+from mimicbench.datagen.zoo.templates.humanoid import H2H_SKELETON_ID
 from mimicbench.cli import main
-from mimicbench.kinematics import array_to_transforms, forward_kinematics, local_from_global, rest_transforms
-from mimicbench.mesh import edge_lengths, unique_edges
-from mimicbench.skinning import linear_blend_skinning
-from schemas.character import CATEGORIES
-from schemas.shards import read_records
+from mimicbench.geometry.kinematics import array_to_transforms, forward_kinematics, local_from_global, rest_transforms
+from mimicbench.geometry.mesh import edge_lengths, unique_edges
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.character import CATEGORIES
+from mimicbench.schemas.shards import read_records
 
 pytestmark = pytest.mark.slow
 

@@ -2,8 +2,8 @@
 import pytest
 
 from mimicbench.cli import build_parser, main
-from schemas.manifest import load_manifest
-from schemas.shards import read_records
+from mimicbench.schemas.manifest import load_manifest
+from mimicbench.schemas.shards import read_records
 
 
 def test_categories_and_clip_count(tmp_path, capsys):

@@ -7,14 +7,14 @@ generator's own intermediate arrays.
 import numpy as np
 import pytest
 
-from datagen.zoo import build_zoo
-from datagen.zoo.build import build_character, clip_list
-from datagen.zoo.clips import (DYNAMIC_CLIPS, GRAVITY, JUMP_HEIGHT, SPIN_ANGLE, STOP_FRAMES, TURN_ANGLE,
+from mimicbench.datagen.zoo.dataset import build_zoo
+from mimicbench.datagen.zoo.build import build_character, clip_list
+from mimicbench.datagen.zoo.clips import (DYNAMIC_CLIPS, GRAVITY, JUMP_HEIGHT, SPIN_ANGLE, STOP_FRAMES, TURN_ANGLE,
                                clip_names, jump_timing, stop_frame)
-from datagen.zoo.motions import FPS, RAMP_FRAMES
-from datagen.zoo.plan import plan_zoo
-from mimicbench.kinematics import array_to_transforms
-from mimicbench.quaternion import quat_apply
+from mimicbench.datagen.zoo.motions import FPS, RAMP_FRAMES
+from mimicbench.datagen.zoo.plan import plan_zoo
+from mimicbench.geometry.kinematics import array_to_transforms
+from mimicbench.geometry.quaternion import quat_apply
 
 FRAMES = 60
 SPECS = [s for s in plan_zoo(20, seed=3, categories=["apparel", "humanoid"]) if s.index in (0, 1)]
@@ -117,7 +117,7 @@ def test_turn_walks_along_a_heading_that_turns_by_the_stated_angle(built):
 
 def test_other_kinds_keep_their_clips_and_the_default_set_is_unchanged():
     spec = plan_zoo(12, seed=3, categories=["quadruped", "fish"])[0]
-    from datagen.zoo.build import build_skeleton
+    from mimicbench.datagen.zoo.build import build_skeleton
 
     skel, _ = build_skeleton(spec)
     assert clip_list(spec.category, skel, 4, "dynamic") == clip_list(spec.category, skel, 4)

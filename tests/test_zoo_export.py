@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from datagen.zoo import build_zoo
-from datagen.zoo.export_bvh import bvh_name, euler_zxy_to_matrix, matrix_to_euler_zxy
-from mimicbench.quaternion import quat_normalize, quat_to_matrix
-from schemas.shards import read_records
+from mimicbench.datagen.zoo.dataset import build_zoo
+from mimicbench.datagen.zoo.export_bvh import bvh_name, euler_zxy_to_matrix, matrix_to_euler_zxy
+from mimicbench.geometry.quaternion import quat_normalize, quat_to_matrix
+from mimicbench.schemas.shards import read_records
 
 
 @pytest.fixture(scope="module")

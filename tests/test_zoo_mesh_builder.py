@@ -2,8 +2,8 @@
 import numpy as np
 import trimesh
 
-from datagen.zoo.mesh_builder import build_mesh, capsule
-from datagen.zoo.skeleton import SkeletonBuilder
+from mimicbench.datagen.zoo.mesh_builder import build_mesh, capsule
+from mimicbench.datagen.zoo.skeleton import SkeletonBuilder
 
 
 def test_capsule_is_closed_outward_and_counts_match():

@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from datagen.zoo.build import build_skeleton, clip_list
-from datagen.zoo.clips import generator
-from datagen.zoo.motions import clip_transforms, random_poses, ramp, rotvec_to_quat
-from datagen.zoo.plan import plan_zoo
-from mimicbench.kinematics import array_to_transforms, local_from_global, rest_transforms
-from mimicbench.quaternion import quat_angle, quat_identity
+from mimicbench.datagen.zoo.build import build_skeleton, clip_list
+from mimicbench.datagen.zoo.clips import generator
+from mimicbench.datagen.zoo.motions import clip_transforms, random_poses, ramp, rotvec_to_quat
+from mimicbench.datagen.zoo.plan import plan_zoo
+from mimicbench.geometry.kinematics import array_to_transforms, local_from_global, rest_transforms
+from mimicbench.geometry.quaternion import quat_angle, quat_identity
 
 SPECS = {s.category: s for s in plan_zoo(7, seed=1)}
 

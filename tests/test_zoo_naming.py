@@ -1,7 +1,7 @@
 """Bone-naming styles of the zoo: real-asset styles, unique names."""
 import pytest
 
-from datagen.zoo.naming import ANIMAL_STYLES, HUMANOID_STYLES, animal_name, bone_names, humanoid_name, parse_role
+from mimicbench.datagen.zoo.naming import ANIMAL_STYLES, HUMANOID_STYLES, animal_name, bone_names, humanoid_name, parse_role
 
 
 @pytest.mark.parametrize("style,expected", [

@@ -1,8 +1,8 @@
 """Zoo plan: category counts, IDs, the H2H family and the stratified split rule."""
 import pytest
 
-from datagen.zoo.plan import assign_splits, category_counts, plan_zoo
-from datagen.zoo.templates import ZOO_CATEGORIES
+from mimicbench.datagen.zoo.plan import assign_splits, category_counts, plan_zoo
+from mimicbench.datagen.zoo.templates import ZOO_CATEGORIES
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 12, 16, 20, 40, 101])

@@ -1,11 +1,11 @@
 """Zoo skin weights: distances against a naive loop, invariants, smoothness, apparel isolation."""
 import numpy as np
 
-from datagen.zoo.mesh_builder import build_mesh
-from datagen.zoo.skeleton import SkeletonBuilder
-from datagen.zoo.skin_weights import skin_weights
-from mimicbench.mesh import unique_edges
-from mimicbench.segments import point_segment_distance
+from mimicbench.datagen.zoo.mesh_builder import build_mesh
+from mimicbench.datagen.zoo.skeleton import SkeletonBuilder
+from mimicbench.datagen.zoo.skin_weights import skin_weights
+from mimicbench.geometry.mesh import unique_edges
+from mimicbench.geometry.segments import point_segment_distance
 
 
 def _naive_distance(p, a, b):

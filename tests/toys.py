@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from schemas.weights import SparseWeights
+from mimicbench.schemas.weights import SparseWeights
 
 
 def make_tube(num_bones: int = 4, rings: int = 24, segments: int = 16, height: float = 1.0,

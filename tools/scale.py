@@ -71,7 +71,7 @@ def child(argv: list[str], report: str) -> int:
 
 
 def table_done(folder: Path, table: str) -> bool:
-    from schemas.manifest import MANIFEST, load_manifest
+    from mimicbench.schemas.manifest import MANIFEST, load_manifest
 
     if not (folder / MANIFEST).is_file():
         return False
@@ -134,7 +134,7 @@ def main() -> int:
     data = work / "zoo5k"
     if table_done(data, "characters"):
         sys.path.insert(0, str(REPO))
-        from datagen.zoo.table1 import add_table1
+        from mimicbench.datagen.zoo.table1 import add_table1
 
         t = add_table1(data)
         a = t["all"]

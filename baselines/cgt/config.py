@@ -3,8 +3,8 @@ trains on 2 CPU cores in minutes; the shipped checkpoint) and ``paper`` (the pub
 encoder 64-128-1024, decoder stages 1024/512/512/256, dense attention over every point, Adam lr 5e-5,
 batches of 8, about 10k steps; for a GPU).
 
-Keys as NPT's (:mod:`baselines.npt.config`: the same batches and losses) plus ``cap``: the most points of
-the posed source each target point attends over (farthest-point subsample: :mod:`baselines.cgt.sampling`),
+Keys as NPT's (:mod:`mimicbench.baselines.npt.config`: the same batches and losses) plus ``cap``: the most points of
+the posed source each target point attends over (farthest-point subsample: :mod:`mimicbench.baselines.cgt.sampling`),
 in training and at inference; 0 is the paper's dense attention over every point.
 """
 from __future__ import annotations

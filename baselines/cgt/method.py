@@ -1,10 +1,10 @@
-"""``cgt`` behind the adapter API: placement as NPT's (:mod:`baselines.npt.method`), attention capped.
+"""``cgt`` behind the adapter API: placement as NPT's (:mod:`mimicbench.baselines.npt.method`), attention capped.
 
-The posed source and the target rest mesh are centred and scaled as :mod:`baselines.npt.placement`
+The posed source and the target rest mesh are centred and scaled as :mod:`mimicbench.baselines.npt.placement`
 says and the answer put back where the target stands. CGT's attention is dense over every pair of
 points in the paper; here every target vertex attends over at most ``cap`` points of the posed
 source (the checkpoint config's ``cap``, 256 in the ``cpu`` preset; a farthest-point subsample,
-:mod:`baselines.cgt.sampling`), and the decoder runs on every target vertex.
+:mod:`mimicbench.baselines.cgt.sampling`), and the decoder runs on every target vertex.
 
 Weights: ``checkpoints/cgt.safetensors`` (shipped), ``checkpoint=`` or ``MIMICBENCH_CGT_CHECKPOINT``
 (``RUN/cgt/model.safetensors``).
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from benchmark.method import MethodMetadata
-from baselines.npt.method import Npt
+from mimicbench.benchmark.method import MethodMetadata
+from mimicbench.baselines.npt.method import Npt
 
 CITATION = ("Haoyu Chen, Hao Tang, Zitong Yu, Nicu Sebe, Guoying Zhao. Geometry-Contrastive Transformer for "
             "Generalized 3D Pose Transfer. AAAI 2022 (re-implemented from the paper)")
@@ -43,7 +43,7 @@ class Cgt(Npt):
     def _answer(self, pose, identity):
         import torch
 
-        from baselines.cgt.training import capped_rows
+        from mimicbench.baselines.cgt.training import capped_rows
 
         rows = {k: torch.as_tensor(v, device=self.device)
                 for k, v in capped_rows(pose[0].cpu().numpy(), identity[0].cpu().numpy(), self.cap).items()}

@@ -2,13 +2,13 @@
 code (read, not copied): NPT's SPAdaIN decoder with a geometry-contrastive attention block (CGPBlock)
 before each of its residual blocks.
 
-- One point encoder, shared by both meshes: :class:`baselines.npt.model.PointFeatures` (1x1 convs 3 ->
+- One point encoder, shared by both meshes: :class:`mimicbench.baselines.npt.model.PointFeatures` (1x1 convs 3 ->
   c1 -> c2 -> c3, instance norm, ReLU) of the posed source, P (B, c3, Ns), and of the target rest
   mesh, I (B, c3, Nt). No max pool: the attention reads per-point features.
 - Four stages at widths ``(w, w/2, w/2, w/4)`` (1024, 512, 512, 256 in the paper, ``w = c3``). Stage k:
   one 1x1 conv ``conv_k``, shared by the three streams, maps the decoder stream X (target rows), the
   pose features P and the identity features I to width w_k; then :class:`CGPBlock` adds to X the pose
-  features gathered by attention; then a :class:`baselines.npt.spadain.SPAdaINResBlock` (with instance
+  features gathered by attention; then a :class:`mimicbench.baselines.npt.spadain.SPAdaINResBlock` (with instance
   norm, as in the published CGT decoder) conditioned on the target's rest coordinates.
 - Output: a 1x1 conv to xyz, 2 tanh (``residual``, ours, ``cpu`` preset: plus the rest points, the conv
   starting at zero, as NPT's).
@@ -19,15 +19,15 @@ meshes share no vertex order, so here the stream lives on the target's points an
 carries the pose onto them (docs/methods/published-deviations.md).
 
 Attention rows: every target point, keys and values over the pose points in ``pose_rows`` (all points
-when None: the paper's dense attention; :mod:`baselines.cgt.sampling` caps them on CPU).
+when None: the paper's dense attention; :mod:`mimicbench.baselines.cgt.sampling` caps them on CPU).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from baselines.npt.model import PointFeatures
-from baselines.npt.spadain import SPAdaINResBlock
+from mimicbench.baselines.npt.model import PointFeatures
+from mimicbench.baselines.npt.spadain import SPAdaINResBlock
 
 
 class CGPBlock(nn.Module):

@@ -2,7 +2,7 @@
 
 CGT's attention is dense over every pair of source and target points (N_s x N_t); on CPU every
 target point attends over at most ``cap`` points of the posed source, chosen by farthest-point
-sampling (:mod:`baselines.cgt.model` says why the queries are not capped). With ``cap`` >= N_s every
+sampling (:mod:`mimicbench.baselines.cgt.model` says why the queries are not capped). With ``cap`` >= N_s every
 point is chosen and the capped model is the dense one.
 """
 from __future__ import annotations

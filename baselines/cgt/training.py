@@ -1,9 +1,9 @@
 """CGT's training stage for the shared trainer (``mimicbench train cgt DATASET --out RUN``).
 
-One stage, ``cgt``, on NPT's batches (:func:`baselines.npt.training.pair_batches`: same-skeleton pairs
-and self-transfers, centred as :mod:`baselines.npt.placement` says) with NPT's loss; attention runs
+One stage, ``cgt``, on NPT's batches (:func:`mimicbench.baselines.npt.training.pair_batches`: same-skeleton pairs
+and self-transfers, centred as :mod:`mimicbench.baselines.npt.placement` says) with NPT's loss; attention runs
 over at most ``cap`` points of each example's posed source (:func:`capped_rows`), as at inference; the
-cross-category cycle term (``cycle_batch`` > 0, :mod:`baselines.npt.cycle`) calls the model through
+cross-category cycle term (``cycle_batch`` > 0, :mod:`mimicbench.baselines.npt.cycle`) calls the model through
 :func:`capped_answer`.
 """
 from __future__ import annotations
@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from baselines.cgt.config import CONFIGS
-from baselines.cgt.model import Cgt
-from baselines.cgt.sampling import farthest_points
-from baselines.npt.cycle import add_cycle
-from baselines.npt.losses import npt_loss
-from baselines.npt.training import pair_batches
+from mimicbench.baselines.cgt.config import CONFIGS
+from mimicbench.baselines.cgt.model import Cgt
+from mimicbench.baselines.cgt.sampling import farthest_points
+from mimicbench.baselines.npt.cycle import add_cycle
+from mimicbench.baselines.npt.losses import npt_loss
+from mimicbench.baselines.npt.training import pair_batches
 from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage
 
@@ -50,7 +50,7 @@ def answer_with_rows(module, pose: torch.Tensor, identity: torch.Tensor, capped:
 
 
 def capped_answer(module, cap: int):
-    """The model call of :func:`baselines.npt.cycle.cycle_terms` for ``module``: each example of the batch
+    """The model call of :func:`mimicbench.baselines.npt.cycle.cycle_terms` for ``module``: each example of the batch
     attends over ``cap`` farthest points of its own posed source (drawn from it, detached), as at inference."""
 
     def answer(pose: torch.Tensor, identity: torch.Tensor) -> torch.Tensor:

@@ -19,26 +19,26 @@ Sections:
   ``sampling_weight`` and ``samples`` of the sampling term (A3; 0 turns it off);
   ``max_keypoints`` scored per character (more are subsampled each step).
 - ``corr`` (G) and ``transfer`` (H): sizes and loss weights (see
-  :mod:`baselines.mimicat.transfer_training`); ``corr.geometry_weight`` w0 of G's optional
+  :mod:`mimicbench.baselines.mimicat.transfer_training`); ``corr.geometry_weight`` w0 of G's optional
   geometric affinity term on unit-height rest keypoints (0: off; see
-  :mod:`baselines.mimicat.correspondence`); ``transfer_no_prior`` (H without L_reg, ablation
+  :mod:`mimicbench.baselines.mimicat.correspondence`); ``transfer_no_prior`` (H without L_reg, ablation
   A2) takes every setting from ``transfer`` except ``epochs``, which the loop reads per stage.
   Two values are our choices, measured on the training zoo (seed 11), not the paper's:
   ``transfer.m_temperature`` 0.1, the Sinkhorn temperature of the M that H's initialisation
   uses (G trains at 1; a flat M averages the pose away, see
-  :func:`baselines.mimicat.transfer.correspondences`), and ``transfer.reg_weight`` 0.001: at
+  :func:`mimicbench.baselines.mimicat.transfer.correspondences`), and ``transfer.reg_weight`` 0.001: at
   0.01 the gradient of the weighted L_reg on H's parameters was 0.6 times that of L_rec at the
   start (norms 0.42 and 0.70), so H followed the prior rather than the cycle; at 0.001 it is a
   tenth, a regulariser. ``transfer.init`` is the construction of H's initialisation:
   ``structured`` (root displacement of the source root, carried local bone translations, empty
   columns inheriting the parent's rotation) or ``paper`` (Eq. 3-4 as published; what a config
   without the key means), see
-  :mod:`baselines.mimicat.initialisation`. ``transfer.m_decode`` is how that initialisation
+  :mod:`mimicbench.baselines.mimicat.initialisation`. ``transfer.m_decode`` is how that initialisation
   reads G's M: ``hungarian_sym`` (the presets: one one-to-one decoding of the pair from G's M of
   both directions, so that a cycle's return leg undoes the forward leg's matches),
   ``hungarian`` (the one-to-one decoding of G(s, t) alone;
   G's Sinkhorn has no dustbin and its soft M blurs the carried translations and rotations, see
-  :func:`baselines.mimicat.transfer.decode_correspondence`) or ``soft`` (M as it is; what a
+  :func:`mimicbench.baselines.mimicat.transfer.decode_correspondence`) or ``soft`` (M as it is; what a
   config without the key means).
 
 The shipped checkpoints (``baselines/mimicat/checkpoints``) hold :func:`shipped_config` of their

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from schemas.shards import read_records
+from mimicbench.schemas.shards import read_records
 
 KEYPOINT_FEATURES = 11
 """Width of :func:`keypoint_features`: position (3), offset from the parent (3), depth in the
@@ -83,7 +83,7 @@ def read_pairs(dataset) -> list[PairTarget]:
     Raises:
         ValueError: the dataset has no pairs (run ``mimicbench datagen correspond`` first).
     """
-    from schemas.shards import has_table
+    from mimicbench.schemas.shards import has_table
 
     if not has_table(dataset, "pairs"):
         raise ValueError(f"{dataset}: expected a pairs/ table (run `mimicbench datagen correspond {dataset}` first)")

@@ -5,12 +5,12 @@ shape encoder E) through a shape projector; a segment embedding says which chara
 belongs to, and transformer blocks attend over all tokens of the pair at once (padding masked,
 so characters of different K share a batch). The affinity of source keypoint i and target
 keypoint j is ``phi_i^T A phi_j / sqrt(d)`` with a learnable matrix A (Eq. 2); Sinkhorn
-normalisation (:func:`mimicbench.sinkhorn.sinkhorn_log`, per pair on its unpadded block) makes
+normalisation (:func:`mimicbench.geometry.sinkhorn.sinkhorn_log`, per pair on its unpadded block) makes
 it a doubly stochastic soft correspondence M (Ks, Kt): rows sum to 1, columns to Ks/Kt.
 
 Our choice, not the paper's: the affinity may also have a geometric term ``-w ||p_i - p_j||^2``
 between the two characters' rest keypoints p (K, 3) in the unit-height frame that
-``nearest_joint`` matches in (:func:`mimicbench.mesh.normalize_unit_height`: centred at the rest
+``nearest_joint`` matches in (:func:`mimicbench.geometry.mesh.normalize_unit_height`: centred at the rest
 mesh's bounding box, divided by its height; ``CharacterTensors.unit_keypoints``), with a
 learnable ``w = w0 * softplus(r) / log 2 > 0`` (``r`` starts at 0, so ``w`` starts at
 ``w0`` = ``corr.geometry_weight``). In G's own box frame (divided by the largest side) the
@@ -28,8 +28,8 @@ import math
 import torch
 from torch import nn
 
-from baselines.mimicat.corr_data import KEYPOINT_FEATURES
-from mimicbench.sinkhorn import sinkhorn_log, sinkhorn_scaling_torch
+from mimicbench.baselines.mimicat.corr_data import KEYPOINT_FEATURES
+from mimicbench.geometry.sinkhorn import sinkhorn_log, sinkhorn_scaling_torch
 
 
 def mlp(width_in: int, width: int, width_out: int) -> nn.Sequential:
@@ -115,11 +115,11 @@ class CorrespondenceTransformer(nn.Module):
 
         ``temperature`` T divides the scores before Sinkhorn: 1 in training (Eq. 6); the
         pose-transfer stage asks for a sharper M (T < 1, see
-        :func:`baselines.mimicat.transfer.correspondences`), with proportionally more sweeps.
+        :func:`mimicbench.baselines.mimicat.transfer.correspondences`), with proportionally more sweeps.
         ``pos_s``, ``pos_t``: see :meth:`scores`.
 
         Without gradients (inference, H's frozen G) Sinkhorn runs as matrix scaling
-        (:func:`mimicbench.sinkhorn.sinkhorn_scaling_torch`, the same balanced matrix to within
+        (:func:`mimicbench.geometry.sinkhorn.sinkhorn_scaling_torch`, the same balanced matrix to within
         the tolerance, about 20 times faster on CPU); G's own training keeps the log-space one.
         """
         if not temperature > 0:

@@ -3,7 +3,7 @@
 Everything is expressed in a character's **rest frame**: minus the centre of its rest mesh's
 bounding box, divided by the box's largest side (so a snake and a humanoid are the same size).
 Posed meshes come from the dataset's clips by linear blend skinning
-(:func:`mimicbench.skinning.linear_blend_skinning`, the dataset's Eq. 1). Every draw is a
+(:func:`mimicbench.geometry.skinning.linear_blend_skinning`, the dataset's Eq. 1). Every draw is a
 function of the ``numpy.random.Generator`` passed in, so an epoch repeats for a seed.
 """
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mimicbench.quaternion import quat_to_matrix
-from schemas.errors import UserError
+from mimicbench.geometry.quaternion import quat_to_matrix
+from mimicbench.schemas.errors import UserError
 
 SPLITS = ("train", "val", "test", "all")
 
@@ -39,7 +39,7 @@ class Character:
         character_id: stable ID.
         vertices: (N, 3) float64 rest vertices, metres; faces: (M, 3) int64.
         keypoints: (K, 3) float64 rest joint heads; parents: (K,) int64, -1 for roots.
-        weights: :class:`schemas.weights.SparseWeights` (N rows).
+        weights: :class:`mimicbench.schemas.weights.SparseWeights` (N rows).
         centre: (3,) rest bounding-box centre; size: its largest side (metres).
         motions: list of (F, K, 7) float32 transforms (q_w, q_x, q_y, q_z, t_x, t_y, t_z) per clip.
         scales: list of (F, K, 6) float32 or None, one per clip (the ``scale`` column).
@@ -62,7 +62,7 @@ class Character:
 
     def posed_vertices(self, motion: int, frame: int) -> np.ndarray:
         """(N, 3) float32 vertices of clip ``motion`` at ``frame`` (metres), by LBS; ``motion`` -1: rest."""
-        from mimicbench.skinning import linear_blend_skinning
+        from mimicbench.geometry.skinning import linear_blend_skinning
 
         if motion < 0:
             return self.vertices.astype(np.float32)
@@ -82,7 +82,7 @@ def read_characters(dataset, split: str = "train") -> list[Character]:
     Raises:
         UserError: unknown split, or no character with a mesh in that split.
     """
-    from schemas.shards import has_table, read_records
+    from mimicbench.schemas.shards import has_table, read_records
 
     if split not in SPLITS:
         raise UserError(f"data.split: expected one of {', '.join(SPLITS)}, got {split!r}")

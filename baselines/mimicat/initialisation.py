@@ -3,7 +3,7 @@
 Given the source's pose (global rotations q_i and posed keypoints t_i), the rest skeletons and a
 soft correspondence M (Ks, Kt), each target keypoint j gets a rotation, the M-weighted average of
 the source rotations (Eq. 4), the eigenvector of the largest eigenvalue of
-``sum_i M_ij q_i q_i^T`` (as :func:`mimicbench.rotation_average.weighted_quaternion_average`), or,
+``sum_i M_ij q_i q_i^T`` (as :func:`mimicbench.geometry.rotation_average.weighted_quaternion_average`), or,
 for the ``naive_avg`` ablation (A1), the normalised plain weighted sum of the quaternions (each
 first put on the w >= 0 hemisphere). Positions come from one of two constructions
 (config ``transfer.init``):
@@ -11,7 +11,7 @@ first put on the w >= 0 hemisphere). Positions come from one of two construction
 - ``structured`` (:func:`structured_pose`, the default of the presets): a root moves like the
   source's root (displacement from rest scaled by the size ratio); every other bone carries over
   its matches' local translations (relative to the parent, in the parent's rest-relative frame,
-  as the h2h ground truth does, :func:`benchmark.protocols.h2h.local_translations`) scaled by the
+  as the h2h ground truth does, :func:`mimicbench.benchmark.protocols.h2h.local_translations`) scaled by the
   size ratio, each match counted when the bone's parent is matched to that source bone's parent
   (the soft form of ``nearest_joint``'s rule); a bone whose column of M is empty takes its
   parent's rotation; positions by forward kinematics. With a one-hot M this is ``nearest_joint``'s
@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from mimicbench.skinning_torch import quat_to_matrix_torch
+from mimicbench.geometry.skinning_torch import quat_to_matrix_torch
 
 AVERAGES = ("eq4", "naive")
 INITS = ("structured", "paper")
@@ -123,7 +123,7 @@ def local_translations_torch(q: torch.Tensor, t: torch.Tensor, rest: torch.Tenso
     """Each bone's translation (K, 3) relative to its parent beyond its rest offset, in the
     parent's rest-relative frame, ``R(q_p)^T (t_k - t_p) - (cbar_k - cbar_p)``; a root's
     displacement ``t_k - cbar_k`` (the torch twin of
-    :func:`benchmark.protocols.h2h.local_translations`).
+    :func:`mimicbench.benchmark.protocols.h2h.local_translations`).
 
     Args:
         q: (K, 4) global rotations; t: (K, 3) posed keypoints; rest: (K, 3); parents: (K,).

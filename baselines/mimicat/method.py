@@ -1,16 +1,16 @@
 """``mimicat`` and its ablations behind the adapter API.
 
 The cascade of MimiCAT: the source's pose is read off its posed vertices (the joint fit of all
-bones, :func:`baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
+bones, :func:`mimicbench.baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
 the soft correspondence M (at the Sinkhorn temperature ``transfer.m_temperature`` of the transfer
 checkpoint's config, 1 for checkpoints without it), read as ``transfer.m_decode`` says (``soft``
 for checkpoints without it, ``hungarian``: one to one, ``hungarian_sym``: one to one from G's M
 of both directions, one assignment of the pair); H the target's transforms from its
 initialisation (``transfer.init`` of the transfer checkpoint's config: ``structured`` for the
 presets and the shipped checkpoint, ``paper``, Eq. 3-4 as published, for a config without the
-key); LBS poses the target and ARAP refines it (:mod:`baselines.mimicat.arap`, ``arap=False``
+key); LBS poses the target and ARAP refines it (:mod:`mimicbench.baselines.mimicat.arap`, ``arap=False``
 switches it off). The shipped checkpoints' configs are the documented ones
-(:func:`baselines.mimicat.config.shipped_config`): ``structured``, ``hungarian_sym``, temperature 0.1.
+(:func:`mimicbench.baselines.mimicat.config.shipped_config`): ``structured``, ``hungarian_sym``, temperature 0.1.
 
 Weights: the checkpoint folder given as ``checkpoint=`` or by the environment variable
 ``MIMICAT_CHECKPOINT``, else the bundled one (``baselines/mimicat/checkpoints``). A folder holds
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
 
 BUNDLED = Path(__file__).parent / "checkpoints"
 CITATION = ("Chai et al., MimiCAT: Mimic with Correspondence-Aware Cascade-Transformer for Category-Free 3D Pose "
@@ -69,14 +69,23 @@ class Mimicat(PoseTransferMethod):
     """H's initialisation (``structured`` or ``paper``); None: the transfer checkpoint's ``transfer.init``."""
     m_decode: str | None = None
     """How H's initialisation reads G's M (``soft``, ``hungarian`` or ``hungarian_sym``, see
-    :func:`baselines.mimicat.transfer.decode_correspondence`); None: the transfer checkpoint's
+    :func:`mimicbench.baselines.mimicat.transfer.decode_correspondence`); None: the transfer checkpoint's
     ``transfer.m_decode`` (``soft`` for a config without the key)."""
     use_h = True
     """False: the initialisation is the answer (H's correction left out)."""
+    use_range = True
+    """True: each target bone's local rotation is projected into the range predicted from the
+    target's shape (:mod:`mimicbench.baselines.mimicat.range_model`, the ``range`` file of the
+    checkpoint folder, else the bundled one) before skinning."""
+    range_exclude_self = False
+    """True: the range model leaves the target's own character id out of its neighbours
+    (leave-one-out checks on the zoo the range model was fitted on; never for a benchmark run)."""
 
     def __init__(self, checkpoint: str | os.PathLike | None = None, arap: bool = True, batch_size: int = 16):
         self.checkpoint = Path(checkpoint or os.environ.get("MIMICAT_CHECKPOINT") or BUNDLED)
         self.arap = arap
+        self._range = None
+        self._predicted: dict = {}
         self.batch_size = batch_size
         self._modules = None
         self._chars: dict = {}
@@ -85,7 +94,7 @@ class Mimicat(PoseTransferMethod):
 
     def weights_fingerprint(self) -> str:
         """Fingerprint of the shape, corr and transfer weights this instance loads."""
-        from schemas.fingerprint import files_fingerprint
+        from mimicbench.schemas.fingerprint import files_fingerprint
 
         stages = ("shape", "corr", self.transfer_stage)
         return files_fingerprint({s: checkpoint_path(self.checkpoint, s) for s in stages})
@@ -93,7 +102,7 @@ class Mimicat(PoseTransferMethod):
     def setup(self, device: str = "cpu") -> None:
         import torch
 
-        from baselines.mimicat.transfer_training import section
+        from mimicbench.baselines.mimicat.transfer_training import section
         from mimicbench.training.checkpoint import load_module
         from mimicbench.training.registry import trainable
         from mimicbench.training.stage import StageContext
@@ -113,13 +122,17 @@ class Mimicat(PoseTransferMethod):
         self.m_temperature = float(transfer_config["m_temperature"])
         self.decode = self.m_decode or transfer_config["m_decode"]
         self._modules = mods
+        if self.use_range:
+            from mimicbench.baselines.mimicat.range_model import RangeModel
+
+            self._range = RangeModel.load(range_path(self.checkpoint))
         if self.arap:
-            from baselines.mimicat.arap import ArapRefiner
+            from mimicbench.baselines.mimicat.arap import ArapRefiner
 
             self._refiner = ArapRefiner()
 
     def _character(self, rig):
-        from baselines.mimicat.transfer_data import CharacterTensors
+        from mimicbench.baselines.mimicat.transfer_data import CharacterTensors
 
         key = (rig.character_id, len(rig.vertices), len(rig.parents))
         if key not in self._chars:
@@ -137,8 +150,8 @@ class Mimicat(PoseTransferMethod):
     def _batch(self, requests) -> list[np.ndarray]:
         import torch
 
-        from baselines.mimicat.transfer import pose_mesh, transfer_batch
-        from baselines.posing import source_pose
+        from mimicbench.baselines.mimicat.transfer import pose_mesh, transfer_batch
+        from mimicbench.baselines.posing import source_pose
 
         src = [self._character(r.source) for r in requests]
         tgt = [self._character(r.target) for r in requests]
@@ -155,23 +168,48 @@ class Mimicat(PoseTransferMethod):
                 result, _, _ = transfer_batch(m["shape"], m["corr"], m["transfer"], src, q_s, t_s, posed, tgt, ms)
             else:
                 result = [m["transfer"].initialise(*args)[:2] for args in zip(src, q_s, t_s, tgt, ms)]
+            if self._range is not None:
+                result = [self._project(r.target, q, p) for r, (q, p) in zip(requests, result)]
             verts = [pose_mesh(t, q, p).cpu().numpy().astype(np.float32) for t, (q, p) in zip(tgt, result)]
         if self._refiner is not None:
             verts = [self._refiner.refine(r.target.character_id, r.target.vertices, r.target.faces,
                                           r.target.weights.values, v) for r, v in zip(requests, verts)]
         return verts
 
+    def _project(self, rig, q, p):
+        """H's answer q (Kt, 4), p (Kt, 3) (tensors) with every bone moved into the range the range
+        model predicts for ``rig`` (:func:`mimicbench.baselines.mimicat.range_model.project_pose`)."""
+        import torch
+
+        from mimicbench.baselines.mimicat.range_model import project_pose
+
+        key = (rig.character_id, len(rig.vertices), len(rig.parents))
+        if key not in self._predicted:
+            self._predicted[key] = self._range.predict(rig, rig.character_id if self.range_exclude_self else None)
+        q2, p2 = project_pose(q.detach().cpu().numpy(), p.detach().cpu().numpy(), rig.parents, self._predicted[key],
+                              self._range.slack_deg)
+        return torch.as_tensor(q2, dtype=q.dtype, device=q.device), torch.as_tensor(p2, dtype=p.dtype, device=p.device)
+
     def _correspondences(self, requests, src, tgt) -> list:
         """G's correspondence M (Ks, Kt) of each request's characters (prepared ``src``, ``tgt``),
         the soft M cached per pair, decoded as ``self.decode``; a diagnostic subclass may supply
         other matches (benchmarks/mimicat_decomposition.py)."""
-        from baselines.mimicat.transfer import NEEDS_REVERSE, correspondences, decode_correspondence
+        from mimicbench.baselines.mimicat.transfer import NEEDS_REVERSE, correspondences, decode_correspondence
 
         m = self._modules
         forward = correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)
         reverse = (correspondences(m["shape"], m["corr"], tgt, src, self._m_cache, self.m_temperature)
                    if self.decode in NEEDS_REVERSE else [None] * len(forward))
         return [decode_correspondence(mm, self.decode, r) for mm, r in zip(forward, reverse)]
+
+
+def range_path(folder: Path) -> Path:
+    """The range model of a checkpoint folder: ``range.safetensors`` in it (bundled layout) or
+    ``range/model.safetensors`` (run layout), else the bundled one."""
+    for candidate in (folder / "range.safetensors", folder / "range" / "model.safetensors"):
+        if candidate.is_file():
+            return candidate
+    return BUNDLED / "range.safetensors"
 
 
 def _header_config(path: Path) -> dict:
@@ -191,6 +229,7 @@ class MimicatNoPrior(Mimicat):
     metadata = MethodMetadata(name="mimicat_no_prior", version="9", licence="MIT", needs_training=True,
                               citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg")
     transfer_stage = "transfer_no_prior"
+    use_range = False
 
 
 class MimicatInitOnly(Mimicat):
@@ -201,3 +240,4 @@ class MimicatInitOnly(Mimicat):
     init = "structured"
     m_decode = "hungarian_sym"
     use_h = False
+    use_range = False

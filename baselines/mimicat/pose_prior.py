@@ -5,11 +5,11 @@ frozen shape encoder E, and one token per keypoint built from its rest and posed
 ``[c_k, t_k]`` (with the bone vectors to its parent, ``c_k - c_parent`` and ``t_k - t_parent``,
 which say most about the bone's turn); a transformer mixes the three sets; each keypoint token is
 decoded to a matrix-Fisher parameter ``F_k`` (3x3). Trained by the negative log-likelihood of the
-dataset's rotations (Eq. A2, :func:`baselines.mimicat.matrix_fisher.negative_log_likelihood`),
+dataset's rotations (Eq. A2, :func:`mimicbench.baselines.mimicat.matrix_fisher.negative_log_likelihood`),
 it scores how plausible the rotations R_k of a posed character are; the transfer stage uses it,
 frozen, as ``L_reg`` (:meth:`PosePrior.nll`).
 
-Positions are in the character's rest frame (see :mod:`baselines.mimicat.data`). R_k is keypoint
+Positions are in the character's rest frame (see :mod:`mimicbench.baselines.mimicat.data`). R_k is keypoint
 k's world rotation relative to rest (the q_k of Eq. 1, as stored in the dataset's clips).
 
 The head is initialised at zero (F = 0: the uniform distribution, NLL 0) and its output is
@@ -22,8 +22,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mimicat.attention import FourierEmbedding, self_attention_stack
-from baselines.mimicat.matrix_fisher import mode, negative_log_likelihood, sampling_loss
+from mimicbench.baselines.mimicat.attention import FourierEmbedding, self_attention_stack
+from mimicbench.baselines.mimicat.matrix_fisher import mode, negative_log_likelihood, sampling_loss
 
 
 def bone_vectors(points: torch.Tensor, parents: torch.Tensor) -> torch.Tensor:
@@ -93,7 +93,7 @@ class PosePrior(nn.Module):
         batch (a leading B on each). Give rotations as unit quaternions ``q`` (w, x, y, z) or
         matrices ``R`` (..., K, 3, 3). ``parents`` may be a numpy array.
         """
-        from mimicbench.skinning_torch import quat_to_matrix_torch
+        from mimicbench.geometry.skinning_torch import quat_to_matrix_torch
 
         if (q is None) == (R is None):
             raise ValueError("nll: give exactly one of q (quaternions) or R (rotation matrices)")
@@ -117,12 +117,12 @@ class PosePrior(nn.Module):
 
 def prior_loss(model: PosePrior, f_rest, f_posed, batch: dict, sampling_weight: float = 0.0, samples: int = 4,
                rng: np.random.Generator | None = None) -> dict[str, torch.Tensor]:
-    """The ``prior`` stage's loss on a collated batch (see :func:`baselines.mimicat.data.prior_example`).
+    """The ``prior`` stage's loss on a collated batch (see :func:`mimicbench.baselines.mimicat.data.prior_example`).
 
     Returns ``total`` = ``nll`` (mean over the scored keypoints, Eq. A2) + ``sampling_weight`` x
     the sampling term (A3 as done here: ``samples`` rotations drawn from each F_k, their expected
     distance to R_k minimised through a score-function surrogate, see
-    :func:`baselines.mimicat.matrix_fisher.sampling_loss`; ``sample_dist`` logs that distance,
+    :func:`mimicbench.baselines.mimicat.matrix_fisher.sampling_loss`; ``sample_dist`` logs that distance,
     ||R' - R||^2 / 8), and, for the log only, ``mode_deg``: mean angle (degrees) between the
     mode of each F_k and the true R_k.
     """

@@ -8,14 +8,14 @@ at 3D points predicts the unsigned distance to the surface from the tokens alone
 
 Input points are mesh vertices (rest or posed) in the character's rest frame: minus the centre
 of the rest mesh's bounding box, divided by its largest side (so the rest mesh fits in the unit
-cube around the origin); see :func:`baselines.mimicat.data.rest_frame`.
+cube around the origin); see :func:`mimicbench.baselines.mimicat.data.rest_frame`.
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from baselines.mimicat.attention import CrossAttentionBlock, FourierEmbedding, self_attention_stack
+from mimicbench.baselines.mimicat.attention import CrossAttentionBlock, FourierEmbedding, self_attention_stack
 
 
 class ShapeEncoder(nn.Module):

@@ -1,12 +1,12 @@
 """``mimicbench train mimicat``: the stages of the MimiCAT reference, registered with the one trainer.
 
 - ``shape``: the shape encoder E as an autoencoder (unsigned distance at query points) on rest
-  and posed meshes of the dataset (:mod:`baselines.mimicat.shape_encoder`).
+  and posed meshes of the dataset (:mod:`mimicbench.baselines.mimicat.shape_encoder`).
 - ``prior`` (needs ``shape``): the pose prior F, negative log-likelihood of the dataset's
-  rotations under per-keypoint matrix-Fisher distributions (:mod:`baselines.mimicat.pose_prior`).
-- ``corr``, ``transfer``, ...: G and H, from :mod:`baselines.mimicat.transfer_training` when present.
+  rotations under per-keypoint matrix-Fisher distributions (:mod:`mimicbench.baselines.mimicat.pose_prior`).
+- ``corr``, ``transfer``, ...: G and H, from :mod:`mimicbench.baselines.mimicat.transfer_training` when present.
 
-Presets ``small`` and ``paper`` (:mod:`baselines.mimicat.config`).
+Presets ``small`` and ``paper`` (:mod:`mimicbench.baselines.mimicat.config`).
 """
 from __future__ import annotations
 
@@ -15,10 +15,10 @@ import importlib
 import numpy as np
 import torch
 
-from baselines.mimicat import data
-from baselines.mimicat.config import PRESETS
-from baselines.mimicat.pose_prior import PosePrior, prior_loss
-from baselines.mimicat.shape_encoder import ShapeAutoencoder, shape_loss
+from mimicbench.baselines.mimicat import data
+from mimicbench.baselines.mimicat.config import PRESETS
+from mimicbench.baselines.mimicat.pose_prior import PosePrior, prior_loss
+from mimicbench.baselines.mimicat.shape_encoder import ShapeAutoencoder, shape_loss
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage
@@ -99,9 +99,9 @@ STAGES = [
 def _more_stages() -> list[TrainStage]:
     """G and H's stages (``corr``, ``transfer``, ...) from their module, when it is installed."""
     try:
-        module = importlib.import_module("baselines.mimicat.transfer_training")
+        module = importlib.import_module("mimicbench.baselines.mimicat.transfer_training")
     except ModuleNotFoundError as exc:
-        if exc.name == "baselines.mimicat.transfer_training":
+        if exc.name == "mimicbench.baselines.mimicat.transfer_training":
             return []
         raise
     return list(module.stages())

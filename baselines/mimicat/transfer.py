@@ -2,7 +2,7 @@
 
 For a source pose and a target character, with a soft correspondence M from G:
 
-1. Initialisation (:mod:`baselines.mimicat.initialisation`; ``init="structured"``, the presets'
+1. Initialisation (:mod:`mimicbench.baselines.mimicat.initialisation`; ``init="structured"``, the presets'
    default, or ``"paper"``, Eq. 3-4 as published): per target keypoint j a rotation q̄_j and a
    position t̄_j.
 2. Shape conditioning: the residual feature ``delta_f = E(V_s posed) - E(V_s rest)`` (l_E, d)
@@ -18,7 +18,7 @@ For a source pose and a target character, with a soft correspondence M from G:
    the initialisation exactly and training can only move away from it where the losses say so.
 5. LBS (Eq. 1) poses the target mesh.
 
-Training (Eq. 7-8) is by cycle consistency, see :mod:`baselines.mimicat.transfer_losses`.
+Training (Eq. 7-8) is by cycle consistency, see :mod:`mimicbench.baselines.mimicat.transfer_losses`.
 """
 from __future__ import annotations
 
@@ -26,11 +26,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mimicat.correspondence import mlp, transformer
-from baselines.mimicat.corr_data import KEYPOINT_FEATURES
-from baselines.mimicat.initialisation import initialise
-from baselines.mimicat.transfer_data import CharacterTensors, pad
-from mimicbench.skinning_torch import linear_blend_skinning_torch
+from mimicbench.baselines.mimicat.correspondence import mlp, transformer
+from mimicbench.baselines.mimicat.corr_data import KEYPOINT_FEATURES
+from mimicbench.baselines.mimicat.initialisation import initialise
+from mimicbench.baselines.mimicat.transfer_data import CharacterTensors, pad
+from mimicbench.geometry.skinning_torch import linear_blend_skinning_torch
 
 TOKEN_FEATURES = KEYPOINT_FEATURES + 3 + 3 + 4
 
@@ -58,13 +58,13 @@ class PoseTransferTransformer(nn.Module):
         width, layers, heads, mlp_width: transformer sizes.
         average: rotation average of the initialisation, ``eq4`` or ``naive`` (ablation A1).
         init: construction of the initialisation, ``structured`` or ``paper``
-            (:func:`baselines.mimicat.initialisation.initialise`).
+            (:func:`mimicbench.baselines.mimicat.initialisation.initialise`).
     """
 
     def __init__(self, shape_width: int, width: int = 64, layers: int = 2, heads: int = 4, mlp_width: int = 128,
                  average: str = "eq4", init: str = "structured"):
         super().__init__()
-        from baselines.mimicat.initialisation import INITS
+        from mimicbench.baselines.mimicat.initialisation import INITS
 
         if init not in INITS:
             raise ValueError(f"init: expected one of {INITS}, got {init!r}")
@@ -134,7 +134,7 @@ def encode_pair_shapes(encoder: nn.Module, src: list[CharacterTensors], src_pose
     ``rest_cache``: character ID -> (l, d) rest tokens of a frozen E, filled and read here, so that
     E reads each rest mesh once (None: every rest mesh through E again with the posed ones).
     """
-    from baselines.mimicat.transfer_data import shape_tokens
+    from mimicbench.baselines.mimicat.transfer_data import shape_tokens
 
     b = len(src)
     if rest_cache is None:
@@ -173,7 +173,7 @@ def transfer_batch(encoder: nn.Module, g: nn.Module, h: PoseTransferTransformer,
     """
     f_s, f_sp, f_t, delta_f = encode_pair_shapes(encoder, src, src_posed, tgt, rest_cache)
     if m is None:
-        from baselines.mimicat.transfer_data import correspondence_inputs
+        from mimicbench.baselines.mimicat.transfer_data import correspondence_inputs
 
         m = g(shape_s=f_s, shape_t=f_t, **correspondence_inputs(src, tgt))
     return h(src, q_src, t_src, tgt, m, delta_f, f_t), m, (f_s, f_sp, f_t, delta_f)
@@ -200,7 +200,7 @@ def correspondences(encoder: nn.Module, g: nn.Module, src: list[CharacterTensors
     keys = [(s.character_id, t.character_id, float(temperature)) for s, t in zip(src, tgt)]
     todo = [i for i, k in enumerate(keys) if k not in cache]
     if todo:
-        from baselines.mimicat.transfer_data import correspondence_inputs, shape_tokens
+        from mimicbench.baselines.mimicat.transfer_data import correspondence_inputs, shape_tokens
 
         with torch.no_grad():
             tok = shape_tokens(encoder, torch.stack([src[i].normalised(src[i].vertices) for i in todo]
@@ -223,7 +223,7 @@ def decode_correspondence(m: torch.Tensor, decode: str = "soft", m_reverse: torc
 
     ``soft``: m itself. ``hungarian``: the one-to-one decoding of m, a 0/1 matrix with a 1 at
     each pair of the assignment maximising the summed entries
-    (:func:`mimicbench.hungarian.hungarian_match`; min(Ks, Kt) pairs, so the larger side keeps
+    (:func:`mimicbench.geometry.hungarian.hungarian_match`; min(Ks, Kt) pairs, so the larger side keeps
     unmatched bones, whose empty columns the structured initialisation fills from the parent).
     G's Sinkhorn has no dustbin: every target column of m carries mass, spread over several
     source bones where G hesitates, and the structured initialisation's carried translations
@@ -243,7 +243,7 @@ def decode_correspondence(m: torch.Tensor, decode: str = "soft", m_reverse: torc
         raise ValueError(f"transfer.m_decode: expected one of {DECODES}, got {decode!r}")
     if decode == "soft":
         return m
-    from mimicbench.hungarian import hungarian_match
+    from mimicbench.geometry.hungarian import hungarian_match
 
     if decode == "hungarian_sym":
         if m_reverse is None or tuple(m_reverse.shape) != tuple(m.shape[::-1]):

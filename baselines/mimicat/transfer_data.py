@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from baselines.mimicat.corr_data import keypoint_features, point_indices, rest_frame
+from mimicbench.baselines.mimicat.corr_data import keypoint_features, point_indices, rest_frame
 
 
 @dataclass
@@ -29,7 +29,7 @@ class CharacterTensors:
         points: (P,) long vertex indices read by E.
         centre: (3,) rest bounding-box centre; size: its largest side (metres).
         unit_keypoints: (K, 3) rest keypoints in the unit-height frame
-            (:func:`mimicbench.mesh.normalize_unit_height`), for G's geometric term.
+            (:func:`mimicbench.geometry.mesh.normalize_unit_height`), for G's geometric term.
     """
 
     character_id: str
@@ -48,7 +48,7 @@ class CharacterTensors:
     def build(cls, character_id: str, vertices, keypoints, parents, weight_indices, weight_values, num_points: int,
               device="cpu") -> "CharacterTensors":
         """From arrays: (N, 3) vertices, (K, 3) keypoints, (K,) parents, (N, J) skin weights."""
-        from mimicbench.mesh import normalize_unit_height
+        from mimicbench.geometry.mesh import normalize_unit_height
 
         v = np.asarray(vertices, np.float64)
         centre, size = rest_frame(v)
@@ -65,13 +65,13 @@ class CharacterTensors:
 
     @classmethod
     def of_rig(cls, rig, num_points: int, device="cpu") -> "CharacterTensors":
-        """From a :class:`benchmark.request.Rig`."""
+        """From a :class:`mimicbench.benchmark.request.Rig`."""
         return cls.build(rig.character_id, rig.vertices, rig.keypoints, rig.parents, rig.weights.indices,
                          rig.weights.values, num_points, device)
 
     @classmethod
     def of_record(cls, record, num_points: int, device="cpu") -> "CharacterTensors":
-        """From a :class:`schemas.character.CharacterRecord`."""
+        """From a :class:`mimicbench.schemas.character.CharacterRecord`."""
         return cls.build(record.character_id, record.vertices, record.keypoints, record.parents,
                          record.weight_indices, record.weight_values, num_points, device)
 
@@ -115,7 +115,7 @@ def read_transfer_pool(dataset, split: str = "all") -> tuple[dict, dict]:
     Raises:
         ValueError: fewer than two characters with motions.
     """
-    from schemas.shards import read_records
+    from mimicbench.schemas.shards import read_records
 
     chars = {c.character_id: c for c in read_records(dataset, "characters")
              if len(c.faces) and split in ("all", c.split)}

@@ -1,7 +1,7 @@
 """Training stages of G (``corr``) and H (``transfer``, ``transfer_no_prior``) for ``mimicbench train mimicat``.
 
 - ``corr`` (needs ``shape``): G against the dataset's ``pairs/`` table (Eq. 6,
-  :func:`baselines.mimicat.correspondence.correspondence_loss`).
+  :func:`mimicbench.baselines.mimicat.correspondence.correspondence_loss`).
 - ``transfer`` (needs ``shape``, ``prior``, ``corr``): H by cycle consistency (Eq. 7-8) on
   (source, pose, target) triples drawn from the dataset's characters and clips: the source pose
   goes to the target (forward leg) and H's answer back to the source (return leg);
@@ -14,10 +14,10 @@
   start (:func:`shared_correspondences`), and E reads each rest mesh once (the frozen encoder's
   rest tokens are cached per character); only the posed meshes go through E each step.
   Both legs use G's M at the Sinkhorn temperature ``m_temperature`` (see
-  :func:`baselines.mimicat.transfer.correspondences`) decoded as ``m_decode`` says (``soft``: as
+  :func:`mimicbench.baselines.mimicat.transfer.correspondences`) decoded as ``m_decode`` says (``soft``: as
   it is; ``hungarian``: one-to-one; ``hungarian_sym``: one one-to-one assignment of the pair from
   G's M of both directions, the presets' default, see
-  :func:`baselines.mimicat.transfer.decode_correspondence`), as the method does at test time, and H's
+  :func:`mimicbench.baselines.mimicat.transfer.decode_correspondence`), as the method does at test time, and H's
   initialisation ``init`` (``structured`` in the presets; ``paper``, Eq. 3-4 as published, for a
   config without the key, which is what checkpoints trained before it used).
 - ``transfer_no_prior`` (needs ``shape``, ``corr``): the same without ``L_reg`` (ablation A2):
@@ -32,11 +32,11 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from baselines.mimicat.corr_data import read_pairs
-from baselines.mimicat.correspondence import CorrespondenceTransformer, correspondence_loss
-from baselines.mimicat.transfer import (PoseTransferTransformer, correspondences, decode_correspondence, pose_mesh,
+from mimicbench.baselines.mimicat.corr_data import read_pairs
+from mimicbench.baselines.mimicat.correspondence import CorrespondenceTransformer, correspondence_loss
+from mimicbench.baselines.mimicat.transfer import (PoseTransferTransformer, correspondences, decode_correspondence, pose_mesh,
                                         transfer_batch)
-from baselines.mimicat.transfer_data import (CharacterTensors, correspondence_inputs, read_transfer_pool,
+from mimicbench.baselines.mimicat.transfer_data import (CharacterTensors, correspondence_inputs, read_transfer_pool,
                                              shape_tokens)
 
 CORR_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_size": 8, "points": 512, "split": "all",
@@ -46,7 +46,7 @@ TRANSFER_DEFAULTS = {"width": 64, "layers": 2, "heads": 4, "mlp": 128, "batch_si
                      "reg_weight": 0.01, "feat_weight": 0.1, "m_temperature": 1.0, "init": "paper",
                      "m_decode": "soft"}
 """Values a config without the key means: what the checkpoints trained before the key existed
-used (the presets of :mod:`baselines.mimicat.config` set ``init`` to ``structured``)."""
+used (the presets of :mod:`mimicbench.baselines.mimicat.config` set ``init`` to ``structured``)."""
 
 
 def section(config: dict, name: str) -> dict:
@@ -171,7 +171,7 @@ def shared_correspondences(ctx, tensors: dict, pairs, temperature: float, chunk:
         tensors: CharacterTensors by ID.
         pairs: iterable of (source ID, target ID).
     """
-    from baselines.mimicat.transfer import correspondences
+    from mimicbench.baselines.mimicat.transfer import correspondences
     from mimicbench.training.distributed import gather_objects
 
     cache, temp = _m_cache(ctx), float(temperature)

@@ -20,8 +20,8 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 from torch import nn
 
-from baselines.mmdmc.nn import mlp
-from mimicbench.mesh import unique_edges
+from mimicbench.baselines.mmdmc.nn import mlp
+from mimicbench.geometry.mesh import unique_edges
 
 HISTORY = 3
 """K: the apparel states one step reads."""
@@ -125,7 +125,7 @@ class ApparelDynamics(nn.Module):
 
         Args:
             history: (B, 3, A, 3) states of frames t0-3..t0-1 (ground truth in training, or the body's
-                state at rest: :func:`baselines.mmdmc.pipeline.rest_start`).
+                state at rest: :func:`mimicbench.baselines.mmdmc.pipeline.rest_start`).
             body: (B, T+1, A, 3) body states of frames t0-1..t0+T-1.
             joints: (B, T+3, J, 3) posed body joints of frames t0-3..t0+T-1.
             truncate: truncated backpropagation through time: at every ``truncate``-th step the states

@@ -1,7 +1,7 @@
 """Soft as-rigid-as-possible restoration of f_d's apparel (ours; config ``history_arap``, on in
 the shipped f_d): the predicted vertices pull the apparel where f_d put it, ARAP keeps its edges' lengths.
 
-The body-history f_d (:mod:`baselines.mmdmc.apparel_history`) predicts each vertex's offset on its
+The body-history f_d (:mod:`mimicbench.baselines.mmdmc.apparel_history`) predicts each vertex's offset on its
 own. Where the simulated strand could swing one way or the other, the best per-vertex guess is the
 mean of the two, which lies inside the arc: the strand comes out short, and ELS counts every edge
 that shrank. Trained to keep lengths (``w_stretch`` 1.0) f_d gives up most of its offset (-11%

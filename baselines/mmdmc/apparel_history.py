@@ -25,12 +25,12 @@ rollout: every frame is one independent prediction, so training needs no backpro
 time, and a bad frame cannot derail the next. Training adds the relative stretch of the apparel's
 mesh edges to the vertex loss (config ``w_stretch``), the quantity ELS scores.
 
-Why not the paper's recurrence (:mod:`baselines.mmdmc.apparel`): rolled out from rest as a request
+Why not the paper's recurrence (:mod:`mimicbench.baselines.mmdmc.apparel`): rolled out from rest as a request
 starts, its learned displacement removes 0.08% of ``mmdmc_no_apparel``'s PMD_a on a held-out zoo.
 On the same data a per-vertex MLP on these inputs, fitted without the stretch term, predicts the
 held-out offsets with 37% less error than a zero displacement. The shipped model trains for
 positions (``w_stretch`` 0.1) and gives the edges their lengths back after the MLP, by soft ARAP
-against the rest apparel (:mod:`baselines.mmdmc.apparel_arap`, config ``history_arap``); the
+against the rest apparel (:mod:`mimicbench.baselines.mmdmc.apparel_arap`, config ``history_arap``); the
 measurements are in docs/notes/mmdmc.md. The chains' lag, swing and flare in spins are a
 function of the body's recent turning and acceleration in the vertex's frame, which one frame's
 velocity and acceleration (K = 3 states) do not carry. All positions in the character's unit-height
@@ -42,9 +42,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mmdmc.apparel_arap import ITERATIONS as ARAP_ITERATIONS
-from baselines.mmdmc.nn import mlp
-from mimicbench.skinning_torch import quat_to_matrix_torch
+from mimicbench.baselines.mmdmc.apparel_arap import ITERATIONS as ARAP_ITERATIONS
+from mimicbench.baselines.mmdmc.nn import mlp
+from mimicbench.geometry.skinning_torch import quat_to_matrix_torch
 
 LAGS = (1, 2, 3, 4, 6, 8, 11, 15, 20, 30)
 """Frames back the history looks (30 frames: 1 s at 30 fps)."""
@@ -136,7 +136,7 @@ class BodyHistoryApparel(nn.Module):
             raise ValueError(f"arap: expected a weight >= 0 and iterations >= 0, got {arap} and {arap_iterations}")
         self.smoothing = smoothing  # offset smoothing passes (config ``history_smoothing``), :func:`smooth_offsets`
         # a request's apparel restored by soft ARAP with this pull towards the prediction (config
-        # ``history_arap``; 0: not restored), :func:`baselines.mmdmc.apparel_arap.restore`
+        # ``history_arap``; 0: not restored), :func:`mimicbench.baselines.mmdmc.apparel_arap.restore`
         self.arap = arap
         self.arap_iterations = arap_iterations
         # the offset is the MLP's answer less its answer for the same vertex and gravity with the

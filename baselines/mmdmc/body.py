@@ -2,13 +2,13 @@
 geodesic attention, then linear blend skinning.
 
 For vertex i and body joint k the pair feature is an MLP of (v_i - c_k, |v_i - c_k|, G_ik, B_ik),
-B_ik the distance from v_i to bone k's segments (:mod:`baselines.mmdmc.bone_distance`); the
+B_ik the distance from v_i to bone k's segments (:mod:`mimicbench.baselines.mmdmc.bone_distance`); the
 geodesic attention ``M = softmax_k(f_m(G))`` pools the pair features into a vertex context; a
 PointNet over (v_i, context_i) adds local and global shape features; the head scores every pair
 from (pair feature, context, PointNet features, G_ik), the head's score over tau is added to a
 prior -B_ik / tau (tau learnt) and ``W = softmax_k(scores)``. With ``prior="piece"`` (the shipped
 f_s's) the vertices of a mesh piece that wraps one bone are scored by the piece
-prior of :mod:`baselines.mmdmc.piece_prior` instead, wherever the caller hands it in (the pipeline
+prior of :mod:`mimicbench.baselines.mmdmc.piece_prior` instead, wherever the caller hands it in (the pipeline
 at inference); the learnt scores serve every other vertex, and training (which hands in no piece
 prior) shapes them.
 
@@ -26,15 +26,15 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mmdmc.nn import mlp
-from mimicbench.skinning_torch import linear_blend_skinning_torch
+from mimicbench.baselines.mmdmc.nn import mlp
+from mimicbench.geometry.skinning_torch import linear_blend_skinning_torch
 
 PRIOR_TAU = 0.01
 """Initial temperature of the bone-distance prior on the skinning scores (fraction of the height)."""
 
 PRIORS = ("bone", "piece")
 """Priors on the skinning scores: ``bone`` (-B / tau everywhere; a config without ``body_prior``) or
-``piece`` (:mod:`baselines.mmdmc.piece_prior` where a mesh piece wraps a bone, -B / tau elsewhere)."""
+``piece`` (:mod:`mimicbench.baselines.mmdmc.piece_prior` where a mesh piece wraps a bone, -B / tau elsewhere)."""
 
 
 class BodySkinning(nn.Module):
@@ -93,7 +93,7 @@ class BodySkinning(nn.Module):
             bone: (B, N, K) distances to the body bones' segments, divided by the rest height.
             joint_mask: optional (B, K) bool, False for padding joints.
             piece: optional (B, N, K) piece prior scores, NaN rows where no piece wraps a bone
-                (:func:`baselines.mmdmc.piece_prior.piece_prior`); only the ``piece`` prior reads it.
+                (:func:`mimicbench.baselines.mmdmc.piece_prior.piece_prior`); only the ``piece`` prior reads it.
         """
         b, n, _ = points.shape
         if piece is not None and piece.shape != bone.shape:

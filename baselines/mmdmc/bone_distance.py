@@ -1,5 +1,5 @@
 """Vertex-bone distances: how far each vertex is from each body bone's segment (our addition to
-MMDMC's vertex-joint relation, Sec. 4.2; see :mod:`baselines.mmdmc.body`).
+MMDMC's vertex-joint relation, Sec. 4.2; see :mod:`mimicbench.baselines.mmdmc.body`).
 
 A joint position alone does not say which way its bone runs: a vertex halfway down the upper arm
 is as near the elbow joint as the shoulder joint, yet belongs to the upper arm. Bone k's segments
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.segments import point_segment_distance
-from mimicbench.validation import check_shape
+from mimicbench.geometry.segments import point_segment_distance
+from mimicbench.geometry.validation import check_shape
 
 
 BOX_MARGIN = 0.1  # share of the mesh's largest extent by which :func:`mesh_box` grows its box

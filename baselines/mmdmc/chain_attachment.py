@@ -1,12 +1,12 @@
 """Which body bone carries an apparel vertex: the body bone its nearest apparel chain hangs from.
 
-The body module's target (:func:`baselines.mmdmc.data.body_target_weights`) carries each apparel
+The body module's target (:func:`mimicbench.baselines.mmdmc.data.body_target_weights`) carries each apparel
 bone's weight on the body bone its chain hangs from, so apparel moves rigidly with the body part it
 is attached to (a skirt with the hips, hair with the head) and the apparel module displaces it from
 there. A request carries the rig (joints, parents, body-bone mask) but never its skin weights, so at
 inference the vertex's chain is found geometrically: the apparel bone whose segments
-(:func:`baselines.mmdmc.bone_distance.bone_distances` over the apparel bones) pass nearest the
-vertex. Its attachment bone (:func:`baselines.mmdmc.rig.attachment_bones`) then gets the vertex's
+(:func:`mimicbench.baselines.mmdmc.bone_distance.bone_distances` over the apparel bones) pass nearest the
+vertex. Its attachment bone (:func:`mimicbench.baselines.mmdmc.rig.attachment_bones`) then gets the vertex's
 whole weight. f_c's mask says which vertices are apparel; f_s skins the rest.
 
 Measurements behind these choices: docs/notes/measurements.md.
@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from baselines.mmdmc.bone_distance import bone_distances, mesh_box
-from baselines.mmdmc.rig import attachment_bones
+from mimicbench.baselines.mmdmc.bone_distance import bone_distances, mesh_box
+from mimicbench.baselines.mmdmc.rig import attachment_bones
 
 
 def chain_attachment(vertices: np.ndarray, keypoints: np.ndarray, parents: np.ndarray,
@@ -28,7 +28,7 @@ def chain_attachment(vertices: np.ndarray, keypoints: np.ndarray, parents: np.nd
 
     Args:
         keypoints: (K, 3) rest joints, metres; parents: (K,) int, -1 for a root; body: (K,) bool body bones.
-        box: (2, 3) the rest mesh's :func:`~baselines.mmdmc.bone_distance.mesh_box`: an apparel joint
+        box: (2, 3) the rest mesh's :func:`~mimicbench.baselines.mmdmc.bone_distance.mesh_box`: an apparel joint
             outside it (a physics helper) ends no apparel bone's segment. None: every joint does.
     """
     body = np.asarray(body, bool)
@@ -58,7 +58,7 @@ def attached_weights(weights: np.ndarray, mask: np.ndarray, columns: np.ndarray)
 
 
 def prepared_attachment(prep) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`chain_attachment` of a :class:`~baselines.mmdmc.data.Prepared` character (cached on it):
+    """:func:`chain_attachment` of a :class:`~mimicbench.baselines.mmdmc.data.Prepared` character (cached on it):
     columns (N,) int64 and the distance to the nearest apparel bone (N,) float32 divided by the height."""
     if "attachment" not in prep.cache:
         columns, dist = chain_attachment(prep.rest, prep.keypoints, prep.parents, prep.body, mesh_box(prep.rest))

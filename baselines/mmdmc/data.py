@@ -18,14 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from baselines.mmdmc.bone_distance import bone_distances, mesh_box
-from baselines.mmdmc.geodesic import geodesic_distances
-from baselines.mmdmc.piece_prior import piece_prior
-from baselines.mmdmc.rig import attachment_bones
-from mimicbench.mesh import unique_edges, unit_height_frame
-from mimicbench.skinning import linear_blend_skinning
-from schemas.motion import SIM_SUFFIX
-from schemas.weights import SparseWeights
+from mimicbench.baselines.mmdmc.bone_distance import bone_distances, mesh_box
+from mimicbench.baselines.mmdmc.geodesic import geodesic_distances
+from mimicbench.baselines.mmdmc.piece_prior import piece_prior
+from mimicbench.baselines.mmdmc.rig import attachment_bones
+from mimicbench.geometry.mesh import unique_edges, unit_height_frame
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.motion import SIM_SUFFIX
+from mimicbench.schemas.weights import SparseWeights
 
 
 @dataclass
@@ -42,10 +42,10 @@ class Prepared:
         centre: (3,) float64, height: float: the unit-height frame (rest bounding-box centre, Y extent).
         geo: (N, Kb) float32 geodesic distance to each body joint's anchor, divided by the height.
         bone: (N, Kb) float32 distance to each body bone's segments, divided by the height
-            (:mod:`baselines.mmdmc.bone_distance`).
+            (:mod:`mimicbench.baselines.mmdmc.bone_distance`).
         edges: (E, 2) int64 unique mesh edges.
         prior: (N, Kb) float32 piece prior on f_s's scores, NaN rows where no piece wraps a bone
-            (:mod:`baselines.mmdmc.piece_prior`).
+            (:mod:`mimicbench.baselines.mmdmc.piece_prior`).
         apparel: (N,) bool ground-truth apparel vertices (training data only).
         weights: ground-truth skin weights (training data only).
     """
@@ -132,7 +132,7 @@ class TrainingData:
         kinematic clip of a character with apparel bones is a :class:`ClipPair` with ``simulated``
         None, so f_s can train on a zoo that ``datagen apparel`` never simulated.
         """
-        from schemas.shards import read_records
+        from mimicbench.schemas.shards import read_records
 
         dataset = Path(dataset)
         chars = {c.character_id: c for c in read_records(dataset, "characters")
@@ -182,10 +182,10 @@ def body_target_weights(character: Prepared) -> np.ndarray:
     """(N, Kb) float32 dense weights over the body bones (cached on the character): the dataset's,
     with each apparel bone's weight moved onto the body bone its chain hangs from
     (:func:`attachment_bones`); a chain attached to no body bone gives its weight to the vertex's
-    nearest body bone (:func:`baselines.body_only.nearest_body_bone`)."""
+    nearest body bone (:func:`mimicbench.baselines.body_only.nearest_body_bone`)."""
     if "body_weights" not in character.cache:
-        from baselines.body_only import nearest_body_bone
-        from schemas.weights import as_dense
+        from mimicbench.baselines.body_only import nearest_body_bone
+        from mimicbench.schemas.weights import as_dense
 
         k = len(character.parents)
         dense = as_dense(character.weights, k).astype(np.float64)

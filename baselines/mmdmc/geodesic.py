@@ -14,8 +14,8 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
-from mimicbench.mesh import unique_edges
-from mimicbench.validation import check_shape
+from mimicbench.geometry.mesh import unique_edges
+from mimicbench.geometry.validation import check_shape
 
 
 def anchor_vertices(vertices: np.ndarray, keypoints: np.ndarray) -> np.ndarray:

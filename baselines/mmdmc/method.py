@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from benchmark.protocols.apparel import GT_MASK_TAG
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.protocols.apparel import GT_MASK_TAG
 
 CHECKPOINTS = Path(__file__).resolve().parent / "checkpoints"
 ENV = "MIMICBENCH_MMDMC_CHECKPOINTS"
@@ -46,10 +46,10 @@ def checkpoint_path(stage: str, folder: str | os.PathLike | None = None) -> Path
 
 
 def load_modules(folder=None, device: str = "cpu", stages=STAGES):
-    """:class:`~baselines.mmdmc.pipeline.Modules` from checkpoints (see :func:`checkpoint_path`); the
+    """:class:`~mimicbench.baselines.mmdmc.pipeline.Modules` from checkpoints (see :func:`checkpoint_path`); the
     stages left out of ``stages`` stay None."""
-    from baselines.mmdmc.pipeline import Modules
-    from baselines.mmdmc.training import BUILDERS
+    from mimicbench.baselines.mmdmc.pipeline import Modules
+    from mimicbench.baselines.mmdmc.training import BUILDERS
     from mimicbench.training.checkpoint import load_module, read_header
 
     mods = {s: load_module(checkpoint_path(s, folder), lambda cfg, s=s: BUILDERS[s](cfg, None), device) if s in stages
@@ -79,7 +79,7 @@ class Mmdmc(PoseTransferMethod):
 
     def weights_fingerprint(self) -> str:
         """Fingerprint of the weights of the stages this variant loads (see :func:`checkpoint_path`)."""
-        from schemas.fingerprint import files_fingerprint
+        from mimicbench.schemas.fingerprint import files_fingerprint
 
         return files_fingerprint({s: checkpoint_path(s) for s in VARIANT_STAGES[self.variant]})
 
@@ -91,7 +91,7 @@ class Mmdmc(PoseTransferMethod):
         raise NotImplementedError(f"{self.metadata.name} answers motion requests only (the apparel protocol)")
 
     def _prepare(self, rig, body):
-        from baselines.mmdmc.data import prepare
+        from mimicbench.baselines.mmdmc.data import prepare
 
         key = (rig.character_id, len(rig.vertices), np.asarray(body, bool).tobytes())
         if key not in self._prepared:
@@ -100,7 +100,7 @@ class Mmdmc(PoseTransferMethod):
 
     def transfer_motion(self, requests):
         """(F, N, 3) float32 per request."""
-        from baselines.mmdmc.pipeline import predict
+        from mimicbench.baselines.mmdmc.pipeline import predict
 
         if self.modules is None:
             self.setup(self.device)

@@ -9,7 +9,7 @@ for a vertex i of a piece that wraps bone a, the score of body bone k is
     -POWER * log(B_ik + SOFT * r + EPS) + log(OWN) [k = a]      where bone k is a or a neighbour of a,
     OUTSIDE                                                      for every other bone,
 
-with B_ik the distance to bone k's segments (:mod:`baselines.mmdmc.bone_distance`, unit-height
+with B_ik the distance to bone k's segments (:mod:`mimicbench.baselines.mmdmc.bone_distance`, unit-height
 frame) and r the piece's mean distance to a (its thickness, so a segment piercing the surface
 grabs no sharp spot).
 
@@ -33,9 +33,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from baselines.mmdmc.rig import attachment_bones
-from mimicbench.mesh import mesh_pieces
-from mimicbench.segments import point_segment_distance
+from mimicbench.baselines.mmdmc.rig import attachment_bones
+from mimicbench.geometry.mesh import mesh_pieces
+from mimicbench.geometry.segments import point_segment_distance
 
 POWER = 4.0        # inverse-distance power of the blend
 SOFT = 0.5         # share of the piece's thickness added to every distance
@@ -50,7 +50,7 @@ MIN_VERTICES = 24  # fewer vertices make a fragment (a flat-shaded mesh's split 
 
 def body_parents(parents: np.ndarray, body: np.ndarray) -> np.ndarray:
     """(Kb,) int64 column of each body bone's nearest body ancestor (apparel bones between them
-    skipped, :func:`baselines.mmdmc.rig.attachment_bones`), -1 for none.
+    skipped, :func:`mimicbench.baselines.mmdmc.rig.attachment_bones`), -1 for none.
 
     Args:
         parents: (K,) int, -1 for a root; body: (K,) bool body bones (their order gives the columns).

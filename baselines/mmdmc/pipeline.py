@@ -1,10 +1,10 @@
 """The MMDMC forward pass at inference (Fig. 2): f_c's apparel mask, f_s's weights and LBS of the
 body motion, f_d's rollout on the apparel vertices, f_j's refinement.
 
-With the body-history f_d (the shipped one, :mod:`baselines.mmdmc.apparel_history`) there is no
+With the body-history f_d (the shipped one, :mod:`mimicbench.baselines.mmdmc.apparel_history`) there is no
 rollout: each frame's apparel is predicted from the body's history in the request, and (config
 ``history_arap``) restored to its rest edge lengths by soft ARAP
-(:mod:`baselines.mmdmc.apparel_arap`).
+(:mod:`mimicbench.baselines.mmdmc.apparel_arap`).
 
 The rollout starts where a request starts: nothing is known of the apparel before it, so the
 K = 3 history states are the body state of the request's first frame (the apparel at rest on the
@@ -12,7 +12,7 @@ body, not moving). The apparel protocol's requests start at the clip's first
 frame, where the simulation started from rest too, or 90 frames before the scored window; the
 apparel stage's training rollouts (``apparel_start="clip"``) start the same way through the same
 function (:func:`rollout_from_rest`). Per-character results (mask, weights, EdgeConv neighbours)
-are cached on the :class:`~baselines.mmdmc.data.Prepared` character.
+are cached on the :class:`~mimicbench.baselines.mmdmc.data.Prepared` character.
 """
 from __future__ import annotations
 
@@ -21,15 +21,15 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from baselines.mmdmc.apparel import HISTORY, apparel_components, component_neighbours
-from baselines.mmdmc.apparel_arap import edges_among, restore
-from baselines.mmdmc.apparel_history import BodyHistoryApparel, frame_bones, frame_rotations, rest_offsets
-from baselines.mmdmc.body import skin
-from baselines.mmdmc.chain_attachment import attached_weights, prepared_attachment
-from baselines.mmdmc.data import Prepared
-from baselines.mmdmc.segmentation import segmenter_inputs
-from baselines.mmdmc.weight_smoothing import diffuse_weights, smooth_weights
-from mimicbench.mesh import mesh_pieces
+from mimicbench.baselines.mmdmc.apparel import HISTORY, apparel_components, component_neighbours
+from mimicbench.baselines.mmdmc.apparel_arap import edges_among, restore
+from mimicbench.baselines.mmdmc.apparel_history import BodyHistoryApparel, frame_bones, frame_rotations, rest_offsets
+from mimicbench.baselines.mmdmc.body import skin
+from mimicbench.baselines.mmdmc.chain_attachment import attached_weights, prepared_attachment
+from mimicbench.baselines.mmdmc.data import Prepared
+from mimicbench.baselines.mmdmc.segmentation import segmenter_inputs
+from mimicbench.baselines.mmdmc.weight_smoothing import diffuse_weights, smooth_weights
+from mimicbench.geometry.mesh import mesh_pieces
 
 
 @dataclass
@@ -98,9 +98,9 @@ def mesh_weights(body: torch.nn.Module, prep: Prepared, mask: np.ndarray | None,
     """(N, Kb) weights the body states are skinned with (cached): f_s's, with the vertices of ``mask``
     (N,) bool (None: no apparel path, as in the body-only variant) moved onto the body bone their
     apparel chain hangs from when ``apparel_skinning="attachment"``
-    (:mod:`baselines.mmdmc.chain_attachment`; ``"fs"`` keeps f_s's), then smoothed along the mesh
+    (:mod:`mimicbench.baselines.mmdmc.chain_attachment`; ``"fs"`` keeps f_s's), then smoothed along the mesh
     ``smoothing`` iterations and then diffused over ``radius`` (a share of the height; both in
-    :mod:`baselines.mmdmc.weight_smoothing`), so the seams between body and apparel skinning are
+    :mod:`mimicbench.baselines.mmdmc.weight_smoothing`), so the seams between body and apparel skinning are
     smoothed too. With f_s's ``piece`` prior, vertices outside ``mask`` whose piece the prior wraps
     keep f_s's weights unsmoothed."""
     if apparel_skinning not in ("fs", "attachment"):
@@ -167,7 +167,7 @@ def rest_start(body: torch.Tensor, joints: torch.Tensor) -> tuple[torch.Tensor, 
 
     Returns:
         ``history`` (B, 3, A, 3), ``body`` (B, F+1, A, 3) of frames -1..F-1 and ``joints`` (B, F+3, J, 3)
-        of frames -3..F-1, as :meth:`~baselines.mmdmc.apparel.ApparelDynamics.rollout` reads them.
+        of frames -3..F-1, as :meth:`~mimicbench.baselines.mmdmc.apparel.ApparelDynamics.rollout` reads them.
     """
     history = body[:, :1].expand(-1, HISTORY, -1, -1)
     body_seq = torch.cat([body[:, :1], body], 1)
@@ -179,7 +179,7 @@ def rollout_from_rest(dyn: torch.nn.Module, body: torch.Tensor, rest: torch.Tens
                       neighbours: torch.Tensor, truncate: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
     """f_d rolled out from rest on the body at frame 0 (:func:`rest_start`): states and displacements,
     each (B, F, A, 3), unit-height frame. Inference (:func:`rollout_from_body`) and the apparel stage's
-    from-rest rollouts (``apparel_start="clip"``, :mod:`baselines.mmdmc.training`) both call this, so
+    from-rest rollouts (``apparel_start="clip"``, :mod:`mimicbench.baselines.mmdmc.training`) both call this, so
     training rolls out exactly as a request is answered.
 
     Args:
@@ -207,8 +207,8 @@ def rollout_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
 def history_inputs(prep: Prepared, idx: np.ndarray, weights: torch.Tensor, transforms) -> tuple[torch.Tensor, torch.Tensor]:
     """The body-history f_d's per-vertex frame inputs of the vertices ``idx`` (A,) skinned with
     ``weights`` (N, Kb), for transforms (F, K, 7): each vertex's frame rotations (F, A, 3, 3)
-    (:func:`~baselines.mmdmc.apparel_history.frame_rotations`) and its rest offset (A, 3) in the
-    unit-height frame (:func:`~baselines.mmdmc.apparel_history.rest_offsets`), on ``weights``' device.
+    (:func:`~mimicbench.baselines.mmdmc.apparel_history.frame_rotations`) and its rest offset (A, 3) in the
+    unit-height frame (:func:`~mimicbench.baselines.mmdmc.apparel_history.rest_offsets`), on ``weights``' device.
     Training batches and requests both read them here."""
     dev = weights.device
     bones, fw = frame_bones(weights[torch.as_tensor(idx, device=dev)].cpu().numpy())
@@ -224,7 +224,7 @@ def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
     """Apparel states (F, A, 3) (unit-height frame) of the vertices ``idx`` over a request whose body
     states are (F, N, 3), skinned with ``weights`` (N, Kb), for transforms (F, K, 7): f_d's rollout from
     rest (:func:`rollout_from_body`) or, for the body-history model, its prediction from the history
-    of each vertex's frame (:mod:`baselines.mmdmc.apparel_history`)."""
+    of each vertex's frame (:mod:`mimicbench.baselines.mmdmc.apparel_history`)."""
     dev = body.device
     if isinstance(dyn, BodyHistoryApparel):
         rot, rest_offset = history_inputs(prep, idx, weights, transforms)

@@ -16,9 +16,9 @@ import zlib
 
 import numpy as np
 
-from baselines.lbs_kinematic import LbsKinematic
-from benchmark.method import MethodMetadata
-from schemas.weights import as_dense
+from mimicbench.baselines.lbs_kinematic import LbsKinematic
+from mimicbench.benchmark.method import MethodMetadata
+from mimicbench.schemas.weights import as_dense
 
 NOISE_MM = 1.0
 """Standard deviation of the noise per axis, millimetres of the character scaled to 1.70 m."""

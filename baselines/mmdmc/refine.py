@@ -6,7 +6,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from baselines.mmdmc.nn import mlp
+from mimicbench.baselines.mmdmc.nn import mlp
 
 OUTPUT_SCALE = 0.02
 """The MLP's output times this is the correction (unit-height frame)."""

@@ -2,7 +2,7 @@
 positions and an MLP decoder to a per-vertex apparel logit (probability after a sigmoid).
 
 Input positions are in the character's unit-height frame (centre of the rest bounding box,
-divided by the rest height; :func:`baselines.mmdmc.data.normalise`).
+divided by the rest height; :func:`mimicbench.baselines.mmdmc.data.normalise`).
 
 ``seg_inputs="bones"`` (ours, config) adds two per-vertex channels from the rig a request carries
 (never its weights): the distance to the nearest body bone and to the nearest apparel bone (unit
@@ -16,15 +16,15 @@ import numpy as np
 import torch
 from torch import nn
 
-from baselines.mmdmc.chain_attachment import prepared_attachment
-from baselines.mmdmc.nn import mlp
+from mimicbench.baselines.mmdmc.chain_attachment import prepared_attachment
+from mimicbench.baselines.mmdmc.nn import mlp
 
 SEG_INPUTS = {"positions": 3, "bones": 5}
 """Input channels of f_c per ``seg_inputs`` setting."""
 
 
 def segmenter_inputs(prep, channels: int) -> np.ndarray:
-    """(N, channels) float32 input of f_c for a :class:`~baselines.mmdmc.data.Prepared` character:
+    """(N, channels) float32 input of f_c for a :class:`~mimicbench.baselines.mmdmc.data.Prepared` character:
     unit-height rest positions (3 channels), then (5 channels) the distances to the nearest body bone
     and to the nearest apparel bone, divided by the height and clipped at 1."""
     if channels not in SEG_INPUTS.values():

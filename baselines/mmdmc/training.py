@@ -4,9 +4,9 @@ Stages, in order (Sec. 4.5 of the paper: segmentation and body trained independe
 end to end on their outputs):
 
 - ``seg``: f_c, binary cross entropy against the dataset's apparel vertex mask (inputs per
-  ``seg_inputs``: positions, or positions and bone distances; :mod:`baselines.mmdmc.segmentation`).
+  ``seg_inputs``: positions, or positions and bone distances; :mod:`mimicbench.baselines.mmdmc.segmentation`).
 - ``body``: f_s, L1 vertex (Eq. 8), edge length (Eq. 9) and weight smoothness (Eq. 10) against the
-  body target (:mod:`baselines.mmdmc.data`), plus (ours, ``w_weights``) the L1 distance of f_s's
+  body target (:mod:`mimicbench.baselines.mmdmc.data`), plus (ours, ``w_weights``) the L1 distance of f_s's
   weights to the body target's weights, a denser signal than the posed vertices (which say
   nothing of a bone that did not move). ``weights_on`` says which vertices that term averages
   over: ``"all"`` (the default, the shipped model's) or ``"body"``. Over all vertices the apparel
@@ -22,23 +22,23 @@ end to end on their outputs):
   ``apparel_start="clip"`` (opt-in; with ``bptt`` 0 a hair better than a zero displacement,
   docs/notes/mmdmc.md) every rollout starts as the simulation
   and a request of the apparel protocol do: at rest on the body at the clip's first frame (K = 3
-  history states of the body at rest, :func:`baselines.mmdmc.pipeline.rest_start`), rolled out
+  history states of the body at rest, :func:`mimicbench.baselines.mmdmc.pipeline.rest_start`), rolled out
   through the burn-in to the window's end (at most ``burn_in`` + ``scored_window`` frames; a longer
   clip rolls out from a random frame, scored only on its last ``scored_window`` frames, as a request
   that starts a full burn-in before its window is) by the same function inference calls
-  (:func:`baselines.mmdmc.pipeline.rollout_from_rest`), with truncated backpropagation every ``bptt``
+  (:func:`mimicbench.baselines.mmdmc.pipeline.rollout_from_rest`), with truncated backpropagation every ``bptt``
   steps (0: none). With ``apparel_start="window"`` (the default) a rollout is a window of
   ``window`` frames after K ground-truth states (Eq. 11, the paper's), a share ``rest_start`` of
   them restarted at rest on the body at the window, inside the clip: where the simulated apparel
   already lags the body, a target the rest-started rollout's inputs cannot reach.
   With ``apparel_skinning="attachment"`` the apparel vertices (f_c's mask,
   voted per mesh piece with ``mask_by_piece``) start from the body bone their chain hangs from
-  (:mod:`baselines.mmdmc.chain_attachment`), the body target's own rule, rather than f_s's
+  (:mod:`mimicbench.baselines.mmdmc.chain_attachment`), the body target's own rule, rather than f_s's
   weights; ``weight_smoothing`` (edge hops) and ``weight_smoothing_radius`` (a distance) smooth
-  f_s's weights along the mesh (:mod:`baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
+  f_s's weights along the mesh (:mod:`mimicbench.baselines.mmdmc.weight_smoothing`). All four are off by default (the first shipped
   model's settings) and read at inference from the stages' checkpoints.
   With ``apparel_model="body_history"`` (ours; the shipped f_d) f_d is
-  :class:`baselines.mmdmc.apparel_history.BodyHistoryApparel`: each batch is a clip read from where a
+  :class:`mimicbench.baselines.mmdmc.apparel_history.BodyHistoryApparel`: each batch is a clip read from where a
   request of it starts, with each apparel vertex's frame rotations and rest offset; ``history_frames``
   of its scored frames are predicted, and the loss is vertex L1 plus ``w_stretch`` times the relative
   stretch of the apparel's mesh edges.
@@ -62,17 +62,17 @@ import numpy as np
 import torch
 from scipy.spatial import cKDTree
 
-from baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbours, apparel_components
-from baselines.mmdmc.apparel_arap import ITERATIONS, edges_among
-from baselines.mmdmc.apparel_history import BodyHistoryApparel
-from baselines.mmdmc.body import BodySkinning, skin
-from baselines.mmdmc.config import CONFIGS
-from baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
-from baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
-from baselines.mmdmc.pipeline import (apparel_from_body, apparel_layout, apparel_probability, body_states,
+from mimicbench.baselines.mmdmc.apparel import HISTORY, ApparelDynamics, component_neighbours, apparel_components
+from mimicbench.baselines.mmdmc.apparel_arap import ITERATIONS, edges_among
+from mimicbench.baselines.mmdmc.apparel_history import BodyHistoryApparel
+from mimicbench.baselines.mmdmc.body import BodySkinning, skin
+from mimicbench.baselines.mmdmc.config import CONFIGS
+from mimicbench.baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
+from mimicbench.baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
+from mimicbench.baselines.mmdmc.pipeline import (apparel_from_body, apparel_layout, apparel_probability, body_states,
                                       history_inputs, mesh_weights, rollout_from_rest, to_unit)
-from baselines.mmdmc.refine import JointRefiner
-from baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
+from mimicbench.baselines.mmdmc.refine import JointRefiner
+from mimicbench.baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage
@@ -443,7 +443,7 @@ def _some_frames(scored: np.ndarray, n: int, r: np.random.Generator) -> np.ndarr
 
 def apparel_states(module, batch, config: dict) -> tuple[torch.Tensor, torch.Tensor]:
     """f_d's states and displacements (B, T, A, 3) for an apparel batch: from rest at its first frame
-    through :func:`baselines.mmdmc.pipeline.rollout_from_rest` (inference's own path) when the batch
+    through :func:`mimicbench.baselines.mmdmc.pipeline.rollout_from_rest` (inference's own path) when the batch
     has no ``history``, else from the batch's K history states. The body-history model gives every
     frame (its displacements are the offsets from the body states)."""
     if isinstance(module, BodyHistoryApparel):

@@ -8,7 +8,7 @@ character's height), so a coarse mesh is smoothed over the same part of its body
 Each iteration moves every vertex's weights halfway to the mean of its mesh neighbours' (unique
 face edges): w <- (w + mean_{j ~ i} w_j) / 2. Rows stay convex combinations (they keep summing to
 1); a vertex in no face keeps its own. The pipeline smooths after the apparel vertices were moved
-onto their chains' body bones (:func:`baselines.mmdmc.pipeline.mesh_weights`), so a garment hanging
+onto their chains' body bones (:func:`mimicbench.baselines.mmdmc.pipeline.mesh_weights`), so a garment hanging
 from two body bones blends between them instead of tearing.
 
 Measurements behind these choices: docs/notes/measurements.md.

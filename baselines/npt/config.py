@@ -5,10 +5,10 @@ every vertex, Adam lr 5e-5, batches of 8, about 500k steps; for a GPU).
 Keys: ``widths`` the pose encoder's (c1, c2, c3) (the decoder is c3 + 3 wide); ``points`` vertices drawn
 from each mesh per example (the max-pool encoder and the per-point decoder accept any count; 0: every
 vertex); ``residual`` (ours, ``cpu`` only) the decoder answers offsets from the rest points
-(:mod:`baselines.npt.model`); ``knn`` neighbours standing in for mesh edges in the edge term on a
+(:mod:`mimicbench.baselines.npt.model`); ``knn`` neighbours standing in for mesh edges in the edge term on a
 subsample; ``w_edge`` the edge term's weight (the paper's 0.0005); ``self_share`` the share of examples
 that are self-transfers of any character (ours, see training.py); ``cycle_batch`` cross-category cycle
-examples added to each step (ours, :mod:`baselines.npt.cycle`; 0 or absent: off, as in the paper and in
+examples added to each step (ours, :mod:`mimicbench.baselines.npt.cycle`; 0 or absent: off, as in the paper and in
 both presets; :data:`CYCLE` holds its keys), ``w_cycle``, ``w_cycle_edge``, ``cycle_detach``;
 ``batches_per_epoch`` steps an epoch; ``split`` the characters trained on.
 """

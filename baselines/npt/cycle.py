@@ -5,13 +5,13 @@ so the transfers the ``cct`` protocol scores are never trained. This term is the
 SFPT's cross-transfer term for them. For a character A posed and a character B at rest of
 different kinds (a humanoid-like character on exactly one side, the ``cct`` protocol's pairs,
 :func:`cross_category_pairs`), all in the centred unit-size frames of
-:mod:`baselines.npt.placement`:
+:mod:`mimicbench.baselines.npt.placement`:
 
 - forward leg ``B' = f(pose=A posed, identity=B rest)``;
 - return leg ``A'' = f(pose=B' re-centred at its box centre, identity=A rest)``, as the ``cct``
-  protocol's return leg sees the forward answer (:func:`baselines.npt.placement.centred`);
+  protocol's return leg sees the forward answer (:func:`mimicbench.baselines.npt.placement.centred`);
 - ``cycle``: NPT's per-coordinate MSE of A'' against A posed;
-- ``cycle_edge``: NPT's edge term (:func:`baselines.npt.losses.edge_ratio`) of B' against B's rest
+- ``cycle_edge``: NPT's edge term (:func:`mimicbench.baselines.npt.losses.edge_ratio`) of B' against B's rest
   mesh over k-NN pairs of B's points, so that B' stays a near-isometric deformation of B and
   cannot degenerate into a code for A's pose (or into A itself).
 
@@ -25,11 +25,11 @@ from typing import Callable
 import numpy as np
 import torch
 
-from baselines.npt.losses import edge_ratio, vertex_mse
-from baselines.npt.placement import centred
-from baselines.pose_pairs import PosePool, knn_pairs, subsample
-from mimicbench.errors import UserError
-from schemas.character import HUMANOID_LIKE
+from mimicbench.baselines.npt.losses import edge_ratio, vertex_mse
+from mimicbench.baselines.npt.placement import centred
+from mimicbench.baselines.pose_pairs import PosePool, knn_pairs, subsample
+from mimicbench.runtime.errors import UserError
+from mimicbench.schemas.character import HUMANOID_LIKE
 
 Answer = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 """A model call: posed source (B, Ns, 3) and identity (B, Nt, 3) -> answer (B, Nt, 3)."""

@@ -1,8 +1,8 @@
 """``npt`` behind the adapter API (and the base of ``cgt``).
 
 For each request the posed source and the target rest mesh are centred and scaled as
-:mod:`baselines.npt.placement` says (NPT ignores global translation, as its evaluation does), the
-network answers the posed target in that frame, and :func:`baselines.npt.placement.place` puts it
+:mod:`mimicbench.baselines.npt.placement` says (NPT ignores global translation, as its evaluation does), the
+network answers the posed target in that frame, and :func:`mimicbench.baselines.npt.placement.place` puts it
 back where the target stands, moved as the source moved. Every target vertex is answered; the pose
 encoder sees as many of the posed source's vertices as training drew (the checkpoint config's
 ``points``, a fixed draw: a max over 7,000 vertices is not the max over 512 that training saw;
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from baselines.checkpointed import CheckpointedMethod
-from benchmark.method import MethodMetadata
+from mimicbench.baselines.checkpointed import CheckpointedMethod
+from mimicbench.benchmark.method import MethodMetadata
 
 CITATION = ("Jiashun Wang, Chao Wen, Yanwei Fu, Haitao Lin, Tianyun Zou, Xiangyang Xue, Yinda Zhang. Neural Pose "
             "Transfer by Spatially Adaptive Instance Normalization. CVPR 2020 (re-implemented from the paper)")
@@ -42,8 +42,8 @@ class Npt(CheckpointedMethod):
 
     def pose_rows(self, count: int):
         """(P,) sorted rows of a posed source of ``count`` vertices the pose encoder sees: a draw of the
-        config's ``points`` (generator seed 0, as :func:`baselines.pose_pairs.subsample` draws in training)."""
-        from baselines.pose_pairs import subsample
+        config's ``points`` (generator seed 0, as :func:`mimicbench.baselines.pose_pairs.subsample` draws in training)."""
+        from mimicbench.baselines.pose_pairs import subsample
 
         return subsample(count, int(self.config.get("points", 0)), np.random.default_rng(0))
 
@@ -55,7 +55,7 @@ class Npt(CheckpointedMethod):
     def transfer(self, requests):
         import torch
 
-        from baselines.npt.placement import centred, place
+        from mimicbench.baselines.npt.placement import centred, place
 
         if self.module is None:
             self.setup(self.device)

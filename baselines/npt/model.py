@@ -7,21 +7,21 @@ from the paper and the authors' public code (read, not copied).
 - Decoder (``b = c3 + 3`` wide, 1027 in the paper): the code repeated at every target point and
   concatenated with the point's identity coordinates; then
   ``conv b->b, block 1 (b), conv b->b/2, block 2 (b/2), conv b/2->b/4, block 3 (b/4), conv -> xyz``,
-  squashed by 2 tanh. Each block is a :class:`baselines.npt.spadain.SPAdaINResBlock` conditioned on
+  squashed by 2 tanh. Each block is a :class:`mimicbench.baselines.npt.spadain.SPAdaINResBlock` conditioned on
   the identity coordinates; **block 1 has no instance normalisation** (it would subtract the code,
   a per-channel constant over the points), blocks 2 and 3 normalise.
 
 ``residual`` (config key, ours, in the ``cpu`` preset only): the answer is the identity point plus the
 2 tanh output, whose last conv starts at zero, so an untrained network answers the rest pose and
 CPU-scale training spends its steps on the pose. Inputs and outputs are in the centred unit-size
-frames of :mod:`baselines.npt.placement`.
+frames of :mod:`mimicbench.baselines.npt.placement`.
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from baselines.npt.spadain import SPAdaINResBlock
+from mimicbench.baselines.npt.spadain import SPAdaINResBlock
 
 
 class PointFeatures(nn.Module):

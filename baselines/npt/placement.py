@@ -4,13 +4,13 @@ Neural Pose Transfer ignores global translation (its maintainers say so; its eva
 both meshes). We do the same and then restore the placement:
 
 - the posed source is centred at its own bounding-box centre and divided by its rest mesh's size
-  (the largest side of its box, :func:`benchmark.normalisation.largest_extent`);
+  (the largest side of its box, :func:`mimicbench.benchmark.normalisation.largest_extent`);
 - the target rest mesh is centred at its bounding-box centre and divided by its size;
 - the network answers the posed target in that centred unit-size frame (training targets are
   the ground truth centred at its own box centre);
 - :func:`place` multiplies by the target's size and adds the target's rest centre plus the
   source's displacement (posed box centre minus rest box centre) scaled by
-  :func:`benchmark.normalisation.size_ratio`, the h2h ground truth's rule for root motion.
+  :func:`mimicbench.benchmark.normalisation.size_ratio`, the h2h ground truth's rule for root motion.
 
 Dividing by the size is ours (NPT's SMPL meshes share one scale; zoo characters do not, and a
 snake's height is a small part of its length, so its size, not its height, keeps it in NPT's
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from benchmark.normalisation import largest_extent, size_ratio
+from mimicbench.benchmark.normalisation import largest_extent, size_ratio
 
 
 def box_centre(vertices: np.ndarray) -> np.ndarray:

@@ -1,26 +1,26 @@
 """NPT's training stage for the shared trainer (``mimicbench train npt DATASET --out RUN``).
 
 One stage, ``npt``: examples are same-skeleton pairs of the dataset
-(:class:`baselines.pose_pairs.PosePool`: the source posed by a frame of its clips, the target
+(:class:`mimicbench.baselines.pose_pairs.PosePool`: the source posed by a frame of its clips, the target
 posed by the h2h ground truth of that pose), plus a share ``self_share`` of self-transfers of any
 character of the dataset, of every category (ours: the paper trains on SMPL pairs; a zoo's
 same-skeleton pairs are all humanoids, and a self-transfer is supervised too); both
-meshes are seen as :mod:`baselines.npt.placement` centres them, on ``points`` vertices drawn per
-mesh. The loss is :func:`baselines.npt.losses.npt_loss`; with ``cycle_batch`` > 0 (ours, off in
+meshes are seen as :mod:`mimicbench.baselines.npt.placement` centres them, on ``points`` vertices drawn per
+mesh. The loss is :func:`mimicbench.baselines.npt.losses.npt_loss`; with ``cycle_batch`` > 0 (ours, off in
 the presets) each step also draws that many cross-category cycle examples, whose terms
-:func:`baselines.npt.cycle.add_cycle` adds. CGT trains on the very same batches
+:func:`mimicbench.baselines.npt.cycle.add_cycle` adds. CGT trains on the very same batches
 (:func:`pair_batches`, :func:`loss_pairs`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from baselines.npt.config import CONFIGS
-from baselines.npt.cycle import add_cycle, cross_category_pairs, cycle_batch
-from baselines.npt.losses import npt_loss
-from baselines.npt.model import NeuralPoseTransfer
-from baselines.npt.placement import centred
-from baselines.pose_pairs import PosePool, knn_pairs, subsample
+from mimicbench.baselines.npt.config import CONFIGS
+from mimicbench.baselines.npt.cycle import add_cycle, cross_category_pairs, cycle_batch
+from mimicbench.baselines.npt.losses import npt_loss
+from mimicbench.baselines.npt.model import NeuralPoseTransfer
+from mimicbench.baselines.npt.placement import centred
+from mimicbench.baselines.pose_pairs import PosePool, knn_pairs, subsample
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage

@@ -9,8 +9,8 @@ import zlib
 
 import numpy as np
 
-from mimicbench.kinematics import forward_kinematics, local_from_global
-from mimicbench.quaternion import quat_from_axis_angle, quat_identity, quat_multiply, quat_slerp
+from mimicbench.geometry.kinematics import forward_kinematics, local_from_global
+from mimicbench.geometry.quaternion import quat_from_axis_angle, quat_identity, quat_multiply, quat_slerp
 
 LIMB_CLASSES = ("left/forelimb", "right/forelimb", "left/hindlimb", "right/hindlimb")
 """The classes :func:`frozen_part` picks from, in order."""

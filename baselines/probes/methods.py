@@ -1,13 +1,13 @@
-"""The registered validity probes (see :mod:`baselines.probes`).
+"""The registered validity probes (see :mod:`mimicbench.baselines.probes`).
 
 Role probes (read the hidden roles; the uncorrupted one is ``probe_role_transfer``,
-:mod:`baselines.probes.role_transfer`):
+:mod:`mimicbench.baselines.probes.role_transfer`):
 
 | name | corruption |
 |---|---|
 | ``probe_mirror`` | left and right exchanged, the driving part's motion reflected |
 | ``probe_fore_hind`` | fore limbs driven by the hind limbs and the other way round |
-| ``probe_frozen_limb`` | one limb (:func:`~baselines.probes.corruptions.frozen_part`) held at rest relative to its parent |
+| ``probe_frozen_limb`` | one limb (:func:`~mimicbench.baselines.probes.corruptions.frozen_part`) held at rest relative to its parent |
 | ``probe_noise15`` | every bone turned by 15 degrees about a random axis |
 | ``probe_half_angle`` | every bone's rotation relative to its parent halved |
 | ``probe_rest`` | the target at rest |
@@ -24,15 +24,15 @@ import abc
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from baselines.nearest_joint import NearestJoint
-from baselines.posing import pose_target
-from baselines.probes import corruptions
-from baselines.probes.role_transfer import hidden_roles, role_transfer, role_transfer_rotations
-from benchmark.method import MethodMetadata, PoseTransferMethod
-from benchmark.protocols.base import HIDDEN_ROLES_TAG
-from schemas.character import HUMANOID_LIKE
-from mimicbench.hungarian import hungarian_match
-from mimicbench.mesh import normalize_unit_height
+from mimicbench.baselines.nearest_joint import NearestJoint
+from mimicbench.baselines.posing import pose_target
+from mimicbench.baselines.probes import corruptions
+from mimicbench.baselines.probes.role_transfer import hidden_roles, role_transfer, role_transfer_rotations
+from mimicbench.benchmark.method import MethodMetadata, PoseTransferMethod
+from mimicbench.benchmark.protocols.base import HIDDEN_ROLES_TAG
+from mimicbench.schemas.character import HUMANOID_LIKE
+from mimicbench.geometry.hungarian import hungarian_match
+from mimicbench.geometry.mesh import normalize_unit_height
 
 PROBE_TAGS = ("probe", HIDDEN_ROLES_TAG)
 

@@ -1,13 +1,13 @@
 """The probes' uncorrupted transfer: a pose carried over through the hidden roles.
 
 Not a method to compete with (it reads ground truth that methods never receive): the right answer
-the validity probes corrupt in known ways (:mod:`baselines.probes.corruptions`).
+the validity probes corrupt in known ways (:mod:`mimicbench.baselines.probes.corruptions`).
 
-Each target bone is driven by its role match in the source (:func:`benchmark.role_match.match_by_role`,
+Each target bone is driven by its role match in the source (:func:`mimicbench.benchmark.role_match.match_by_role`,
 through an optional class map, e.g. left <-> right). A torso bone (``root``, ``spine``) takes its
 match's global rotation. A part bone (an arm, a wing, a tail) takes its match's rotation relative
 to the source's body, carried into the target's rest by the shortest rotation ``A`` from the
-source part's rest direction to the target part's (:mod:`benchmark.semantic`):
+source part's rest direction to the target part's (:mod:`mimicbench.benchmark.semantic`):
 ``R_t = R_body A (R_body^T R_s) A^T``, so a humanoid's arm raised forward raises a dog's foreleg
 forward. Unmatched bones stay rigid with their parent; the root moves like the source's root,
 scaled by the size ratio; positions follow by forward kinematics and the mesh by LBS.
@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from baselines.posing import pose_target, size_ratio, source_pose
-from benchmark.role_match import bone_mass, match_by_role
-from benchmark.semantic import FRAME_CLASSES, part_motion, part_regions, rotation_matrix, shortest_rotation
-from mimicbench.quaternion import matrix_to_quat, quat_to_matrix
+from mimicbench.baselines.posing import pose_target, size_ratio, source_pose
+from mimicbench.benchmark.role_match import bone_mass, match_by_role
+from mimicbench.benchmark.semantic import FRAME_CLASSES, part_motion, part_regions, rotation_matrix, shortest_rotation
+from mimicbench.geometry.quaternion import matrix_to_quat, quat_to_matrix
 
 MIRROR = np.diag([-1.0, 1.0, 1.0])
 """Reflection across the sagittal plane (x -> -x, the dataset frame's left-right axis)."""
@@ -38,7 +38,7 @@ def role_transfer_rotations(request, class_map=None, mirror: bool = False) -> tu
     """Target global rotations (Kt, 4) and root displacement (3,) of the role transfer.
 
     Args:
-        request: a :class:`benchmark.request.TransferRequest` with ``extras["hidden_roles"]``.
+        request: a :class:`mimicbench.benchmark.request.TransferRequest` with ``extras["hidden_roles"]``.
         class_map: target class -> the source class that drives it; None keeps classes.
         mirror: carry the driving part reflected across the sagittal plane (a mirror image of
             the source's motion, as when left and right are exchanged).

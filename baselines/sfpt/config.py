@@ -11,7 +11,7 @@ character), ``trans`` (transform supervision by the target's Kabsch fit), ``cros
 character against its Kabsch-posed self, 0.3), ``skin`` (contrastive skinning, 0.03), ``aug`` (KL of the
 augmented target's weights), ``fps`` (Chamfer of handle centres to farthest-point samples), ``arap``
 (100, each of three deformed meshes); ``fps_per_handle`` samples per handle (4); ``residual`` (ours, ``cpu``
-only) the pose decoder answers corrections to the Kabsch fit (:class:`baselines.sfpt.model.PoseDecoder`).
+only) the pose decoder answers corrections to the Kabsch fit (:class:`mimicbench.baselines.sfpt.model.PoseDecoder`).
 """
 from __future__ import annotations
 

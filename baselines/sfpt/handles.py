@@ -74,7 +74,7 @@ def kabsch_transforms(rest: torch.Tensor, posed: torch.Tensor, weights: torch.Te
 def transform_matrices(transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Rotations (..., H, 3, 3) and translations (..., H, 3) of (..., H, 7) transforms (translation,
     quaternion wxyz; the quaternion is normalised)."""
-    from mimicbench.skinning_torch import quat_to_matrix_torch
+    from mimicbench.geometry.skinning_torch import quat_to_matrix_torch
 
     q = torch.nn.functional.normalize(transforms[..., 3:], dim=-1, eps=1e-12)
     return quat_to_matrix_torch(q), transforms[..., :3]

@@ -1,5 +1,5 @@
 """SFPT's training terms (the published code's eight, read to learn), on one mesh at a time in unit-height
-rest frames. Weights are the published ones (:mod:`baselines.sfpt.config`).
+rest frames. Weights are the published ones (:mod:`mimicbench.baselines.sfpt.config`).
 
 - :func:`l1`: mean absolute coordinate error (the published criterion, ``torch.nn.L1Loss``).
 - :func:`arap_edges`: mean over mesh edges of |l_pred^2 - l_rest^2| (squared lengths), the published

@@ -1,21 +1,21 @@
 """``sfpt`` behind the adapter API: Skeleton-free Pose Transfer, mesh-only at test time.
 
 For a transfer request, each mesh in its unit-height rest frame (rest box centre, rest height), with its
-vertex normals and mesh edges (:mod:`baselines.sfpt.mesh_graph`):
+vertex normals and mesh edges (:mod:`mimicbench.baselines.sfpt.mesh_graph`):
 
 1. handle weights of the source and of the target from their rest meshes
-   (:class:`baselines.sfpt.model.SkinningPredictor`);
-2. the target's shape code at rest (:class:`baselines.sfpt.model.ShapeEncoder`);
+   (:class:`mimicbench.baselines.sfpt.model.SkinningPredictor`);
+2. the target's shape code at rest (:class:`mimicbench.baselines.sfpt.model.ShapeEncoder`);
 3. the handle transforms from the source's pose code, the target's shape code and the source handles'
-   Kabsch fit (:meth:`baselines.sfpt.model.SkeletonFreePoseTransfer.predict`);
-4. the target deformed over its handles (:func:`baselines.sfpt.handles.deform`), mapped back to metres;
-5. test-time ARAP (:class:`baselines.mimicat.arap.ArapRefiner`, libigl): vertices whose largest handle
+   Kabsch fit (:meth:`mimicbench.baselines.sfpt.model.SkeletonFreePoseTransfer.predict`);
+4. the target deformed over its handles (:func:`mimicbench.baselines.sfpt.handles.deform`), mapped back to metres;
+5. test-time ARAP (:class:`mimicbench.baselines.mimicat.arap.ArapRefiner`, libigl): vertices whose largest handle
    weight is at least 0.5 stay where the handles put them, the others are re-solved as rigid as possible
    from the target's rest mesh.
 
 No rig is read. For a motion request (the ``apparel`` protocol, as MMDMC's Table 2 compares SPT there):
 each frame's body pose is the character posed by its body bones alone (every apparel bone's weight
-moved to the nearest body bone, :func:`baselines.body_only.body_weights`), transferred onto the
+moved to the nearest body bone, :func:`mimicbench.baselines.body_only.body_weights`), transferred onto the
 character's own rest mesh.
 
 ``sfpt_kabsch_only`` (:class:`SfptKabschOnly`) replaces step 3 by the Kabsch fit itself.
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from baselines.checkpointed import CheckpointedMethod
-from benchmark.method import MethodMetadata
+from mimicbench.baselines.checkpointed import CheckpointedMethod
+from mimicbench.benchmark.method import MethodMetadata
 
 CITATION = ("Zhouyingcheng Liao, Jimei Yang, Jun Saito, Gerard Pons-Moll, Yang Zhou. Skeleton-free Pose Transfer "
             "for Stylized 3D Characters. ECCV 2022 (re-implemented from the paper)")
@@ -71,8 +71,8 @@ class Sfpt(CheckpointedMethod):
         ``edges`` (E, 2), ``normals`` (N, 3), ``weights`` (N, H) and its shape ``code`` (H, code)."""
         import torch
 
-        from baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
-        from baselines.sfpt.training import unit_frame
+        from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
+        from mimicbench.baselines.sfpt.training import unit_frame
 
         if key not in self._chars:
             rest = torch.as_tensor(unit_frame(vertices, vertices), device=self.device)
@@ -90,10 +90,10 @@ class Sfpt(CheckpointedMethod):
         """(Nt, 3) float32 metres: the target rig's mesh posed like the source's posed mesh (Ns, 3)."""
         import torch
 
-        from baselines.sfpt.handles import deform, transform_matrices
-        from baselines.sfpt.mesh_graph import vertex_normals
-        from baselines.sfpt.training import unit_frame
-        from mimicbench.mesh import unit_height_frame
+        from mimicbench.baselines.sfpt.handles import deform, transform_matrices
+        from mimicbench.baselines.sfpt.mesh_graph import vertex_normals
+        from mimicbench.baselines.sfpt.training import unit_frame
+        from mimicbench.geometry.mesh import unit_height_frame
 
         s = self._character(source.vertices, source.faces, (source.character_id, len(source.vertices)))
         t = self._character(target.vertices, target.faces, (target.character_id, len(target.vertices)))
@@ -110,7 +110,7 @@ class Sfpt(CheckpointedMethod):
         return out
 
     def _refine(self, target, weights: np.ndarray, posed: np.ndarray) -> np.ndarray:
-        from baselines.mimicat.arap import ArapRefiner
+        from mimicbench.baselines.mimicat.arap import ArapRefiner
 
         if self._refiner is None:
             self._refiner = ArapRefiner()
@@ -124,9 +124,9 @@ class Sfpt(CheckpointedMethod):
 
     def transfer_motion(self, requests):
         """(F, N, 3) float32 per motion request (see the module docstring)."""
-        from baselines.body_only import body_weights
-        from mimicbench.skinning import linear_blend_skinning
-        from mimicbench.weights import SparseWeights
+        from mimicbench.baselines.body_only import body_weights
+        from mimicbench.geometry.skinning import linear_blend_skinning
+        from mimicbench.geometry.weights import SparseWeights
 
         if self.module is None:
             self.setup(self.device)

@@ -1,7 +1,7 @@
 """The Skeleton-free Pose Transfer networks (Liao et al., ECCV 2022, Sec. 3), re-implemented from the paper
 and the authors' public code (read, not copied). One mesh at a time: a mesh is vertices (N, 3) and
 per-vertex normals (N, 3) in its unit-height rest frame, and its directed edges (E, 2)
-(:func:`baselines.sfpt.mesh_graph.mesh_edges`). Widths scale with ``hidden`` (h; 64 in the paper):
+(:func:`mimicbench.baselines.sfpt.mesh_graph.mesh_edges`). Widths scale with ``hidden`` (h; 64 in the paper):
 
 - :class:`MeshEdgeConv`: EdgeConv over the mesh's edges, ``x_i' = MLP(max_j MLP([x_i, x_j - x_i]))``.
 - :class:`SkinningPredictor`: handle weights W (N, H) of a rest mesh: EdgeConvs (6 -> h -> 2h -> 4h),
@@ -15,15 +15,15 @@ per-vertex normals (N, 3) in its unit-height rest frame, and its directed edges 
 
 The pose is read from the source under the source's handle weights, the shape from the target under
 the target's, and the predicted transforms deform the target about its own handle centres
-(:func:`baselines.sfpt.handles.deform`).
+(:func:`mimicbench.baselines.sfpt.handles.deform`).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-from baselines.mmdmc.nn import mlp
-from baselines.sfpt.handles import handle_centres, kabsch_transforms
+from mimicbench.baselines.mmdmc.nn import mlp
+from mimicbench.baselines.sfpt.handles import handle_centres, kabsch_transforms
 
 
 class MeshEdgeConv(nn.Module):

@@ -2,7 +2,7 @@
 
 One stage, ``sfpt``. Each example has three characters, every vertex of each, in its own unit-height rest
 frame: a source A posed by a frame of its clips, a target B with the ground truth of that pose (a
-same-skeleton pair, share ``cross_share``, else A itself: :class:`baselines.pose_pairs.PosePool`), and a
+same-skeleton pair, share ``cross_share``, else A itself: :class:`mimicbench.baselines.pose_pairs.PosePool`), and a
 third character C of any category (another character than B, unpaired). With the model's handle weights
 W of each rest mesh:
 
@@ -11,9 +11,9 @@ W of each rest mesh:
 - ``cross``: B's ground-truth pose onto C, against C deformed by B's Kabsch fit (as ``rec``, two L1s);
 - ``cycle``: the pose of that answer on C back onto B, against B's ground truth (as ``rec``);
 - ``trans``: both predictions for B against B's own Kabsch fit (rest onto ground truth);
-- ``arap``: :func:`baselines.sfpt.losses.arap_edges` of the three deformed meshes against their rest meshes;
+- ``arap``: :func:`mimicbench.baselines.sfpt.losses.arap_edges` of the three deformed meshes against their rest meshes;
 - ``fps``: Chamfer of B's and C's handle centres to ``fps_per_handle`` x H farthest-point samples;
-- ``skin``: :func:`baselines.sfpt.losses.skinning_contrast` of B's and C's weights against their rigs';
+- ``skin``: :func:`mimicbench.baselines.sfpt.losses.skinning_contrast` of B's and C's weights against their rigs';
 - ``aug``: KL of the weights of B scaled per axis (up to ``aug_scale``) against B's plain weights.
 
 The rigs' skin weights are read in training only; the method reads none.
@@ -23,14 +23,14 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from baselines.cgt.sampling import farthest_points
-from baselines.pose_pairs import PosePool
-from baselines.sfpt.config import CONFIGS
-from baselines.sfpt.handles import deform, handle_centres, kabsch_transforms, transform_matrices
-from baselines.sfpt.losses import arap_edges, chamfer, kl, l1, skinning_contrast, transformation_loss
-from baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
-from baselines.sfpt.model import SkeletonFreePoseTransfer
-from mimicbench.mesh import unit_height_frame
+from mimicbench.baselines.cgt.sampling import farthest_points
+from mimicbench.baselines.pose_pairs import PosePool
+from mimicbench.baselines.sfpt.config import CONFIGS
+from mimicbench.baselines.sfpt.handles import deform, handle_centres, kabsch_transforms, transform_matrices
+from mimicbench.baselines.sfpt.losses import arap_edges, chamfer, kl, l1, skinning_contrast, transformation_loss
+from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
+from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer
+from mimicbench.geometry.mesh import unit_height_frame
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage

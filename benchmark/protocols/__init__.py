@@ -10,18 +10,18 @@ subclass that builds its cases, its requests and its scores (see :mod:`.base`):
 
 Protocols are listed as ``"module:Class"`` strings and imported only when asked for; a new one is
 a module plus a line in ``BUILTIN`` (or :func:`register_protocol` at run time), looked up through
-:data:`PROTOCOLS` (a :class:`mimicbench.registry.Registry`).
+:data:`PROTOCOLS` (a :class:`mimicbench.runtime.registry.Registry`).
 """
 from __future__ import annotations
 
-from benchmark.protocols.base import BenchmarkProtocol
-from mimicbench.registry import Registry
+from mimicbench.benchmark.protocols.base import BenchmarkProtocol
+from mimicbench.runtime.registry import Registry
 
 BUILTIN = {
-    "h2h": "benchmark.protocols.h2h:SameSkeleton",
-    "h2h_xskel": "benchmark.protocols.h2h_xskel:CrossSkeleton",
-    "cct": "benchmark.protocols.cct:CrossCategoryCycle",
-    "apparel": "benchmark.protocols.apparel:ApparelMotion",
+    "h2h": "mimicbench.benchmark.protocols.h2h:SameSkeleton",
+    "h2h_xskel": "mimicbench.benchmark.protocols.h2h_xskel:CrossSkeleton",
+    "cct": "mimicbench.benchmark.protocols.cct:CrossCategoryCycle",
+    "apparel": "mimicbench.benchmark.protocols.apparel:ApparelMotion",
 }
 DEFAULT_PROTOCOLS = ("h2h", "h2h_xskel", "cct")
 """What ``bench cases`` builds and ``bench run`` runs unless told otherwise."""
@@ -49,7 +49,7 @@ def answers(protocol_names, name: str) -> bool:
 
 
 def get_protocol(name: str) -> BenchmarkProtocol:
-    """A protocol instance by name; :class:`~mimicbench.registry.UnknownName` naming the known ones."""
+    """A protocol instance by name; :class:`~mimicbench.runtime.registry.UnknownName` naming the known ones."""
     proto = PROTOCOLS.get(name)()
     if proto.name != name:
         raise ValueError(f"protocol {name!r}: its class says its name is {proto.name!r}")

@@ -12,7 +12,7 @@ frames) unless the window starts more than :data:`BURN_IN` frames in, then ``BUR
 before it; B = rows(source) / K - rows(target) / K. Rows with B = 0 (the kinematic window alone,
 written before the burn-in existed; CHANGELOG.md) still evaluate.
 
-Request (:class:`benchmark.request.MotionRequest`): the character at rest with its rig, the
+Request (:class:`mimicbench.benchmark.request.MotionRequest`): the character at rest with its rig, the
 kinematic frames (B+F, K, 7) with the mask of body bones, and the fps; the apparel vertex mask is
 not given (except to oracle ablations tagged ``reads_gt_apparel_mask``, in ``extras``). The method
 returns the posed mesh of every frame of the request, (B+F, N, 3); only the last F (the window)
@@ -23,7 +23,7 @@ window (MMDMC): PMD over all vertices, PMD_a over the ground truth's apparel ver
 over the others, x100 of the target's height (``pmd``/``pmd_height``, ``pmd_apparel``,
 ``pmd_body``) and in centimetres of the character scaled to 1.70 m (``*_cm``), and ELS against the
 ground truth's edge lengths; the per-frame values are kept in the ``*_frames`` columns.
-Over the window as a whole (:mod:`benchmark.apparel_metrics`): ``accel_error``, the mean
+Over the window as a whole (:mod:`mimicbench.benchmark.apparel_metrics`): ``accel_error``, the mean
 ``|a_pred - a_gt|`` over apparel vertices and the window's F - 2 second differences at the clip's
 fps (m/s^2 at 1.70 m height), which sees apparel that shakes frame to frame where PMD_a barely
 moves, and ``penetration_share``, the percent of apparel vertices within 1 mm (at 1.70 m) of the
@@ -35,14 +35,14 @@ from typing import Sequence
 
 import numpy as np
 
-from benchmark.apparel_metrics import (accel_error, character_body_pieces, clear_at_rest, contact_reach,
+from mimicbench.benchmark.apparel_metrics import (accel_error, character_body_pieces, clear_at_rest, contact_reach,
                                        penetration_share)
-from benchmark.metrics import els, pmd
-from benchmark.normalisation import RestFrame
-from benchmark.protocols.base import BenchmarkProtocol, Call, CaseDraw, CasePool, EvalData, Outcome
-from benchmark.request import MotionRequest
-from schemas.case import CaseRecord
-from schemas.motion import SIM_SUFFIX
+from mimicbench.benchmark.metrics import els, pmd
+from mimicbench.benchmark.normalisation import RestFrame
+from mimicbench.benchmark.protocols.base import BenchmarkProtocol, Call, CaseDraw, CasePool, EvalData, Outcome
+from mimicbench.benchmark.request import MotionRequest
+from mimicbench.schemas.case import CaseRecord
+from mimicbench.schemas.motion import SIM_SUFFIX
 
 WINDOW = 16
 """Frames a case scores."""
@@ -147,7 +147,7 @@ class ApparelMotion(BenchmarkProtocol):
 
     def body_contact(self, char) -> tuple:
         """(body pieces, (A,) bool apparel vertices clear of the body at rest, reach in metres) of a
-        character (:class:`~benchmark.rigs.CharacterData`), cached per character."""
+        character (:class:`~mimicbench.benchmark.rigs.CharacterData`), cached per character."""
         cache = self.__dict__.setdefault("_contact", {})
         cid = char.rig.character_id
         if cid not in cache:

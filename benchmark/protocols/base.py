@@ -15,21 +15,21 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from benchmark.normalisation import RestFrame
-from benchmark.request import TransferRequest
-from benchmark.rigs import CharacterData
-from benchmark.semantic import character_role_classes, part_motion, part_regions, semantic_scores
-from mimicbench.skinning import linear_blend_skinning
-from schemas.case import CaseRecord
-from schemas.errors import DatasetError
-from schemas.motion import SIM_SUFFIX
-from schemas.shard_stream import checked_parquet_file, read_row_group
-from schemas.dataset import Dataset
+from mimicbench.benchmark.normalisation import RestFrame
+from mimicbench.benchmark.request import TransferRequest
+from mimicbench.benchmark.rigs import CharacterData
+from mimicbench.benchmark.semantic import character_role_classes, part_motion, part_regions, semantic_scores
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.case import CaseRecord
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.motion import SIM_SUFFIX
+from mimicbench.schemas.shard_stream import checked_parquet_file, read_row_group
+from mimicbench.schemas.dataset import Dataset
 
 
 HIDDEN_ROLES_TAG = "probe:hidden_roles"
 """A method tag that makes the protocols put the characters' hidden roles into its requests: only
-the bundled validity probes (:mod:`baselines.probes`) carry it."""
+the bundled validity probes (:mod:`mimicbench.baselines.probes`) carry it."""
 
 Call = Callable[[Sequence[TransferRequest]], list]
 """The evaluator's call site: requests in, ``[(array | None, error | None, seconds)]`` out."""
@@ -101,7 +101,7 @@ class CasePool:
     @classmethod
     def load(cls, dataset, split: str = "test") -> "CasePool":
         """The characters of ``split`` (``all`` for every split) and their motions; ``dataset`` a
-        :class:`~schemas.dataset.Dataset` or its path."""
+        :class:`~mimicbench.schemas.dataset.Dataset` or its path."""
         dataset = Dataset.of(dataset)
         chars = [c for c in dataset.records("characters") if len(c.faces) and split in ("all", c.split)]
         chars.sort(key=lambda c: c.character_id)
@@ -119,7 +119,7 @@ class CasePool:
 
     def frames_for(self, rng: np.random.Generator, character_id: str, n_poses: int) -> list[tuple]:
         """Up to ``n_poses`` (motion, frame) draws from a character's kinematic clips, never frame 0
-        (rest). A simulated clip (``<clip>@sim``, :mod:`datagen.apparel`) is left out: its body pose
+        (rest). A simulated clip (``<clip>@sim``, :mod:`mimicbench.datagen.apparel`) is left out: its body pose
         is its kinematic twin's, so drawing both would count an apparel character's poses twice."""
         choices = [(m, f) for m in self.motions.get(character_id, []) if not m.name.endswith(SIM_SUFFIX)
                    for f in range(1, m.num_frames)]
@@ -130,7 +130,7 @@ class CasePool:
 
     def cases_from(self, protocol: "BenchmarkProtocol", draws: Sequence[CaseDraw]) -> list[CaseRecord]:
         """``protocol.make_case`` of each draw, in the draws' order, with its clips' full records
-        (:class:`schemas.motion.MotionRecord`) read by streaming the motions table (see the class
+        (:class:`mimicbench.schemas.motion.MotionRecord`) read by streaming the motions table (see the class
         docstring)."""
         needed: dict[str, list[int]] = {}
         for i, d in enumerate(draws):
@@ -187,8 +187,8 @@ class EvalData:
 
     @classmethod
     def load(cls, dataset) -> "EvalData":
-        """Rigs, pairs and clip rates of ``dataset`` (a :class:`~schemas.dataset.Dataset` or its path)."""
-        from benchmark.rigs import load_characters
+        """Rigs, pairs and clip rates of ``dataset`` (a :class:`~mimicbench.schemas.dataset.Dataset` or its path)."""
+        from mimicbench.benchmark.rigs import load_characters
 
         dataset = Dataset.of(dataset)
         pairs = {}
@@ -208,7 +208,7 @@ class EvalData:
         return self.rest_frames[cid]
 
     def part_regions(self, char: CharacterData):
-        """The character's :class:`benchmark.semantic.PartRegions` from its hidden role classes,
+        """The character's :class:`mimicbench.benchmark.semantic.PartRegions` from its hidden role classes,
         cached; None for a character without role labels (it gets no semantic score)."""
         cid = char.rig.character_id
         if cid not in self.regions:
@@ -218,7 +218,7 @@ class EvalData:
 
     def semantic(self, source: CharacterData, source_posed: np.ndarray, target: CharacterData,
                  target_posed: np.ndarray) -> dict:
-        """``semantic_deg`` and ``role_classes_scored`` (:mod:`benchmark.semantic`) of a target pose
+        """``semantic_deg`` and ``role_classes_scored`` (:mod:`mimicbench.benchmark.semantic`) of a target pose
         (Nt, 3) against the source pose (Ns, 3); both None when either character has no role labels."""
         src, tgt = self.part_regions(source), self.part_regions(target)
         if src is None or tgt is None:
@@ -236,9 +236,9 @@ class EvalData:
 
     def out_of_range(self, char: CharacterData, posed: np.ndarray) -> float | None:
         """Share of the character's bones that a pose (N, 3) rotates beyond the range its own clips
-        reach (:func:`benchmark.motion_range.out_of_range_share`); None without clips to read a range
+        reach (:func:`mimicbench.benchmark.motion_range.out_of_range_share`); None without clips to read a range
         from. The ranges of every character are read once, from the dataset's motions table."""
-        from benchmark.motion_range import out_of_range_share, ranges_for_dataset
+        from mimicbench.benchmark.motion_range import out_of_range_share, ranges_for_dataset
 
         if self.ranges is None:
             self.ranges = {} if self.dataset is None else ranges_for_dataset(self.dataset, self.characters)
@@ -286,7 +286,7 @@ class BenchmarkProtocol(abc.ABC):
         name: short name, the ``protocol`` column of cases and results (``h2h``, ``cct``, ...).
         title: what it measures, in words (docs, leaderboard).
         headline: normalisation of its ``pmd`` column: ``height`` or ``extent``
-            (see :mod:`benchmark.normalisation`).
+            (see :mod:`mimicbench.benchmark.normalisation`).
     """
 
     name: str
@@ -300,7 +300,7 @@ class BenchmarkProtocol(abc.ABC):
     @abc.abstractmethod
     def make_case(self, source, target, motion, frame: int) -> CaseRecord:
         """The case for one source pose (``motion.transforms[frame]``, ``motion`` a full
-        :class:`schemas.motion.MotionRecord`, or the tuple of them a :class:`CaseDraw` names) and
+        :class:`mimicbench.schemas.motion.MotionRecord`, or the tuple of them a :class:`CaseDraw` names) and
         one target."""
 
     @abc.abstractmethod

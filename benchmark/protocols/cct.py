@@ -20,11 +20,11 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from benchmark.metrics import els
-from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome, wants_hidden_roles
-from benchmark.scoring import score_pose
-from schemas.case import CaseRecord
-from schemas.character import HUMANOID_LIKE
+from mimicbench.benchmark.metrics import els
+from mimicbench.benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome, wants_hidden_roles
+from mimicbench.benchmark.scoring import score_pose
+from mimicbench.schemas.case import CaseRecord
+from mimicbench.schemas.character import HUMANOID_LIKE
 
 
 class CrossCategoryCycle(BenchmarkProtocol):

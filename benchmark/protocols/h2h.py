@@ -27,12 +27,12 @@ from typing import Sequence
 
 import numpy as np
 
-from benchmark.normalisation import size_ratio
-from benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome, wants_hidden_roles
-from benchmark.scoring import score_pose
-from mimicbench.kinematics import array_to_transforms, forward_kinematics, local_from_global, transforms_to_array
-from mimicbench.quaternion import quat_apply, quat_conjugate
-from schemas.case import CaseRecord
+from mimicbench.benchmark.normalisation import size_ratio
+from mimicbench.benchmark.protocols.base import BenchmarkProtocol, Call, CasePool, EvalData, Outcome, wants_hidden_roles
+from mimicbench.benchmark.scoring import score_pose
+from mimicbench.geometry.kinematics import array_to_transforms, forward_kinematics, local_from_global, transforms_to_array
+from mimicbench.geometry.quaternion import quat_apply, quat_conjugate
+from mimicbench.schemas.case import CaseRecord
 
 
 def local_translations(source_transforms: np.ndarray, rest_keypoints: np.ndarray, parents: np.ndarray) -> np.ndarray:
@@ -85,7 +85,7 @@ def ground_truth_transforms(source, target, source_transforms: np.ndarray) -> np
     """Ground-truth target transforms (K, 7) for a source pose (K, 7) on a shared skeleton.
 
     Local rotations are copied bone by bone; local translations (:func:`local_translations`,
-    the roots' displacements included) are scaled by :func:`benchmark.normalisation.size_ratio`
+    the roots' displacements included) are scaled by :func:`mimicbench.benchmark.normalisation.size_ratio`
     and added to the target's own rest offsets; positions follow by forward kinematics
     (:func:`transforms_from_local`).
 

@@ -8,24 +8,24 @@ so it is not.
 
 Ground truth (:func:`cross_skeleton_ground_truth`): the source's pose carried over through the
 hidden roles, by the same rule as ``h2h``: each target bone takes the local rotation of its
-role match (:func:`benchmark.role_match.match_by_role`: same role, else same role class at the
+role match (:func:`mimicbench.benchmark.role_match.match_by_role`: same role, else same role class at the
 nearest position along the class by skin-weight mass), a bone without a match (an extra spine bone, a finger
 the source lacks, apparel) keeps its rest rotation relative to its parent, and the root's
 displacement from rest is scaled by the size ratio.
 
-Scores are ``h2h``'s, with the placement-free headline (see :mod:`benchmark.protocols.h2h`).
+Scores are ``h2h``'s, with the placement-free headline (see :mod:`mimicbench.benchmark.protocols.h2h`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from benchmark.normalisation import size_ratio
-from benchmark.protocols.base import CasePool
-from benchmark.protocols.h2h import SameSkeleton, local_translations, transforms_from_local
-from benchmark.role_match import bone_mass, match_by_role
-from benchmark.semantic import character_role_classes
-from mimicbench.kinematics import array_to_transforms, local_from_global
-from schemas.character import HUMANOID_LIKE
+from mimicbench.benchmark.normalisation import size_ratio
+from mimicbench.benchmark.protocols.base import CasePool
+from mimicbench.benchmark.protocols.h2h import SameSkeleton, local_translations, transforms_from_local
+from mimicbench.benchmark.role_match import bone_mass, match_by_role
+from mimicbench.benchmark.semantic import character_role_classes
+from mimicbench.geometry.kinematics import array_to_transforms, local_from_global
+from mimicbench.schemas.character import HUMANOID_LIKE
 
 
 def cross_skeleton_ground_truth(source, target, source_transforms: np.ndarray) -> np.ndarray:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from mimicbench.quaternion import quat_apply, quat_conjugate
+from mimicbench.geometry.quaternion import quat_apply, quat_conjugate
 
 MAX_HULL_POINTS = 96  # Bullet's convex-convex tests slow down with many hull points
 

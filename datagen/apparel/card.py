@@ -4,17 +4,17 @@ moves against the kinematic clip, how much of it enters the body, and how often 
 ``datagen apparel`` writes it into OUT/CARD.md (between :data:`BEGIN` and :data:`END`, replaced on
 a re-run) with a plot beside it, ``apparel_accel.png``: each clip's peak apparel acceleration
 against its jitter bound (the larger of the apparel's own kinematic peak and the kinematic peak of
-the body that touches it, :func:`~datagen.apparel.quality.over_jitter_bound`), with the 1x and
-:data:`~datagen.apparel.quality.JITTER_RATIO` x lines. Figures come from the clips' quality
-(:mod:`datagen.apparel.quality`): accelerations in m/s^2, penetration as the percent of apparel
+the body that touches it, :func:`~mimicbench.datagen.apparel.quality.over_jitter_bound`), with the 1x and
+:data:`~mimicbench.datagen.apparel.quality.JITTER_RATIO` x lines. Figures come from the clips' quality
+(:mod:`mimicbench.datagen.apparel.quality`): accelerations in m/s^2, penetration as the percent of apparel
 vertices inside the body that are outside it at rest (mean over frames and worst frame).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-from datagen.apparel.quality import JITTER_RATIO, over_jitter_bound
-from datagen.zoo.card import put_card_section
+from mimicbench.datagen.apparel.quality import JITTER_RATIO, over_jitter_bound
+from mimicbench.datagen.zoo.card import put_card_section
 
 BEGIN = "<!-- apparel quality -->"
 END = "<!-- /apparel quality -->"

@@ -1,13 +1,13 @@
 """The physics description of a character's apparel: chains of links joined by spherical joints.
 
 This is the stage's internal contract, independent of where the numbers come from: the zoo
-defaults (:mod:`datagen.apparel.chains` with :mod:`datagen.apparel.params`) fill it today, and a
+defaults (:mod:`mimicbench.datagen.apparel.chains` with :mod:`mimicbench.datagen.apparel.params`) fill it today, and a
 PMX file's rigid bodies and joints can fill it per character later (an MMD rigid body is a link,
 an MMD joint a :class:`JointSpec`, its collision group and mask the chain's or link's bits).
 
 Geometry is given at rest in the dataset frame: each link's head (the posed keypoint t_k in the
 simulation) and its axis; the simulation's link frames have Z along the axis (see
-:mod:`datagen.apparel.urdf`). Units: metres, kilograms, radians.
+:mod:`mimicbench.datagen.apparel.urdf`). Units: metres, kilograms, radians.
 """
 from __future__ import annotations
 
@@ -29,10 +29,10 @@ class LinkSpec:
     metres relative to ``head`` at rest: the points of the link's convex collision shape (the
     hull of the vertices the bone owns), or None for the capsule. The capsule always gives the
     link's inertia, its axial moment raised to ``axial_share`` of its transverse one
-    (:func:`datagen.apparel.urdf.capsule_inertia`; 0: the capsule's own). ``contact_frequency``
+    (:func:`mimicbench.datagen.apparel.urdf.capsule_inertia`; 0: the capsule's own). ``contact_frequency``
     rad/s: above 0 the link's contacts are a critically damped spring of that natural frequency
     on its own mass (Bullet's contact stiffness m w^2 N/m and damping 2 m w N s/m,
-    :meth:`datagen.apparel.world.ApparelWorld._set_dynamics`); 0: Bullet's rigid contact.
+    :meth:`mimicbench.datagen.apparel.world.ApparelWorld._set_dynamics`); 0: Bullet's rigid contact.
     """
 
     bone: int
@@ -56,7 +56,7 @@ class JointSpec:
     ``swing_limit`` and ``twist_limit`` (radians) bound the rotation from rest; a spring pulls
     toward rest with ``stiffness`` (0..1, the share of the angle error it takes out in a step),
     ``damping`` (0.., the share of the joint's speed) and at most ``max_torque`` N m per axis
-    (:mod:`datagen.apparel.springs`).
+    (:mod:`mimicbench.datagen.apparel.springs`).
     """
 
     swing_limit: float

@@ -7,16 +7,16 @@ distance of its driven vertices to that segment, which gives the link's inertia;
 collides as the convex hull of the vertices the bone owns (a skirt strip is flat and wide: a
 capsule round it is far thicker than the strip and reaches into the hips and thighs), or as the
 capsule where those vertices span no volume. Joint and link physics come from the chain's kind
-(:mod:`datagen.apparel.params`).
+(:mod:`mimicbench.datagen.apparel.params`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from datagen.apparel.body_shapes import hull_points
-from datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
-from datagen.apparel.params import ApparelParams
-from datagen.apparel.selection import bone_kind
+from mimicbench.datagen.apparel.body_shapes import hull_points
+from mimicbench.datagen.apparel.chain_spec import ChainSpec, JointSpec, LinkSpec
+from mimicbench.datagen.apparel.params import ApparelParams
+from mimicbench.datagen.apparel.selection import bone_kind
 
 MAX_LINK_HULL_POINTS = 48  # a link's collision hull: fewer points than a body piece's, many more links
 

@@ -3,7 +3,7 @@
 A clip whose physics went wrong (an absurd ``link_mass`` of 1000 stretched skirts 2.9x and moved
 them more than the character's height while the stage reported nothing) is not stored: the
 stage fails it with a status row naming the bound it broke. The bounds, on the clip's quality
-(:mod:`datagen.apparel.quality`):
+(:mod:`mimicbench.datagen.apparel.quality`):
 
 - ``max_edge_stretch`` (largest ``|l / l_rest - 1|`` over apparel mesh edges and frames) at most
   :data:`MAX_EDGE_STRETCH`: no apparel edge longer than twice its rest length (or collapsed). The
@@ -35,7 +35,7 @@ def check_clip_bounds(transforms: np.ndarray, quality: dict) -> None:
 
     Args:
         transforms: (F, K, 7) the clip's stored transforms (quaternion w, x, y, z and translation, metres).
-        quality: the clip's quality (:func:`datagen.apparel.quality.clip_quality` and the simulation's counts).
+        quality: the clip's quality (:func:`mimicbench.datagen.apparel.quality.clip_quality` and the simulation's counts).
 
     Raises:
         ClipOutOfBounds: naming the bound, its value and the clip's value.

@@ -5,8 +5,8 @@ import argparse
 import dataclasses
 
 from mimicbench.engines import add_engine_arguments
-from mimicbench.summary import StageSummary
-from mimicbench.argtypes import float_in, nonnegative_int, positive_int
+from mimicbench.runtime.summary import StageSummary
+from mimicbench.runtime.argtypes import float_in, nonnegative_int, positive_int
 
 MIN_PHYSICS_FPS = 30.0
 DEFAULT_MAX_FAILED = 0.05  # share of clips that may fail (status rows) before the stage exits 1
@@ -72,10 +72,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from datagen.apparel.params import load_params
+    from mimicbench.datagen.apparel.params import load_params
     from mimicbench.engines import engine_from_args
-    from datagen.apparel.stage import simulate_dataset
-    from datagen.apparel.quality import JITTER_RATIO
+    from mimicbench.datagen.apparel.stage import simulate_dataset
+    from mimicbench.datagen.apparel.quality import JITTER_RATIO
 
     params = load_params(args.params)
     if args.gravity is not None:

@@ -1,8 +1,8 @@
 """The pybullet world of a character's own rigid bodies and joints (an MMD file), built from the
-plan of :mod:`datagen.apparel.file_plan` and driven by the clip loop of :mod:`datagen.apparel.simulate`.
+plan of :mod:`mimicbench.datagen.apparel.file_plan` and driven by the clip loop of :mod:`mimicbench.datagen.apparel.simulate`.
 
 Time: fixed steps of ``1 / (clip fps * substeps)``, the substeps a frame from
-:attr:`~datagen.apparel.params.SimParams.file_step_rate`; gravity 9.8 m/s^2 along -Y in metres
+:attr:`~mimicbench.datagen.apparel.params.SimParams.file_step_rate`; gravity 9.8 m/s^2 along -Y in metres
 (MMD players use 9.8 x 10 units/s^2, which is 7.84 m/s^2 at 0.08 m per unit). The joints' error
 reduction, the solver's iterations and sleeping are the players' (``SimParams.file_*``), and a clip
 starts with the players' reset and warm-up (:meth:`FileWorld.reset`).
@@ -15,16 +15,16 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from datagen.apparel.file_plan import (CAPSULE_Z_TO_Y, ChainBuild, ChainPlan, bones_from_bodies, build_chain,
+from mimicbench.datagen.apparel.file_plan import (CAPSULE_Z_TO_Y, ChainBuild, ChainPlan, bones_from_bodies, build_chain,
                                        collision_filter, plan_scene, rotation_xyzw, wxyz_rotation)
-from datagen.apparel.body_shapes import body_pieces
-from datagen.apparel.params import SimParams
-from datagen.apparel.selection import dominant_bone
-from datagen.apparel.setup import CharacterPhysics, simulated_record, substeps_for
-from datagen.apparel.simulate import simulate_clip
-from mimicbench.quaternion import quat_apply, quat_multiply
-from schemas.joint import JointRecord
-from schemas.rigid_body import RigidBodyRecord
+from mimicbench.datagen.apparel.body_shapes import body_pieces
+from mimicbench.datagen.apparel.params import SimParams
+from mimicbench.datagen.apparel.selection import dominant_bone
+from mimicbench.datagen.apparel.setup import CharacterPhysics, simulated_record, substeps_for
+from mimicbench.datagen.apparel.simulate import simulate_clip
+from mimicbench.geometry.quaternion import quat_apply, quat_multiply
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
 
 FILE_GRAVITY = 9.8  # m/s^2
 FILE_PHYSICS_VERSION = "3"
@@ -44,8 +44,8 @@ def _shape(pb, body: RigidBodyRecord, cid: int) -> int:
 
 
 class FileWorld:
-    """One DIRECT pybullet client holding a character's file physics (:mod:`datagen.apparel.file_plan`),
-    a :class:`~datagen.apparel.simulate.PhysicsWorld`.
+    """One DIRECT pybullet client holding a character's file physics (:mod:`mimicbench.datagen.apparel.file_plan`),
+    a :class:`~mimicbench.datagen.apparel.simulate.PhysicsWorld`.
 
     Args:
         bodies, joints: the character's records (dataset frame, rest pose).
@@ -57,7 +57,7 @@ class FileWorld:
         contact_frequency: rad/s; above 0 every dynamic body touches others through a critically
             damped contact spring of this frequency (stiffness m w^2, damping 2 m w, m its mass: it
             sinks g / w^2 under its own weight) instead of Bullet's rigid contacts
-            (:attr:`~datagen.apparel.params.SimParams.file_contact_frequency`).
+            (:attr:`~mimicbench.datagen.apparel.params.SimParams.file_contact_frequency`).
         erp: Bullet's non-contact error reduction (0..1, the share of a joint's error removed each
             step); None keeps Bullet's default (0.2).
         sleeping: whether Bullet may deactivate chains that stay still (players never let it).
@@ -262,7 +262,7 @@ class FileWorld:
 
     def clip_out(self, transforms: np.ndarray, states: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         """(F, K, 7) float32: ``transforms`` with its apparel bones from the bodies of :meth:`read`'s
-        ``states`` (one a frame; :func:`~datagen.apparel.file_plan.bones_from_bodies`)."""
+        ``states`` (one a frame; :func:`~mimicbench.datagen.apparel.file_plan.bones_from_bodies`)."""
         out = np.array(transforms, np.float32, copy=True)
         clip, order = np.asarray(transforms, np.float64), list(self.link_of)  # the bodies in read order
         for f, (positions, rotations) in enumerate(states):
@@ -302,11 +302,11 @@ class FileWorld:
 def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[JointRecord], motion,
                          apparel_bones: np.ndarray, apparel_vertices: np.ndarray, physics_fps: float, relax: int,
                          sim: SimParams) -> tuple[object, dict]:
-    """The simulated clip of ``motion`` (a :class:`~schemas.motion.MotionRecord`) with the
+    """The simulated clip of ``motion`` (a :class:`~mimicbench.schemas.motion.MotionRecord`) with the
     character's own bodies and joints, as a new motion ``<clip>@sim``, and its quality
-    (:mod:`datagen.apparel.quality`, plus ``physics: "file"`` and the scene's counts).
+    (:mod:`mimicbench.datagen.apparel.quality`, plus ``physics: "file"`` and the scene's counts).
 
-    ``sim``: :class:`~datagen.apparel.params.SimParams` (the ``file_*`` settings, speed bound,
+    ``sim``: :class:`~mimicbench.datagen.apparel.params.SimParams` (the ``file_*`` settings, speed bound,
     re-settles; gravity is :data:`FILE_GRAVITY`). ``physics_fps`` (the stage's ``--fps``) is not
     used: the step rate is ``sim.file_step_rate``.
     """

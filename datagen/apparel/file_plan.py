@@ -1,6 +1,6 @@
 """The plan of the Bullet scene of a character's own rigid bodies and joints (tables ``rigid_bodies``
 and ``joints``, from an MMD file), instead of the zoo's chain defaults: pure arithmetic, no pybullet
-(the world that builds and steps it is :mod:`datagen.apparel.file_physics`).
+(the world that builds and steps it is :mod:`mimicbench.datagen.apparel.file_physics`).
 
 - **Static** bodies (mode ``static``) are mass-0 bodies with the file's shape (sphere, box,
   capsule along local Y), size, rest position and rotation, moved every substep with their bone
@@ -66,9 +66,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mimicbench.quaternion import quat_conjugate, quat_multiply
-from schemas.joint import JointRecord
-from schemas.rigid_body import RigidBodyRecord
+from mimicbench.geometry.quaternion import quat_conjugate, quat_multiply
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
 
 LOCKED = 1e-4  # a range narrower than this (metres or radians) is locked
 FREE_HALF_WIDTH = 3.1  # radians: the cone half-width of a free axis

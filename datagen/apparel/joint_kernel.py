@@ -10,7 +10,7 @@ BLAS or LAPACK, no fast-math and no threads: the bytes do not depend on the mach
 
 Shapes: J joints, each 3 axes (3J rows); B trees of links, each at most n rows, their mass
 matrices at the present pose zero-padded in one (B, n, n) array, refilled every step
-(:class:`datagen.apparel.springs.Springs`).
+(:class:`mimicbench.datagen.apparel.springs.Springs`).
 """
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from schemas.errors import UserError
+from mimicbench.schemas.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -28,7 +28,7 @@ class ChainParams:
     """Physics of the chains of one apparel kind.
 
     link_mass: kg per link. stiffness: the joint spring's pull toward the rest pose (0..1, the
-    share of the angle error it takes out in one step; :mod:`datagen.apparel.springs`). damping:
+    share of the angle error it takes out in one step; :mod:`mimicbench.datagen.apparel.springs`). damping:
     the spring's damping (the share of the joint's speed it takes out in one step). strength:
     the spring's torque limit as a multiple of the gravity torque of the links below the joint
     held horizontally (>1 holds the chain up against gravity). linear_damping,
@@ -37,12 +37,12 @@ class ChainParams:
     from the bone (the capsule gives the link's inertia; it collides only where the link's
     vertices span no volume, else the link collides as their convex hull). axial_inertia: a
     link's moment of inertia about its bone as a share of the one across it (at least the
-    capsule's own m r^2 / 2; 0 keeps the capsule's, :func:`datagen.apparel.urdf.capsule_inertia`).
+    capsule's own m r^2 / 2; 0 keeps the capsule's, :func:`mimicbench.datagen.apparel.urdf.capsule_inertia`).
     friction: contact friction. collide_body: links
     collide with the body pieces; collide_chains: links collide with other chains that also ask
     for it. root_contact_frequency: rad/s, above 0 a root link's contacts are a critically damped
     spring of that natural frequency on the link's mass instead of Bullet's rigid contact
-    (:class:`~datagen.apparel.chain_spec.LinkSpec` ``contact_frequency``): a skirt strip's root
+    (:class:`~mimicbench.datagen.apparel.chain_spec.LinkSpec` ``contact_frequency``): a skirt strip's root
     hangs at the hip where a thigh, placed anew every step, starts each step centimetres inside
     it, and a rigid contact throws the strip out within one step. contact_frequency: rad/s, the same
     contact spring on every link but the root (0: Bullet's rigid contact): a hair strand lying in
@@ -103,14 +103,14 @@ class SimParams:
     mass carried there by constraints, so contacts see a limb's speed (slower; docs/notes/apparel-simulation.md).
     ``piece_velocity``: with ``piece_mass`` 0, each piece placed at its bone's pose every step is also
     given the speed of that motion (linear and angular, from the step before; a body of
-    :data:`datagen.apparel.world.MOVING_PIECE_MASS` kg), so Bullet's contacts see the limb's speed;
+    :data:`mimicbench.datagen.apparel.world.MOVING_PIECE_MASS` kg), so Bullet's contacts see the limb's speed;
     False: static pieces, which contacts take as standing still: a contact spring's damping then
     pulls a link toward the world's rest, not the limb's, and an arm sweeping round in a spin strikes
     the cape it carries.
     ``max_resettles`` (an integer >= 0): frames of a clip at which chains that escaped the speed
     bound (or went NaN) may be put back at rest on their anchors before the clip fails
-    (:mod:`datagen.apparel.simulate`); 0 fails the clip at its first escape.
-    The world of a file's own bodies (an MMD model, :mod:`datagen.apparel.file_physics`) takes the
+    (:mod:`mimicbench.datagen.apparel.simulate`); 0 fails the clip at its first escape.
+    The world of a file's own bodies (an MMD model, :mod:`mimicbench.datagen.apparel.file_physics`) takes the
     settings MMD's players make explicit, each measured on Gene's motion capture
     (``docs/physics-mmd.md``): ``file_step_rate`` (Hz, > 0): physics steps a second, rounded up to a
     whole number of steps a clip frame (Saba and babylon-mmd step at 120 Hz, three.js at 65 Hz; the
@@ -122,7 +122,7 @@ class SimParams:
     reset does, every chain placed rigidly with its body at the clip's first pose where it is, its
     joints at rest, stepped once and every velocity zeroed, then held at that pose for the
     relaxation frames (three.js's warm-up); False blends the body from the rest pose at the origin
-    into the first pose over the relaxation frames (:mod:`datagen.apparel.relax`), which drags a
+    into the first pose over the relaxation frames (:mod:`mimicbench.datagen.apparel.relax`), which drags a
     clip that starts far from the origin. ``file_contact_frequency`` (rad/s, >= 0): 0 keeps Bullet's
     rigid contacts, as the players do; above 0 each dynamic body touches others through a
     critically damped contact spring of that frequency (it sinks g / w^2 under its own weight,

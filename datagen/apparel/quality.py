@@ -4,7 +4,7 @@ All measures are over the apparel vertices (the character's apparel vertex mask)
 posed by linear blend skinning with the stored transforms:
 
 - ``inside_pct``: share of apparel vertices inside the body (inside any body piece of
-  :mod:`datagen.apparel.body_shapes`), mean over frames, percent; ``inside_rest_pct`` the same in
+  :mod:`mimicbench.datagen.apparel.body_shapes`), mean over frames, percent; ``inside_rest_pct`` the same in
   the rest pose; ``new_inside_pct`` (mean) and ``new_inside_max_pct`` (worst frame) count only
   vertices that are outside the body at rest (authored overlaps such as hair roots in the scalp
   are not penetration).
@@ -28,20 +28,20 @@ posed by linear blend skinning with the stored transforms:
 - ``secondary_motion_pct`` (mean over frames) and ``secondary_motion_max_pct`` (worst frame):
   mean distance of apparel vertices from their kinematic positions, percent of height.
 
-Beside these, :func:`datagen.apparel.setup.simulated_record` records the simulation's counts and
+Beside these, :func:`mimicbench.datagen.apparel.setup.simulated_record` records the simulation's counts and
 ``resettles`` (frames at which chains that escaped the speed bound were put back at rest on
-their anchors, :mod:`datagen.apparel.simulate`) and ``resettled_frames`` (those frames' clip
+their anchors, :mod:`mimicbench.datagen.apparel.simulate`) and ``resettled_frames`` (those frames' clip
 indices; relaxation frames negative, -1 the last).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from datagen.apparel.body_shapes import BodyPiece, points_inside
-from datagen.apparel.selection import dominant_bone
-from mimicbench.kinematics import rest_transforms
-from mimicbench.mesh import edge_lengths, unique_edges
-from mimicbench.skinning import linear_blend_skinning
+from mimicbench.datagen.apparel.body_shapes import BodyPiece, points_inside
+from mimicbench.datagen.apparel.selection import dominant_bone
+from mimicbench.geometry.kinematics import rest_transforms
+from mimicbench.geometry.mesh import edge_lengths, unique_edges
+from mimicbench.geometry.skinning import linear_blend_skinning
 
 
 TOUCH_SHARE = 0.02  # an apparel vertex this close to a body piece (share of height) touches it

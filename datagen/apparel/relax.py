@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.kinematics import rest_transforms
-from mimicbench.quaternion import quat_normalize, quat_slerp
+from mimicbench.geometry.kinematics import rest_transforms
+from mimicbench.geometry.quaternion import quat_normalize, quat_slerp
 
 
 def blend_poses(a: np.ndarray, b: np.ndarray, s) -> np.ndarray:

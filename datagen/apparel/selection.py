@@ -11,7 +11,7 @@ import fnmatch
 
 import numpy as np
 
-from schemas.weights import as_dense
+from mimicbench.schemas.weights import as_dense
 
 KNOWN_KINDS = ("skirt", "hair", "ponytail", "cape", "coat_tail", "tail", "sleeve", "ribbon", "chain")
 
@@ -26,7 +26,7 @@ def apparel_vertex_mask(weights, bone_mask: np.ndarray) -> np.ndarray:
     """(N,) bool: vertices whose skin weight on apparel bones exceeds one half.
 
     Args:
-        weights: :class:`~schemas.weights.SparseWeights` or dense (N, K).
+        weights: :class:`~mimicbench.schemas.weights.SparseWeights` or dense (N, K).
         bone_mask: (K,) bool apparel bones.
     """
     dense = as_dense(weights, len(bone_mask))

@@ -6,16 +6,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datagen.apparel.body_shapes import BodyPiece, body_pieces
-from datagen.apparel.chain_spec import ChainSpec
-from datagen.apparel.chains import build_chains
-from datagen.apparel.params import ApparelParams
-from datagen.apparel.quality import clip_quality
-from datagen.apparel.selection import dominant_bone
-from datagen.apparel.simulate import SimulatedClip, simulate_clip
-from datagen.apparel.world import ApparelWorld
-from schemas.character import CharacterRecord
-from schemas.motion import SIM_SUFFIX, MotionRecord
+from mimicbench.datagen.apparel.body_shapes import BodyPiece, body_pieces
+from mimicbench.datagen.apparel.chain_spec import ChainSpec
+from mimicbench.datagen.apparel.chains import build_chains
+from mimicbench.datagen.apparel.params import ApparelParams
+from mimicbench.datagen.apparel.quality import clip_quality
+from mimicbench.datagen.apparel.selection import dominant_bone
+from mimicbench.datagen.apparel.simulate import SimulatedClip, simulate_clip
+from mimicbench.datagen.apparel.world import ApparelWorld
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.motion import SIM_SUFFIX, MotionRecord
 
 SIM_VERSION = "15"  # recorded in each simulated clip; CHANGELOG.md says what each version changed
 
@@ -56,10 +56,10 @@ def simulate_motion(record: CharacterRecord, physics: CharacterPhysics, motion: 
     """The simulated clip of ``motion`` as a new motion ``<clip>@sim``, and its quality.
 
     ``world``: a world of ``physics`` with step :func:`physics_step`, as built or reset
-    (:mod:`datagen.apparel.world_cache`); None builds one for this clip.
+    (:mod:`mimicbench.datagen.apparel.world_cache`); None builds one for this clip.
 
     Raises:
-        datagen.apparel.simulate.SimulationExploded: the simulation blew up (past
+        mimicbench.datagen.apparel.simulate.SimulationExploded: the simulation blew up (past
             ``params.simulation.max_resettles`` re-settles).
     """
     steps, limit = substeps_for(physics_fps, motion.fps), params.simulation.max_resettles
@@ -77,7 +77,7 @@ def simulate_motion(record: CharacterRecord, physics: CharacterPhysics, motion: 
 def simulated_record(record: CharacterRecord, physics: CharacterPhysics, motion: MotionRecord, clip: SimulatedClip,
                      source: str, counts: dict) -> tuple[MotionRecord, dict]:
     """``clip`` (its transforms (F, K, 7)), the clip of ``motion`` from the physics ``source``, as the
-    motion ``<clip>@sim`` and its quality (:func:`~datagen.apparel.quality.clip_quality`, then
+    motion ``<clip>@sim`` and its quality (:func:`~mimicbench.datagen.apparel.quality.clip_quality`, then
     ``counts``, then ``resettles`` and ``resettled_frames``)."""
     height = float(record.height or np.ptp(np.asarray(record.vertices)[:, 1]))
     simulated = clip.transforms

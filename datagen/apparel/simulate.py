@@ -1,11 +1,11 @@
 """Simulate one clip through a physics world: the body follows the clip, apparel comes from the physics.
 
 One loop for every world (:class:`PhysicsWorld`: the zoo's kinematic chains,
-:class:`datagen.apparel.world.ApparelWorld`, and an MMD file's own bodies,
-:class:`datagen.apparel.file_physics.FileWorld`). Each clip frame is split into ``substeps``
+:class:`mimicbench.datagen.apparel.world.ApparelWorld`, and an MMD file's own bodies,
+:class:`mimicbench.datagen.apparel.file_physics.FileWorld`). Each clip frame is split into ``substeps``
 physics steps; within a frame the body pose is interpolated (slerp, lerp) from the previous
 frame. The relaxation frames run first and are dropped: either the body blends from the rest
-pose into the clip's first pose (:mod:`datagen.apparel.relax`), or, with ``warmup``, the world is
+pose into the clip's first pose (:mod:`mimicbench.datagen.apparel.relax`), or, with ``warmup``, the world is
 reset at the clip's first pose (its chains placed there, stepped once, every velocity zeroed: MMD
 players' reset) and the body holds that pose for the relaxation frames (their warm-up). After each
 frame the world's simulated parts are read and checked; the world turns them into bones at the end.
@@ -24,9 +24,9 @@ from typing import Iterator, Protocol
 
 import numpy as np
 
-from datagen.apparel.params import SimParams
-from datagen.apparel.relax import relax_frames, substep_poses
-from mimicbench.kinematics import rest_transforms
+from mimicbench.datagen.apparel.params import SimParams
+from mimicbench.datagen.apparel.relax import relax_frames, substep_poses
+from mimicbench.geometry.kinematics import rest_transforms
 
 CHUNK_FRAMES = 64  # frames whose substep poses are computed at once (memory: frames x substeps x bones)
 

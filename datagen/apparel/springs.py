@@ -1,5 +1,5 @@
 """The chains' joint springs: torques toward the rest pose, for all joints at once (compiled,
-:func:`datagen.apparel.joint_kernel.spring_torques`).
+:func:`mimicbench.datagen.apparel.joint_kernel.spring_torques`).
 
 Each spherical joint is pulled toward rest by a spring with damping. Stiff springs on light links
 blow up when their torque is taken from the present state alone (explicit: the chain's fast
@@ -22,24 +22,24 @@ with ``max_torque`` 0 the joint is free. The gains follow a joint's
 of a speed) on the joint's own diagonal of the rest pose's M0: K = s diag(M0) / dt^2,
 C = v diag(M0) / dt.
 
-M is taken anew every step (:func:`datagen.apparel.joint_kernel.posed_mass_matrices`). The rest
+M is taken anew every step (:func:`mimicbench.datagen.apparel.joint_kernel.posed_mass_matrices`). The rest
 pose's M would not do: on a folded chain the light modes' true inertia is far below the straight
 chain's, so a damper's torque sized for the heavier chain drives them past zero and back every step
 (a strand's kinetic energy grows tenfold in one step in tests/test_apparel_whip.py). With the present M the step
 w+ = (M + dt D)^-1 M w takes energy out: KE - KE+ = dt w+^T D w+ + dt^2 w+^T D M^-1 D w+ / 2 >= 0.
 
 M treats the chain's anchor as fixed (it outweighs the chain ten times and its constraint holds
-it on its bone); links are the URDF's inertias (:func:`datagen.apparel.urdf.capsule_inertia`, at
+it on its bone); links are the URDF's inertias (:func:`mimicbench.datagen.apparel.urdf.capsule_inertia`, at
 each capsule's centre). Units: N m, rad, s, kg m^2.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from datagen.apparel.chain_spec import ChainSpec
-from datagen.apparel.joint_kernel import (COMPOSITE_FIELDS, LINK_FIELDS, POSE_FIELDS, posed_mass_matrices,
+from mimicbench.datagen.apparel.chain_spec import ChainSpec
+from mimicbench.datagen.apparel.joint_kernel import (COMPOSITE_FIELDS, LINK_FIELDS, POSE_FIELDS, posed_mass_matrices,
                                           solve_spd_in_place, spring_torques, weaker_springs)
-from datagen.apparel.urdf import bone_frame, capsule_inertia
+from mimicbench.datagen.apparel.urdf import bone_frame, capsule_inertia
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -75,11 +75,11 @@ def chain_mass_matrix(chain: ChainSpec) -> np.ndarray:
 
 
 def link_geometry(chain: ChainSpec) -> np.ndarray:
-    """(L, LINK_FIELDS) what :func:`datagen.apparel.joint_kernel.posed_mass_matrices` needs of each link
+    """(L, LINK_FIELDS) what :func:`mimicbench.datagen.apparel.joint_kernel.posed_mass_matrices` needs of each link
     of ``chain``: its rest turn in its parent's frame (row-major 3 x 3; a root's in the anchor's,
     which is the world's at rest), its head's offset from the parent's head in the parent's frame
     (m; 0 for a root), half its length (m), its mass (kg) and its transverse and axial moments
-    (kg m^2, :func:`datagen.apparel.urdf.capsule_inertia`)."""
+    (kg m^2, :func:`mimicbench.datagen.apparel.urdf.capsule_inertia`)."""
     frames = [bone_frame(link.axis).as_matrix() for link in chain.links]
     out = np.zeros((len(chain.links), LINK_FIELDS))
     for i, (link, p) in enumerate(zip(chain.links, chain.link_parents)):
@@ -95,7 +95,7 @@ def link_geometry(chain: ChainSpec) -> np.ndarray:
 
 def solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """x (n, m) with a x = b, for a symmetric positive definite (n, n) and b (n, m)
-    (:func:`datagen.apparel.joint_kernel.solve_spd_in_place`, no BLAS or LAPACK)."""
+    (:func:`mimicbench.datagen.apparel.joint_kernel.solve_spd_in_place`, no BLAS or LAPACK)."""
     a = np.array(a, np.float64)
     x = np.array(b, np.float64)
     solve_spd_in_place(a, x, len(a), x.shape[1])
@@ -105,7 +105,7 @@ def solve_spd(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def chain_components(chain: ChainSpec) -> list[np.ndarray]:
     """Each tree of ``chain``'s links (a root with every link below it) as its link indices in order.
 
-    A multibody of merged chains (:func:`datagen.apparel.chain_spec.merged_by_anchor`) holds several
+    A multibody of merged chains (:func:`mimicbench.datagen.apparel.chain_spec.merged_by_anchor`) holds several
     trees on one anchor; with the anchor fixed they do not move one another, so the mass matrix
     is block-diagonal by tree and each tree's springs are solved on their own.
     """
@@ -119,7 +119,7 @@ class Springs:
     """The springs of every joint of ``chains`` (in chain order, J joints), for physics step ``dt`` (s).
 
     Solved per tree of links (:func:`chain_components`), each step with the tree's mass matrix at
-    the joints' present rotations (:func:`datagen.apparel.joint_kernel.posed_mass_matrices`; the
+    the joints' present rotations (:func:`mimicbench.datagen.apparel.joint_kernel.posed_mass_matrices`; the
     gains K and C stay those of the rest pose's diagonal): trees of B, each at most n = 3 x its
     links rows, kept zero-padded in one (B, n, n) array.
     """
@@ -172,7 +172,7 @@ class Springs:
 
     def posed(self, rotation: np.ndarray) -> np.ndarray:
         """(B, n, n) every tree's mass matrix with the joints at rotation vectors ``rotation`` (J, 3)
-        (:func:`datagen.apparel.joint_kernel.posed_mass_matrices`), kept for :meth:`within_bounds`."""
+        (:func:`mimicbench.datagen.apparel.joint_kernel.posed_mass_matrices`), kept for :meth:`within_bounds`."""
         posed_mass_matrices(np.ascontiguousarray(rotation, np.float64), self.parents, self.links, self.rows,
                             self.padded_mass, self._pose, self._composite)
         return self.padded_mass
@@ -181,7 +181,7 @@ class Springs:
         """(J, 3) torques for joints at rotation vectors ``rotation`` (J, 3) with velocities ``velocity`` (J, 3).
 
         Every tree's implicit step at once with its present mass matrix (:meth:`posed`; compiled,
-        :func:`datagen.apparel.joint_kernel.spring_torques`); then :meth:`within_bounds`.
+        :func:`mimicbench.datagen.apparel.joint_kernel.spring_torques`); then :meth:`within_bounds`.
         """
         rotation = np.ascontiguousarray(rotation, np.float64)
         velocity = np.asarray(velocity, np.float64)
@@ -196,8 +196,8 @@ class Springs:
         """``torques`` (J, 3) of :meth:`torques` with every tree that has an axis past its bound
         solved again with that axis's springs weaker by the overshoot (the trees within their
         bounds keep their torques); the mass matrices are those of the last :meth:`posed` (or of
-        :func:`datagen.apparel.joint_kernel.joint_torques`, which fills the same array); compiled,
-        :func:`datagen.apparel.joint_kernel.weaker_springs`."""
+        :func:`mimicbench.datagen.apparel.joint_kernel.joint_torques`, which fills the same array); compiled,
+        :func:`mimicbench.datagen.apparel.joint_kernel.weaker_springs`."""
         tau = np.array(torques, np.float64)
         self.resolved += weaker_springs(np.asarray(rotation, np.float64), np.asarray(velocity, np.float64), self.gains,
                                         self.padded_mass, self.sizes, self.rows, self.dt, tau, self._system,

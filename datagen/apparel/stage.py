@@ -1,7 +1,7 @@
 """The apparel stage over a dataset: ``mimicbench datagen apparel IN OUT``. Beside every kinematic
 clip of a character with apparel bones goes a simulated ``<clip>@sim``, its quality in the
 character's ``meta['apparel']['clips']``; chains that escape are re-settled (``resettles`` in the quality,
-:mod:`datagen.apparel.simulate`) and a clip that still explodes is a failed status row. Resume:
+:mod:`mimicbench.datagen.apparel.simulate`) and a clip that still explodes is a failed status row. Resume:
 FORMAT.md, "Stages and resume". Correspondences (``pairs``) are not carried over.
 """
 from __future__ import annotations
@@ -14,20 +14,20 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.apparel.clip_bounds import check_clip_bounds
-from datagen.apparel.params import ApparelParams
-from datagen.apparel.quality import over_jitter_bound
-from datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
-from datagen.apparel.card import write_apparel_card
-from datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
-from datagen.apparel.world_cache import character_world, close_cached_world
-from datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_statuses
+from mimicbench.datagen.apparel.clip_bounds import check_clip_bounds
+from mimicbench.datagen.apparel.params import ApparelParams
+from mimicbench.datagen.apparel.quality import over_jitter_bound
+from mimicbench.datagen.apparel.selection import apparel_vertex_mask, bones_matching, selection_problem
+from mimicbench.datagen.apparel.card import write_apparel_card
+from mimicbench.datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
+from mimicbench.datagen.apparel.world_cache import character_world, close_cached_world
+from mimicbench.datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_statuses
 from mimicbench.engines import Engine
-from schemas.errors import UserError
-from schemas.motion import SIM_SUFFIX
-from schemas.rigid_body import PHYSICS_TABLES
-from schemas.shards import has_table, read_records, splits_of
-from schemas.status import StatusRecord
+from mimicbench.schemas.errors import UserError
+from mimicbench.schemas.motion import SIM_SUFFIX
+from mimicbench.schemas.rigid_body import PHYSICS_TABLES
+from mimicbench.schemas.shards import has_table, read_records, splits_of
+from mimicbench.schemas.status import StatusRecord
 
 
 def is_simulated(motion) -> bool:
@@ -38,7 +38,7 @@ def is_simulated(motion) -> bool:
 def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
     record, bones, vertices, motion, file_rows = item
     if file_rows is not None:  # the character's own rigid bodies and joints (an MMD file)
-        from datagen.apparel.file_physics import simulate_file_motion
+        from mimicbench.datagen.apparel.file_physics import simulate_file_motion
 
         sim, quality = simulate_file_motion(record, *file_rows, motion, bones, vertices, physics_fps, relax,
                                             params.simulation)
@@ -76,7 +76,7 @@ def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.n
 
 def _file_physics(in_dir: Path, patterns: list[str] | None) -> dict:
     """``{character_id: (rigid bodies, joints)}`` in file order for characters that have rigid
-    bodies (their physics comes from the file, :mod:`datagen.apparel.file_physics`); none when
+    bodies (their physics comes from the file, :mod:`mimicbench.datagen.apparel.file_physics`); none when
     ``--apparel-bones`` patterns choose the apparel (then the chain defaults apply)."""
     if patterns or not has_table(in_dir, "rigid_bodies"):
         return {}
@@ -123,8 +123,8 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
     Returns:
         Summary: characters, clips simulated, reused, failed, resettled (clips of OUT with a
         re-settled frame), over_jitter_bound (the simulated clips' motion ids whose peak apparel
-        acceleration is over :data:`~datagen.apparel.quality.JITTER_RATIO` times their kinematic peaks,
-        :func:`~datagen.apparel.quality.over_jitter_bound`), mean quality, seconds, statuses.
+        acceleration is over :data:`~mimicbench.datagen.apparel.quality.JITTER_RATIO` times their kinematic peaks,
+        :func:`~mimicbench.datagen.apparel.quality.over_jitter_bound`), mean quality, seconds, statuses.
     """
     start = time.perf_counter()
     in_dir, out_dir = Path(in_dir), Path(out_dir)

@@ -5,8 +5,8 @@ pybullet has no 6-DOF spring constraint, and a spherical joint's limits exist on
 each chain is written as a URDF and loaded as one multibody. Link frames sit at bone heads with
 Z along the bone (:func:`bone_frame`), so the limit's twist is about the bone and the capsule
 (Z-aligned in Bullet) lies along it; the simulation maps a link's world orientation back to the
-bone's rest-relative rotation (:mod:`datagen.apparel.world`). The anchor is a small sphere-
-inertia link without collision, carried by a fixed constraint (see :mod:`datagen.apparel.world`).
+bone's rest-relative rotation (:mod:`mimicbench.datagen.apparel.world`). The anchor is a small sphere-
+inertia link without collision, carried by a fixed constraint (see :mod:`mimicbench.datagen.apparel.world`).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from datagen.apparel.chain_spec import ChainSpec, LinkSpec
+from mimicbench.datagen.apparel.chain_spec import ChainSpec, LinkSpec
 
 ANCHOR_MASS_SHARE = 10.0  # the anchor outweighs the chain, so the moved constraint turns it with the bone
 LIMIT_IMPULSE = 1000.0  # Bullet reads a spherical joint's ``effort`` as its limit's largest impulse
@@ -64,7 +64,7 @@ def capsule_inertia(mass: float, radius: float, length: float, axial_share: floa
     (282-319 m/s^2 on a zoo walk whose body peaks at 24). A link
     stands for a stretch of strand held by its neighbours, which turns about its bone no more
     easily than across it: every kind takes ``axial_share`` 1 by default
-    (:class:`datagen.apparel.params.ChainParams` ``axial_inertia``; 0 keeps the capsule's).
+    (:class:`mimicbench.datagen.apparel.params.ChainParams` ``axial_inertia``; 0 keeps the capsule's).
     """
     full = length + 2 * radius
     transverse = mass * (3 * radius ** 2 + full ** 2) / 12.0

@@ -4,18 +4,18 @@ Each body piece is a convex hull placed every substep where it ended the last on
 speed that carries it to its bone's pose by the step's end (``piece_velocity``,
 :func:`piece_velocities`), so that Bullet's contacts see a limb's speed; with ``piece_velocity`` off, a
 mass-0 hull placed at its bone's pose (Bullet takes it as standing still); with ``piece_mass`` > 0
-(:class:`~datagen.apparel.params.SimParams`), a body of that mass carried there by a fixed constraint
+(:class:`~mimicbench.datagen.apparel.params.SimParams`), a body of that mass carried there by a fixed constraint
 (slower: the constraints join the solver). Each chain
-is a multibody loaded from its URDF (:mod:`datagen.apparel.urdf`) whose anchor (the base) has mass
+is a multibody loaded from its URDF (:mod:`mimicbench.datagen.apparel.urdf`) whose anchor (the base) has mass
 and is carried the same way (``changeConstraint``; a teleported base would move the whole chain
 rigidly, and it would never swing). Springs toward rest: torques for every joint at once
-(:mod:`datagen.apparel.springs`, compiled in :mod:`datagen.apparel.joint_kernel`), one call per
+(:mod:`mimicbench.datagen.apparel.springs`, compiled in :mod:`mimicbench.datagen.apparel.joint_kernel`), one call per
 chain; after every step each joint past its swing cone or twist limit is put back onto it and
 stopped there (:meth:`ApparelWorld._after_step`). Chains on one body bone share one multibody
-(:func:`~datagen.apparel.chain_spec.merged_by_anchor`); a world is reused across a character's
+(:func:`~mimicbench.datagen.apparel.chain_spec.merged_by_anchor`); a world is reused across a character's
 clips (:meth:`ApparelWorld.reset`). Each link collides as the convex hull of its bone's vertices
-(:mod:`datagen.apparel.chains`); contact and constraint ERP and the joint speed bound are in
-:class:`~datagen.apparel.params.SimParams`.
+(:mod:`mimicbench.datagen.apparel.chains`); contact and constraint ERP and the joint speed bound are in
+:class:`~mimicbench.datagen.apparel.params.SimParams`.
 
 Collision: chain links meet the body pieces and, where both ask for it, other chains; see
 :meth:`ApparelWorld._exclude_rest_overlaps` and :meth:`ApparelWorld._root_hulls_clearing_body`.
@@ -31,13 +31,13 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from datagen.apparel.body_shapes import BodyPiece, hull_points
-from datagen.apparel.chain_spec import ChainSpec, merged_by_anchor
-from datagen.apparel.joint_kernel import joint_torques
-from datagen.apparel.params import SimParams
-from datagen.apparel.springs import Springs
-from datagen.apparel.urdf import bone_frame, chain_urdf, hull_obj
-from mimicbench.quaternion import quat_apply, quat_conjugate, quat_multiply
+from mimicbench.datagen.apparel.body_shapes import BodyPiece, hull_points
+from mimicbench.datagen.apparel.chain_spec import ChainSpec, merged_by_anchor
+from mimicbench.datagen.apparel.joint_kernel import joint_torques
+from mimicbench.datagen.apparel.params import SimParams
+from mimicbench.datagen.apparel.springs import Springs
+from mimicbench.datagen.apparel.urdf import bone_frame, chain_urdf, hull_obj
+from mimicbench.geometry.quaternion import quat_apply, quat_conjugate, quat_multiply
 
 BODY_GROUP, BODY_MASK = 0b01, 0b10
 REST_CONTACT_MARGIN = 0.002  # metres: closer than this at rest counts as overlapping
@@ -96,7 +96,7 @@ class ChainBody:
 
 class ApparelWorld:
     """One DIRECT pybullet client holding a character's body pieces and chains, a
-    :class:`~datagen.apparel.simulate.PhysicsWorld`.
+    :class:`~mimicbench.datagen.apparel.simulate.PhysicsWorld`.
 
     Args:
         keypoints: (K, 3) rest joint heads, metres. pieces: body pieces. chains: apparel chains.
@@ -330,7 +330,7 @@ class ApparelWorld:
 
     def follow(self, poses: np.ndarray, per_frame: int):
         """Follow body poses ``poses`` (S, K, 7), one physics step after each, yielding after every
-        ``per_frame`` steps (a clip frame's substeps; :class:`~datagen.apparel.simulate.PhysicsWorld`).
+        ``per_frame`` steps (a clip frame's substeps; :class:`~mimicbench.datagen.apparel.simulate.PhysicsWorld`).
 
         The pieces' placements and the anchors' pivots and orientations of all S poses are computed
         at once, before the first step; a piece's or an anchor's constraint is changed only
@@ -429,7 +429,7 @@ class ApparelWorld:
         from a joint is given to its child joints (in their frames), so the links below keep
         turning as they did instead of turning back.
 
-        Springs: each joint gets its torque toward rest from :class:`~datagen.apparel.springs.Springs`
+        Springs: each joint gets its torque toward rest from :class:`~mimicbench.datagen.apparel.springs.Springs`
         (r, the rotation vector, is the same in the parent's and the child's frame; the velocity is
         in the child's). One read of joint states and one torque call per chain.
         """

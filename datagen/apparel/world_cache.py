@@ -3,7 +3,7 @@
 Building a character's world (its chains' URDFs and hulls, body pieces, the rest-pose collision
 exclusions) costs as much as simulating a short clip, and the stage simulates a character's clips
 one after another. This keeps the last character's physics and world and hands them out again,
-reset (:meth:`datagen.apparel.world.ApparelWorld.reset`), when the next clip is of the same
+reset (:meth:`mimicbench.datagen.apparel.world.ApparelWorld.reset`), when the next clip is of the same
 character with the same masks, parameters and physics step; a reset world gives the same bytes as
 a new one, so the output does not depend on the order clips come in.
 """
@@ -14,10 +14,10 @@ import json
 
 import numpy as np
 
-from datagen.apparel.params import ApparelParams
-from datagen.apparel.setup import CharacterPhysics, character_physics
-from datagen.apparel.world import ApparelWorld
-from schemas.character import CharacterRecord
+from mimicbench.datagen.apparel.params import ApparelParams
+from mimicbench.datagen.apparel.setup import CharacterPhysics, character_physics
+from mimicbench.datagen.apparel.world import ApparelWorld
+from mimicbench.schemas.character import CharacterRecord
 
 _cached: dict = {"key": None, "physics": None, "world": None}
 

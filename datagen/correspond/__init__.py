@@ -9,22 +9,3 @@ says (:mod:`.structure`) and a no-match threshold. Matrices are computed in batc
 the zoo's hidden bone roles (:mod:`.report`) through the cross-category role map (:mod:`.roles`).
 """
 from __future__ import annotations
-
-import importlib
-
-_LAZY = {
-    "canonicalize_bone_name": "datagen.correspond.canonical",
-    "canonicalize_names": "datagen.correspond.canonical",
-    "correspond_dataset": "datagen.correspond.stage",
-    "correspondence_for_names": "datagen.correspond.pair",
-    "correspondence_for_skeletons": "datagen.correspond.pair",
-    "get_matcher": "datagen.correspond.methods",
-}
-__all__ = sorted(_LAZY)
-
-
-def __getattr__(name: str):
-    """Import the public functions on first use, so the CLI starts fast."""
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

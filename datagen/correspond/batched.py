@@ -3,7 +3,7 @@
 For a pair with canonical-name embeddings E1 (K1, d) and E2 (K2, d) (unit rows):
 ``S_cos = E1 E2^T`` (K1, K2); ``M_hung`` the rectangular Hungarian matching maximising total
 similarity (scipy); ``M_sink`` the Sinkhorn balancing of ``exp(S_cos / T)`` with rows summing to
-1 and columns to K1/K2 (as :func:`mimicbench.sinkhorn.sinkhorn_log`).
+1 and columns to K1/K2 (as :func:`mimicbench.geometry.sinkhorn.sinkhorn_log`).
 
 Pairs are processed in batches padded to the largest K1 and K2 in the batch. Sinkhorn runs in
 the scaling (exp) domain in float32 torch: each sweep is two batched matrix-vector products,

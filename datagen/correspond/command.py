@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 
 from mimicbench.engines import add_engine_arguments
-from mimicbench.summary import StageSummary
-from mimicbench.argtypes import MAX_JOBS, job_count, nonnegative_int, positive_float, positive_int
+from mimicbench.runtime.summary import StageSummary
+from mimicbench.runtime.argtypes import MAX_JOBS, job_count, nonnegative_int, positive_float, positive_int
 
 
 def register(subparsers) -> None:
@@ -64,13 +64,13 @@ def register(subparsers) -> None:
 
 MIN_ADDRESS_SPACE = 1.75 * 2**30
 """Bytes of address space below which ``datagen correspond`` refuses to start: with the reservations
-of :func:`mimicbench.address_space.fit_to_address_space_limit` it peaked at 1.5 GiB on a 4-character
+of :func:`mimicbench.runtime.address_space.fit_to_address_space_limit` it peaked at 1.5 GiB on a 4-character
 zoo (the encoder, torch and pyarrow loaded), and at 1 GiB torch's own start aborts in C++."""
 
 
 def run(args) -> int:
-    from mimicbench.address_space import address_space_limit, limit_text
-    from mimicbench.errors import UserError
+    from mimicbench.runtime.address_space import address_space_limit, limit_text
+    from mimicbench.runtime.errors import UserError
 
     limit = address_space_limit()
     if limit is not None and limit < MIN_ADDRESS_SPACE:
@@ -81,7 +81,7 @@ def run(args) -> int:
 
 
 def _run(args) -> int:
-    from datagen.correspond.stage import correspond_dataset
+    from mimicbench.datagen.correspond.stage import correspond_dataset
     from mimicbench.engines import engine_from_args
 
     summary = correspond_dataset(args.dataset, args.pairs, args.all_pairs, args.encoder, args.temperature, args.seed,

@@ -16,8 +16,8 @@ from typing import Sequence
 
 import numpy as np
 
-from datagen.correspond.torchvision_compat import ensure_torchvision_importable
-from mimicbench.registry import Registry
+from mimicbench.datagen.correspond.torchvision_compat import ensure_torchvision_importable
+from mimicbench.runtime.registry import Registry
 
 
 class TextEncoder:
@@ -61,7 +61,7 @@ def _clip_state(path: str, model: str, clip) -> dict:
     """
     import torch
 
-    from mimicbench.errors import UserError
+    from mimicbench.runtime.errors import UserError
     from mimicbench.training.checkpoint import state_dict_mismatch
 
     expected = f"expected a state dict of open_clip model {model!r} saved with torch.save"
@@ -118,7 +118,7 @@ class ClipEncoder(TextEncoder):
 def get_encoder(name: str = "minilm", clip_model: str = "ViT-B-32", clip_pretrained: str | None = None,
                 device: str = "cpu") -> TextEncoder:
     """A cached encoder: ``minilm`` or ``clip`` (with model and pretrained tag or local file), or one
-    registered in :data:`ENCODERS`; :class:`~mimicbench.registry.UnknownName` otherwise."""
+    registered in :data:`ENCODERS`; :class:`~mimicbench.runtime.registry.UnknownName` otherwise."""
     return ENCODERS.get(name).from_options(clip_model, clip_pretrained, device)
 
 

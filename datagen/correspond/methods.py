@@ -57,10 +57,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
-from datagen.correspond.canonical import canonicalize_names
-from datagen.correspond.structure import skeleton_features
-from mimicbench.registry import Registry
+from mimicbench.datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
+from mimicbench.datagen.correspond.canonical import canonicalize_names
+from mimicbench.datagen.correspond.structure import skeleton_features
+from mimicbench.runtime.registry import Registry
 
 FEATURES = ("side", "limb_axial", "centre_axial", "along", "chain_hop", "limb_hop", "pelvis", "trunk", "neck", "head",
             "tail", "depth", "x", "y", "z", "seq_id", "seq_pos", "chain", "name_key")  # the last four: weight 0

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
-from datagen.correspond.canonical import canonicalize_names
-from datagen.correspond.encoders import get_encoder
-from datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch
-from datagen.correspond.structure import skeleton_features
+from mimicbench.datagen.correspond.batched import DEFAULT_TEMPERATURE, correspondence_batch
+from mimicbench.datagen.correspond.canonical import canonicalize_names
+from mimicbench.datagen.correspond.encoders import get_encoder
+from mimicbench.datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch
+from mimicbench.datagen.correspond.structure import skeleton_features
 
 
 def _embed_cached(enc, texts: list[str]) -> dict[str, np.ndarray]:

@@ -5,7 +5,7 @@ methods; here they score the matching (M_hung). For each pair:
 
 - ``exact``: share of matched (source, target) bones whose roles are identical;
 - ``role_map``: share whose classes in the cross-category role map agree
-  (:mod:`datagen.correspond.roles`: arm ~ front leg ~ wing, leg ~ hind leg, spine, neck, ...);
+  (:mod:`mimicbench.datagen.correspond.roles`: arm ~ front leg ~ wing, leg ~ hind leg, spine, neck, ...);
 - ``agreement``: ``exact`` within a category, ``role_map`` across categories (the number the
   issue's checks read: humanoid naming styles >= 99%, cross-category pairs >= 80%);
 - ``matched``: matched bones over min(K1, K2) (below 1 when bones stay unmatched);
@@ -23,7 +23,7 @@ from collections import Counter, defaultdict
 
 import numpy as np
 
-from datagen.correspond.roles import role_classes
+from mimicbench.datagen.correspond.roles import role_classes
 
 _FIELDS = ("agreement", "exact", "role_map", "matched", "recall")
 

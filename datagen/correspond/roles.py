@@ -1,7 +1,7 @@
 """The cross-category role map: which zoo roles are counterparts across kinds of character.
 
 The zoo stores a hidden role per bone (``left/upper_arm``, ``tail/3``, ``left/leg/2/1``; see
-:mod:`datagen.zoo.naming`). Within a category a match is right when the roles are equal. Across
+:mod:`mimicbench.datagen.zoo.naming`). Within a category a match is right when the roles are equal. Across
 categories the roles differ by name, so each role maps to a **class**, and a match is right when
 the classes are equal. Sides stay part of the class (a left arm never counts as a right wing).
 
@@ -26,12 +26,12 @@ counts as its tail. A snake's body chain is its ``spine``. Sided classes are wri
 ``left/forelimb``; the others have no side.
 
 A role may also name its class directly (``left/forelimb``, ``hindlimb/2``, ``dorsal``,
-``apparel``), as a role-label file for a real character does (:mod:`datagen.roles`). An empty
+``apparel``), as a role-label file for a real character does (:mod:`mimicbench.datagen.roles`). An empty
 role (``""``, or None) marks a bone without a role: its class is None.
 """
 from __future__ import annotations
 
-from datagen.zoo.naming import FINGERS, parse_role
+from mimicbench.datagen.zoo.naming import FINGERS, parse_role
 
 _CLASS = {
     "hips": "root", "root": "root", "thorax": "root",
@@ -96,7 +96,7 @@ def record_role_classes(record) -> list[str | None] | None:
     every entry empty): such a character gets no semantic score.
 
     Args:
-        record: a :class:`schemas.character.CharacterRecord` (or anything with ``bone_roles``
+        record: a :class:`mimicbench.schemas.character.CharacterRecord` (or anything with ``bone_roles``
             and ``category``).
 
     Returns:

@@ -14,18 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.correspond.canonical import canonicalize_names
-from datagen.correspond.encoders import get_encoder
-from datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch, skeleton_feature_table
-from datagen.correspond.report import format_report, role_agreement_report
-from datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
-from datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
+from mimicbench.datagen.correspond.canonical import canonicalize_names
+from mimicbench.datagen.correspond.encoders import get_encoder
+from mimicbench.datagen.correspond.methods import DEFAULT_METHOD, get_matcher, match_batch, skeleton_feature_table
+from mimicbench.datagen.correspond.report import format_report, role_agreement_report
+from mimicbench.datagen.correspond.sampling import INTRA_FRACTION, sample_pairs
+from mimicbench.datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
 from mimicbench.engines import Engine, TaskResources
-from schemas.errors import DatasetError
-from schemas.manifest import atomic_write_bytes
-from schemas.pair import PairRecord
-from schemas.shards import read_records, remove_split, splits_of
-from schemas.tables import rows_per_shard
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.manifest import atomic_write_bytes
+from mimicbench.schemas.pair import PairRecord
+from mimicbench.schemas.shards import read_records, remove_split, splits_of
+from mimicbench.schemas.tables import rows_per_shard
 
 _Matched = namedtuple("_Matched", "source_id target_id hungarian")  # what the role-agreement report reads of a pair
 ACROSS = "across"  # the pair split of pairs between characters of different splits
@@ -98,7 +98,7 @@ def correspond_dataset(dataset_dir, pairs: int | None = None, all_pairs: bool = 
             ordered pair, or each pair of characters once (a->b with a's ID first): :mod:`.sampling`.
         encoder: ``minilm`` (offline default) or ``clip``.
         method: ``structure`` (default: text and skeleton, ``no_match`` threshold, default 0.45) or
-            ``text`` (the paper's S_cos, Hungarian, Sinkhorn): :mod:`datagen.correspond.methods`.
+            ``text`` (the paper's S_cos, Hungarian, Sinkhorn): :mod:`mimicbench.datagen.correspond.methods`.
         temperature: Sinkhorn temperature T on the scores (default 0.1); seed: pair sampling seed.
         across_splits: also the pairs between characters of different splits, sampled like a
             split's and written as the pair split :data:`ACROSS`; without it an earlier run's are removed.

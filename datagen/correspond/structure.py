@@ -79,8 +79,8 @@ class SkeletonFeatures:
         """(K, 19) columns side, limb_axial, centre_axial, along, chain_hop, limb_hop, pelvis, trunk, neck,
         head, tail, depth, x, y, z (``axial`` split into limb and centre bones, weighted apart), then
         ``seq_id``, ``seq_pos`` and the two codes ``chain`` and ``name_key`` (compared for equality,
-        never subtracted): these four are read by :func:`datagen.correspond.batched.chain_scores` and
-        :func:`datagen.correspond.batched.chain_hungarian_pairs`."""
+        never subtracted): these four are read by :func:`mimicbench.datagen.correspond.batched.chain_scores` and
+        :func:`mimicbench.datagen.correspond.batched.chain_hungarian_pairs`."""
         limb = self.side != 0
         return np.column_stack([self.side, np.where(limb, self.axial, 0), np.where(limb, 0, self.axial), self.along,
                                 self.chain_hop, self.limb_hop, self.pelvis, self.part, self.depth,
@@ -354,7 +354,7 @@ def skeleton_features(canonical: list[str], parents, keypoints=None) -> Skeleton
     """Structure features of one skeleton.
 
     Args:
-        canonical: K canonical names (:func:`datagen.correspond.canonical.canonicalize_names`).
+        canonical: K canonical names (:func:`mimicbench.datagen.correspond.canonical.canonicalize_names`).
         parents: (K,) int parent indices, -1 for roots, in any order.
         keypoints: (K, 3) rest joint positions (any unit), or None.
     """

@@ -3,7 +3,7 @@
 A folder stands for every asset file under it, at any depth, in sorted order: the Blender
 formats (``SUPPORTED``) and MMD models (.pmx, .pmd). MMD motions (.vmd) in a folder are not taken
 on their own: a model plays the .vmd files beside it whose names tie them to it
-(:func:`datagen.mmd.ingest.motions_for`), so a folder of many models and motions does not play
+(:func:`mimicbench.datagen.mmd.ingest.motions_for`), so a folder of many models and motions does not play
 every motion on every model. Hidden files and folders (names starting with ``.``) are skipped,
 so a dataset's own ``.ingest`` cache or a ``.git`` folder under the walked folder is never read.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from datagen.mmd import MODEL_SUFFIXES
+from mimicbench.datagen.mmd import MODEL_SUFFIXES
 
 BLENDER_SUFFIXES = (".glb", ".gltf", ".fbx", ".bvh", ".obj", ".blend")
 FOLDER_SUFFIXES = BLENDER_SUFFIXES + MODEL_SUFFIXES

@@ -1,7 +1,7 @@
 """Runs inside a child process: import assets with Blender (bpy) and dump what ingest needs.
 
-    python -m datagen.ingest.blender_child ASSET OUT.npz [OPTIONS_JSON]   one asset, then exit
-    python -m datagen.ingest.blender_child --serve                        one asset per stdin line
+    python -m mimicbench.datagen.ingest.blender_child ASSET OUT.npz [OPTIONS_JSON]   one asset, then exit
+    python -m mimicbench.datagen.ingest.blender_child --serve                        one asset per stdin line
 
 ``--serve`` reads one JSON job a line (``{"asset": ..., "out": ..., "options": {...}}``), resets
 Blender to its factory state (empty scene) before each asset and prints ``DONE_MARKER OUT`` when
@@ -18,11 +18,11 @@ that armature (skinned, or rigidly attached to a bone), other modifiers applied 
 armature, in world space at the rest pose, shape keys at their basis, triangulated.
 
 glTF: every clip is first resampled at the frame times by the specification
-(:mod:`datagen.ingest.gltf_resample`: slerp, STEP, CUBICSPLINE tangents, which Blender's
+(:mod:`mimicbench.datagen.ingest.gltf_resample`: slerp, STEP, CUBICSPLINE tangents, which Blender's
 importer does not all honour), so Blender only reads keys. The armature's rest pose is the bind pose (from the inverse bind matrices, as linear blend
 skinning needs: a rest pose other than the bind pose would blend multi-bone vertices wrongly);
 the file's default pose (every node at its own TRS, glTF 2.0 section 3.5) is computed from the
-file's JSON (:mod:`datagen.ingest.gltf_defaults`) and is the pose of every bone a clip does not
+file's JSON (:mod:`mimicbench.datagen.ingest.gltf_defaults`) and is the pose of every bone a clip does not
 animate. Objects attached to a bone are moved to where the file places them (see
 :func:`_fix_bone_children_offsets`).
 
@@ -53,9 +53,9 @@ import sys
 import bpy  # noqa: I001  (first, before anything that loads another Embree)
 import numpy as np
 
-from datagen.ingest.clip_length import check_clip_frames  # standard library only
-from datagen.ingest.job import DONE_MARKER  # standard library only
-from mimicbench.quaternion import matrix_to_quat  # numpy only
+from mimicbench.datagen.ingest.clip_length import check_clip_frames  # standard library only
+from mimicbench.datagen.ingest.job import DONE_MARKER  # standard library only
+from mimicbench.geometry.quaternion import matrix_to_quat  # numpy only
 
 C = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # Blender Z-up -> Y-up
 # Below this a bone counts as rigid, and a clip whose bones all do stores no scale column: exports
@@ -82,7 +82,7 @@ def _import(path: str, options: dict, scratch: str) -> tuple[list[str], tuple[fl
     """
     ext = os.path.splitext(path)[1].lower()
     if ext in (".glb", ".gltf"):
-        from datagen.ingest.gltf_resample import load_gltf, resampled_document, write_glb
+        from mimicbench.datagen.ingest.gltf_resample import load_gltf, resampled_document, write_glb
 
         scene = bpy.context.scene
         doc, buffers = load_gltf(path)
@@ -363,8 +363,8 @@ def _default_pose(arm, path: str) -> tuple[dict, int]:
     """
     if os.path.splitext(path)[1].lower() not in (".glb", ".gltf"):
         return {}, 0
-    from datagen.ingest.gltf_defaults import default_world_matrices
-    from datagen.ingest.uris import gltf_json
+    from mimicbench.datagen.ingest.gltf_defaults import default_world_matrices
+    from mimicbench.datagen.ingest.uris import gltf_json
 
     worlds = default_world_matrices(gltf_json(path))
     c4 = np.eye(4)

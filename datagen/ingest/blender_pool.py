@@ -1,6 +1,6 @@
 """Blender child processes that each ingest many assets, with a timeout per asset.
 
-A :class:`BlenderWorker` owns one ``python -m datagen.ingest.blender_child --serve`` process
+A :class:`BlenderWorker` owns one ``python -m mimicbench.datagen.ingest.blender_child --serve`` process
 (started on first use), sends it one job at a time and waits for the job's done line. The child
 resets Blender to its factory state between assets, which is much cheaper than starting Blender
 again. A job that runs past its timeout kills the process; a process that dies (a segfault in
@@ -18,9 +18,9 @@ import sys
 import threading
 import time
 
-from datagen.ingest.job import DONE_MARKER, job_line
+from mimicbench.datagen.ingest.job import DONE_MARKER, job_line
 
-CHILD_MODULE = "datagen.ingest.blender_child"
+CHILD_MODULE = "mimicbench.datagen.ingest.blender_child"
 
 
 class BlenderWorker:

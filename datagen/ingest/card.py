@@ -6,8 +6,8 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-from datagen.zoo.card import CARD_HEADER, zoo_stats
-from schemas.manifest import atomic_write_bytes
+from mimicbench.datagen.zoo.card import CARD_HEADER, zoo_stats
+from mimicbench.schemas.manifest import atomic_write_bytes
 
 
 def render_card(characters, motions, config: dict) -> str:

@@ -1,7 +1,7 @@
 """Infer a character's category from its skeleton when ``--category-map`` or a role-label file
-(:mod:`datagen.roles`) does not give it.
+(:mod:`mimicbench.datagen.roles`) does not give it.
 
-Evidence comes first from the **canonical bone names** (:mod:`datagen.correspond.canonical`,
+Evidence comes first from the **canonical bone names** (:mod:`mimicbench.datagen.correspond.canonical`,
 which undoes the naming styles: ``mixamorig:LeftUpLeg``, ``thigh.L``, ``Bip01 L Thigh`` all read
 ``left thigh``), grouped into limbs by side and by a front/back (or numbered) qualifier, and then
 from the **rest-pose geometry** of the hierarchy (which way the body runs, whether legs go down
@@ -27,7 +27,7 @@ anything else                                               unknown
 
 The rules decide only where the body plan is unambiguous; anything else is ``unknown``, since a
 wrong category is worse than none (it decides which pairs become ``cct`` cases), and a
-role-label file (:mod:`datagen.roles`) can say what a character is. So wings with anything but a
+role-label file (:mod:`mimicbench.datagen.roles`) can say what a character is. So wings with anything but a
 bird's legs (a wasp's or a bee's, named ``Leg1.L``, ``Leg2.L``: one limb by name, three chains),
 four "legs" that do not all reach the ground (a T-rex whose arms are named ``FrontLeg``), two
 legs with two arms off the ground under a horizontal body (a T-rex, a velociraptor, a kangaroo)
@@ -44,7 +44,7 @@ from typing import Sequence
 
 import numpy as np
 
-from datagen.correspond.canonical import canonicalize_names
+from mimicbench.datagen.correspond.canonical import canonicalize_names
 
 LEG_WORDS = {"thigh", "shin", "leg", "foot", "toe", "knee", "calf", "ankle", "paw", "hoof", "heel"}
 ARM_WORDS = {"arm", "forearm", "hand", "elbow", "wrist", "palm", "thumb", "index", "pinky", "finger"}
@@ -268,7 +268,7 @@ def infer_category(bone_names: Sequence[str], parents: Sequence[int], keypoints:
         keypoints: (K, 3) rest joint positions (dataset frame: Y up, +Z forward).
 
     Returns:
-        (category, evidence): one of ``schemas.character.CATEGORIES`` and a JSON-ready dict
+        (category, evidence): one of ``mimicbench.schemas.character.CATEGORIES`` and a JSON-ready dict
         with the rule that decided and the counts it used.
     """
     parents = np.asarray(parents, np.int64)

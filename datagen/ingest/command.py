@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import argparse
 
-from datagen.ingest.clip_length import MAX_CLIP_FRAMES
-from mimicbench.argtypes import MAX_JOBS, comma_choices, job_count, positive_float, positive_int
+from mimicbench.datagen.ingest.clip_length import MAX_CLIP_FRAMES
+from mimicbench.runtime.argtypes import MAX_JOBS, comma_choices, job_count, positive_float, positive_int
 from mimicbench.engines import add_engine_arguments
-from mimicbench.summary import StageSummary
+from mimicbench.runtime.summary import StageSummary
 
-EXPORT_FORMATS = ("obj", "bvh")  # as datagen.ingest.runner.EXPORT_FORMATS (kept here so --help stays fast)
+EXPORT_FORMATS = ("obj", "bvh")  # as mimicbench.datagen.ingest.runner.EXPORT_FORMATS (kept here so --help stays fast)
 
 DESCRIPTION = """\
 Import rigged assets with Blender (bpy) into a dataset: rest mesh (all meshes the armature drives,
@@ -98,8 +98,8 @@ def run(args) -> int:
     import glob
     import json
 
-    from datagen.ingest.runner import ingest_assets
-    from datagen.stage_runner import summarize_statuses
+    from mimicbench.datagen.ingest.runner import ingest_assets
+    from mimicbench.datagen.stage_runner import summarize_statuses
     from mimicbench.engines import engine_from_args
 
     paths = []
@@ -122,17 +122,17 @@ def run(args) -> int:
         print(f"warning: {w}")
     print(f"{s['characters']} characters and {s['motions']} clips in {args.out} ({s['skipped']} already done, "
           f"{s['failed']} failed, {s['failed_clips']} clips unreadable) in {s['seconds']:.1f} s")
-    from schemas.dataset import Dataset
+    from mimicbench.schemas.dataset import Dataset
 
     if not Dataset.of(args.out).has_table("characters"):  # every asset failed: nothing to label or report
         return StageSummary(s["characters"], s["failed"], s["seconds"], str(args.out))
     if args.roles:
-        from datagen.roles.attach import attach_roles, print_warnings, summary_lines
+        from mimicbench.datagen.roles.attach import attach_roles, print_warnings, summary_lines
 
         labels = attach_roles(args.out, args.roles)
         print_warnings(labels)
         print("\n".join(summary_lines(labels)))
-    from datagen.roles.categories import inferred_lines
+    from mimicbench.datagen.roles.categories import inferred_lines
 
     for line in inferred_lines(args.out):
         print(line)

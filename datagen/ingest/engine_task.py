@@ -1,6 +1,6 @@
 """One asset's Blender ingest as an engine task (``datagen ingest --engine ray``).
 
-Each Ray worker process keeps its own Blender child (:class:`~datagen.ingest.blender_pool.BlenderWorker`,
+Each Ray worker process keeps its own Blender child (:class:`~mimicbench.datagen.ingest.blender_pool.BlenderWorker`,
 a fresh one after ``assets_per_process`` assets or a crash), so a task costs one import, not a
 Blender start-up. The task writes the asset's cache files (``OUT/.ingest_cache/<key>.npz``/``.json``,
 on a file system every node sees) and returns its status row; the driver builds the shards from
@@ -18,8 +18,8 @@ _WORKERS: dict = {}  # per engine worker process: assets_per_process -> BlenderW
 
 def ingest_task(item: tuple) -> object:
     """``(asset, out_npz, child_options, timeout, assets_per_process)`` -> the asset's StatusRecord."""
-    from datagen.ingest import blender_pool
-    from datagen.ingest.job import run_job
+    from mimicbench.datagen.ingest import blender_pool
+    from mimicbench.datagen.ingest.job import run_job
 
     asset, out_npz, options, timeout, per_process = item
     worker = _WORKERS.get(per_process)

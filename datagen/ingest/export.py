@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.zoo.export_bvh import write_bvh
-from datagen.zoo.export_obj import write_obj
+from mimicbench.datagen.zoo.export_bvh import write_bvh
+from mimicbench.datagen.zoo.export_obj import write_obj
 
 
 def end_sites(keypoints: np.ndarray, parents: np.ndarray) -> np.ndarray:

@@ -4,14 +4,14 @@
 Blender's glTF importer makes the armature's rest pose the bind pose guessed from the inverse
 bind matrices, which is what linear blend skinning needs; a bone that a clip does not animate
 must still take its node's own TRS (the default pose), which can differ from the bind pose.
-Ingest uses these matrices to pose such bones (see :mod:`datagen.ingest.blender_child`).
+Ingest uses these matrices to pose such bones (see :mod:`mimicbench.datagen.ingest.blender_child`).
 NumPy and the standard library only (this runs inside the Blender child process).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.quaternion import quat_to_matrix
+from mimicbench.geometry.quaternion import quat_to_matrix
 
 
 def local_matrix(node: dict) -> np.ndarray:

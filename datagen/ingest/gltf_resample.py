@@ -29,7 +29,7 @@ _FRAME_EPS = 1e-3  # frames: a clip spanning n - 1 + 0.999 frames has n samples
 
 def load_gltf(path: str | Path) -> tuple[dict, list[bytes]]:
     """(JSON document, bytes of each buffer) of a .glb or .gltf file (``data:`` or relative URIs)."""
-    from datagen.ingest.uris import gltf_document, resource_uris
+    from mimicbench.datagen.ingest.uris import gltf_document, resource_uris
 
     path = Path(path)
     doc, blob = gltf_document(path)  # the one GLB chunk parser, shared with the URI check
@@ -140,10 +140,10 @@ def frame_times(t0: float, t1: float, fps: float, max_frames: int | None = None)
 
     Raises:
         ClipTooLong: more than ``max_frames`` samples (default
-            :data:`datagen.ingest.clip_length.MAX_CLIP_FRAMES`), or a non-finite key time;
+            :data:`mimicbench.datagen.ingest.clip_length.MAX_CLIP_FRAMES`), or a non-finite key time;
             checked before any array is allocated.
     """
-    from datagen.ingest.clip_length import check_clip_frames
+    from mimicbench.datagen.ingest.clip_length import check_clip_frames
 
     span = (t1 - t0) * fps + _FRAME_EPS
     what = f"glTF clip with keys from t = {t0:.6g} s to {t1:.6g} s at {fps:g} fps"

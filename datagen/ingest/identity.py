@@ -16,7 +16,7 @@ import hashlib
 import re
 from pathlib import Path
 
-from schemas.fingerprint import digest_of
+from mimicbench.schemas.fingerprint import digest_of
 
 
 def file_sha256(path: str | Path, chunk: int = 1 << 20) -> str:

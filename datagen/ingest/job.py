@@ -41,9 +41,9 @@ def status_of(result_file: Path) -> str:
 
 
 def run_job(worker, asset: Path, out_npz: Path, options: dict, timeout: float):
-    """Ingest one asset with ``worker`` (a :class:`~datagen.ingest.blender_pool.BlenderWorker`);
+    """Ingest one asset with ``worker`` (a :class:`~mimicbench.datagen.ingest.blender_pool.BlenderWorker`);
     return its StatusRecord (failed jobs leave no files)."""
-    from schemas.status import StatusRecord  # here, not at the top: the child imports this module
+    from mimicbench.schemas.status import StatusRecord  # here, not at the top: the child imports this module
 
     start = time.perf_counter()
     remove_outputs(out_npz)

@@ -1,5 +1,5 @@
 """Ingest assets into a dataset, additively: Blender children (:mod:`.blender_pool`) for glTF, FBX,
-BVH, OBJ and .blend, :mod:`datagen.mmd` for MMD files. Each child result is cached in
+BVH, OBJ and .blend, :mod:`mimicbench.datagen.mmd` for MMD files. Each child result is cached in
 ``DATASET/.ingest`` under a key of content hash and options (:mod:`.identity`), so a re-run skips
 assets already done; every failure is a status row (split ``ingest``). This run's assets replace
 only their own rows (by character ID).
@@ -18,29 +18,29 @@ from queue import Queue
 import numpy as np
 from tqdm.auto import tqdm
 
-from datagen.ingest import blender_pool
-from datagen.ingest.asset_paths import BLENDER_SUFFIXES, FOLDER_SUFFIXES, expand_asset_paths
-from datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_rest_height
-from datagen.ingest.category import infer_category
-from datagen.ingest.clip_length import MAX_CLIP_FRAMES, check_clip_frames
-from datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
-from datagen.ingest.job import run_job, status_of
-from datagen.ingest.uris import external_uri_problems
-from datagen.mmd.frame import MMD_UNIT_METRES
-from datagen.splits import split_of
-from datagen.stage_runner import Stage, StageRun, not_a_param
-from mimicbench.argtypes import MAX_JOBS
-from mimicbench.errors import UserError
-from mimicbench.kinematics import transforms_to_array
-from mimicbench.skinning import linear_blend_skinning
-from mimicbench.validation import expect, is_whole
-from schemas.character import CATEGORIES, CharacterRecord
-from schemas.finite import nonfinite_arrays
-from schemas.folder_lock import hold
-from schemas.manifest import MANIFEST
-from schemas.motion import MotionRecord
-from schemas.status import StatusRecord
-from schemas.weights import SparseWeights
+from mimicbench.datagen.ingest import blender_pool
+from mimicbench.datagen.ingest.asset_paths import BLENDER_SUFFIXES, FOLDER_SUFFIXES, expand_asset_paths
+from mimicbench.datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_rest_height
+from mimicbench.datagen.ingest.category import infer_category
+from mimicbench.datagen.ingest.clip_length import MAX_CLIP_FRAMES, check_clip_frames
+from mimicbench.datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
+from mimicbench.datagen.ingest.job import run_job, status_of
+from mimicbench.datagen.ingest.uris import external_uri_problems
+from mimicbench.datagen.mmd.frame import MMD_UNIT_METRES
+from mimicbench.datagen.splits import split_of
+from mimicbench.datagen.stage_runner import Stage, StageRun, not_a_param
+from mimicbench.runtime.argtypes import MAX_JOBS
+from mimicbench.runtime.errors import UserError
+from mimicbench.geometry.kinematics import transforms_to_array
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.geometry.validation import expect, is_whole
+from mimicbench.schemas.character import CATEGORIES, CharacterRecord
+from mimicbench.schemas.finite import nonfinite_arrays
+from mimicbench.schemas.folder_lock import hold
+from mimicbench.schemas.manifest import MANIFEST
+from mimicbench.schemas.motion import MotionRecord
+from mimicbench.schemas.status import StatusRecord
+from mimicbench.schemas.weights import SparseWeights
 
 CACHE = ".ingest"
 SUPPORTED = BLENDER_SUFFIXES
@@ -275,7 +275,7 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
 
     Args:
         paths: asset files (.glb, .gltf, .fbx, .bvh, .obj, .blend through Blender; .pmx, .pmd, .vmd
-            through :mod:`datagen.mmd`) or folders, walked for them (:mod:`.asset_paths`; never ``out_dir``).
+            through :mod:`mimicbench.datagen.mmd`) or folders, walked for them (:mod:`.asset_paths`; never ``out_dir``).
         engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task with its worker's
             own Blender (:mod:`.engine_task`); None or a local engine: ``jobs`` Blender processes here.
         options: the fields of :class:`IngestOptions`.
@@ -287,7 +287,7 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
         ValueError: an option out of range (the message says what is allowed).
         UserError: ``out_dir`` holds files but no manifest (:func:`check_output_folder`).
     """
-    from datagen.splits import load_split_file
+    from mimicbench.datagen.splits import load_split_file
 
     opts = IngestOptions(**options)
     opts.check()
@@ -306,7 +306,7 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
     old_chars, old_motions, old_status = (run.earlier_rows(t) for t in ("characters", "motions", "status"))
     taken = {c.character_id: c.source for c in old_chars}
     assets, empty_folders = expand_asset_paths(paths, skip=out_dir)
-    from datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)
+    from mimicbench.datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)
 
     assets, mmd_assets = split_mmd_paths(assets)
     statuses: list[StatusRecord] = [
@@ -328,8 +328,8 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
             jobs_todo.append(a)
     skipped = sum(s.status == "skipped" for s in statuses)
     if engine is not None and engine.name != "local":
-        from datagen.ingest.engine_task import TASK_RESOURCES, ingest_task
-        from datagen.stage_runner import run_stage
+        from mimicbench.datagen.ingest.engine_task import TASK_RESOURCES, ingest_task
+        from mimicbench.datagen.stage_runner import run_stage
 
         items = [(str(a), str(cache / f"{plan[a][0]}.npz"), opts.child_options(a), opts.timeout, opts.assets_per_process)
                  for a in jobs_todo]
@@ -393,7 +393,7 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
         if extent is not None and not PLAUSIBLE_EXTENT_M[0] <= extent <= PLAUSIBLE_EXTENT_M[1]:
             warnings.append(f"{c.character_id}: {extent:.3g} m across at rest at {unit:g} m per file unit; if the file "
                             f"is authored in another unit, pass --mesh-unit (metres per unit: 0.01 for centimetres)")
-    from datagen.roles.attach import carry_labels
+    from mimicbench.datagen.roles.attach import carry_labels
 
     chars = carry_labels(old_chars, chars)  # labels of `datagen roles` survive a re-ingest of the same bones
     new_ids = {c.character_id for c in chars}
@@ -407,12 +407,12 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
     run.write_splits("characters", chars, splits)
     run.write_splits("motions", motions, splits)
     run.write_status(statuses, config=None)
-    from datagen.ingest.card import write_card
+    from mimicbench.datagen.ingest.card import write_card
 
     write_card(out_dir, chars, motions, run.config)
     run.finish()
     if opts.export:
-        from datagen.ingest.export import export_dataset
+        from mimicbench.datagen.ingest.export import export_dataset
 
         export_dataset(out_dir, chars, motions, opts.export)
     run_status = [s for s in statuses if asset_of_row(s.asset, this_run) is not None]

@@ -22,13 +22,13 @@ def is_mmd_file(path) -> bool:
 
 
 def read_model(path):
-    """Read a .pmx or .pmd file as :class:`~datagen.mmd.model.MMDModel` (by suffix)."""
+    """Read a .pmx or .pmd file as :class:`~mimicbench.datagen.mmd.model.MMDModel` (by suffix)."""
     from pathlib import Path
 
     if Path(path).suffix.lower() == ".pmd":
-        from datagen.mmd.pmd import read_pmd
+        from mimicbench.datagen.mmd.pmd import read_pmd
 
         return read_pmd(path)
-    from datagen.mmd.pmx import read_pmx
+    from mimicbench.datagen.mmd.pmx import read_pmx
 
     return read_pmx(path)

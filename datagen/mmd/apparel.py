@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from datagen.mmd.model import MMDModel
+from mimicbench.datagen.mmd.model import MMDModel
 
 # (kind, name fragments): first match wins, so specific kinds come before general ones
 APPAREL_KINDS = (

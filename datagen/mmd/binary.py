@@ -11,7 +11,7 @@ import struct
 
 import numpy as np
 
-from datagen.mmd.errors import MMDFormatError
+from mimicbench.datagen.mmd.errors import MMDFormatError
 
 
 class BoundedReader:

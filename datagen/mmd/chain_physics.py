@@ -5,15 +5,15 @@ bone each chain hangs from, and a spring joint from each body to its parent bone
 Capsule radius 15% of the bone's length (at least 1 cm), cylinder the bone's length; joints allow
 +-0.5 rad of swing and +-0.2 rad of twist with rotational springs; apparel bodies collide with
 everything but apparel (group 2) and static ones with everything. Written into PMX by
-:mod:`datagen.mmd.pmx_writer`, they bring the apparel back when the file is ingested.
+:mod:`mimicbench.datagen.mmd.pmx_writer`, they bring the apparel back when the file is ingested.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from datagen.retarget.retarget import rotation_between
-from schemas.joint import JointRecord
-from schemas.rigid_body import RigidBodyRecord
+from mimicbench.datagen.retarget.retarget import rotation_between
+from mimicbench.schemas.joint import JointRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
 
 APPAREL_GROUP, BODY_GROUP = 2, 0
 

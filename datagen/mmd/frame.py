@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.quaternion import quat_from_axis_angle, quat_multiply
+from mimicbench.geometry.quaternion import quat_from_axis_angle, quat_multiply
 
 MMD_UNIT_METRES = 0.08
 MIRROR = np.array([1.0, 1.0, -1.0])

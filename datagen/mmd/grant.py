@@ -10,8 +10,8 @@ translation, e.g. 腕捩連 turns with half of 腕捩, 目 with 0.15 of 両目. 
 """
 from __future__ import annotations
 
-from datagen.mmd.model import BONE_GRANT_LOCAL
-from mimicbench.quaternion import IDENTITY, quat_multiply, quat_slerp
+from mimicbench.datagen.mmd.model import BONE_GRANT_LOCAL
+from mimicbench.geometry.quaternion import IDENTITY, quat_multiply, quat_slerp
 
 
 def apply_grant(poser, i: int) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.quaternion import IDENTITY, quat_conjugate, quat_multiply, quat_to_matrix
+from mimicbench.geometry.quaternion import IDENTITY, quat_conjugate, quat_multiply, quat_to_matrix
 
 AXES = np.eye(3)
 

@@ -1,5 +1,5 @@
 """The ``datagen ingest`` path for MMD files, without Blender: a .pmx/.pmd model becomes a character
-(``assets/<stem>``, :func:`datagen.ingest.identity.character_id_for`) with its rigid bodies and
+(``assets/<stem>``, :func:`mimicbench.datagen.ingest.identity.character_id_for`) with its rigid bodies and
 joints; which .vmd files play on which model: :func:`motions_for`. A malformed file is a failed
 status row naming it; the other files go on.
 """
@@ -11,12 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.mmd import MODEL_SUFFIXES, MOTION_SUFFIXES, read_model
-from datagen.mmd.frame import MMD_UNIT_METRES
-from datagen.mmd.records import character_from_mmd
-from datagen.splits import split_of
-from schemas.shards import splits_of
-from schemas.status import StatusRecord
+from mimicbench.datagen.mmd import MODEL_SUFFIXES, MOTION_SUFFIXES, read_model
+from mimicbench.datagen.mmd.frame import MMD_UNIT_METRES
+from mimicbench.datagen.mmd.records import character_from_mmd
+from mimicbench.datagen.splits import split_of
+from mimicbench.schemas.shards import splits_of
+from mimicbench.schemas.status import StatusRecord
 
 
 @dataclass
@@ -71,20 +71,20 @@ def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progres
         category_for: ``Path -> category`` (``unknown`` keeps the MMD guess: ``humanoid`` when the
             standard humanoid bones are present).
         scale: metres per MMD unit (default 0.08).
-        run: the ingest's :class:`~datagen.stage_runner.StageRun`; when given, the ``rigid_bodies``
+        run: the ingest's :class:`~mimicbench.datagen.stage_runner.StageRun`; when given, the ``rigid_bodies``
             and ``joints`` tables are written to its folder (per split).
         taken: character ID -> source path already holding it (the dataset's and this run's other
             formats); updated with the IDs given here, so no two sources share an ID.
         max_frames: the most frames a motion may have (default
-            :data:`datagen.ingest.clip_length.MAX_CLIP_FRAMES`); a longer one is a failed row.
+            :data:`mimicbench.datagen.ingest.clip_length.MAX_CLIP_FRAMES`); a longer one is a failed row.
         split_for: character ID -> split (default the hashed split).
     """
     from tqdm.auto import tqdm
 
-    from datagen.ingest.identity import character_id_for
-    from datagen.mmd.motion import motion_from_vmd
-    from datagen.mmd.physics import physics_records
-    from datagen.mmd.vmd import read_vmd
+    from mimicbench.datagen.ingest.identity import character_id_for
+    from mimicbench.datagen.mmd.motion import motion_from_vmd
+    from mimicbench.datagen.mmd.physics import physics_records
+    from mimicbench.datagen.mmd.vmd import read_vmd
 
     out = MMDIngest()
     models = [Path(p) for p in paths if Path(p).suffix.lower() in MODEL_SUFFIXES]

@@ -1,5 +1,5 @@
 """An MMD model as stored in its file (PMX, or PMD converted to PMX's terms): MMD units,
-MMD's left-handed Y-up frame, Japanese names. :mod:`datagen.mmd.records` converts it to the
+MMD's left-handed Y-up frame, Japanese names. :mod:`mimicbench.datagen.mmd.records` converts it to the
 dataset's frame."""
 from __future__ import annotations
 

@@ -4,8 +4,8 @@ Bone keys are matched to the model's bones by name: exactly, else by MMD's rule 
 holds only the first 15 bytes (Shift-JIS) of a longer bone name (the first such bone in file
 order). Keys on one bone and frame that repeat keep the last one in the file. Each bone's
 channels are sampled at every frame from 0 to the last key (30 fps) with MMD's Bezier curves
-(:mod:`datagen.mmd.bezier`): translation per axis, rotation by slerp. Each frame is then posed
-with grants and IK (:class:`datagen.mmd.pose.MMDPoser`) and converted to the dataset frame.
+(:mod:`mimicbench.datagen.mmd.bezier`): translation per axis, rotation by slerp. Each frame is then posed
+with grants and IK (:class:`mimicbench.datagen.mmd.pose.MMDPoser`) and converted to the dataset frame.
 Show/IK keys switch IK bones off and on (:func:`ik_switches`). Morph keys are not used (the
 dataset has no morph targets); their count is reported.
 """
@@ -13,14 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.ingest.clip_length import check_clip_frames
-from datagen.mmd import frame
-from datagen.mmd.bezier import bezier_weight, control_points
-from datagen.mmd.model import MMDModel
-from datagen.mmd.pose import MMDPoser
-from datagen.mmd.vmd import VMDMotion
-from mimicbench.quaternion import matrix_to_quat, quat_slerp
-from schemas.motion import MotionRecord
+from mimicbench.datagen.ingest.clip_length import check_clip_frames
+from mimicbench.datagen.mmd import frame
+from mimicbench.datagen.mmd.bezier import bezier_weight, control_points
+from mimicbench.datagen.mmd.model import MMDModel
+from mimicbench.datagen.mmd.pose import MMDPoser
+from mimicbench.datagen.mmd.vmd import VMDMotion
+from mimicbench.geometry.quaternion import matrix_to_quat, quat_slerp
+from mimicbench.schemas.motion import MotionRecord
 
 VMD_FPS = 30.0
 
@@ -135,7 +135,7 @@ def motion_from_vmd(vmd: VMDMotion, model: MMDModel, character, name: str, sourc
 
     Raises:
         ClipTooLong: the clip (frames 0 to the last key) has more than ``max_frames`` frames
-            (default :data:`datagen.ingest.clip_length.MAX_CLIP_FRAMES`); checked before sampling.
+            (default :data:`mimicbench.datagen.ingest.clip_length.MAX_CLIP_FRAMES`); checked before sampling.
     """
     R, t, report = pose_clip(vmd, model, max_frames=max_frames)
     order = np.asarray(character.meta["mmd"]["file_bone_index"])

@@ -1,6 +1,6 @@
 """An MMD model's rigid bodies and joints as dataset records, in the dataset's frame.
 
-Positions are scaled and mirrored (:mod:`datagen.mmd.frame`); orientations are MMD's Euler
+Positions are scaled and mirrored (:mod:`mimicbench.datagen.mmd.frame`); orientations are MMD's Euler
 angles (R = Ry Rx Rz), mirrored, as quaternions; joint limits are expressed in the joint's own
 frame, where the mirror negates local z translations and x, y rotations, so those intervals are
 swapped and negated; sizes are scaled; spring stiffness, mass, damping, restitution, friction and
@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.mmd import frame
-from datagen.mmd.model import MMDModel, MODE_NAMES, SHAPE_NAMES
-from schemas.joint import KINDS, JointRecord
-from schemas.rigid_body import RigidBodyRecord
+from mimicbench.datagen.mmd import frame
+from mimicbench.datagen.mmd.model import MMDModel, MODE_NAMES, SHAPE_NAMES
+from mimicbench.schemas.joint import KINDS, JointRecord
+from mimicbench.schemas.rigid_body import RigidBodyRecord
 
 
 def body_size(shape: int, size: np.ndarray, scale: float) -> np.ndarray:
@@ -26,7 +26,7 @@ def body_size(shape: int, size: np.ndarray, scale: float) -> np.ndarray:
 def physics_records(model: MMDModel, character_id: str, new_index: np.ndarray,
                     scale: float = frame.MMD_UNIT_METRES) -> tuple[list[RigidBodyRecord], list[JointRecord]]:
     """Rigid-body and joint records of ``model``; ``new_index`` (K,) maps file bone indices to the
-    character's bone order (see :func:`datagen.mmd.records.topological_order`)."""
+    character's bone order (see :func:`mimicbench.datagen.mmd.records.topological_order`)."""
     bodies = []
     for i, rb in enumerate(model.rigid_bodies):
         bodies.append(RigidBodyRecord(

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.mmd.binary import BoundedReader, check_indices
-from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.model import (BONE_FIXED_AXIS, BONE_GRANT_ROTATION, BONE_IK, BONE_MOVABLE, BONE_OPERABLE,
+from mimicbench.datagen.mmd.binary import BoundedReader, check_indices
+from mimicbench.datagen.mmd.errors import MMDFormatError
+from mimicbench.datagen.mmd.model import (BONE_FIXED_AXIS, BONE_GRANT_ROTATION, BONE_IK, BONE_MOVABLE, BONE_OPERABLE,
                                BONE_ROTATABLE, BONE_TAIL_IS_BONE, BONE_VISIBLE, IKChain, IKLink, MMDBone, MMDJoint,
                                MMDModel, MMDRigidBody)
 

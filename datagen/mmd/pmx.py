@@ -4,7 +4,7 @@ Why not a library: pymeshio 3.0.1, the one Python reader that returns bones, rig
 joints, refuses any file with additional UVs ("extended uv is not supported"), does not know
 PMX 2.1 (QDEF weights, flip/impulse morphs), and allocates whatever counts a header claims. This
 reader follows the PMX 2.0/2.1 specification (PmxEditor's "PMX仕様.txt") with every count,
-length and index checked (:mod:`datagen.mmd.binary`). Soft bodies (2.1) after the joints are not
+length and index checked (:mod:`mimicbench.datagen.mmd.binary`). Soft bodies (2.1) after the joints are not
 read. Text is UTF-16LE or UTF-8 as the header says.
 """
 from __future__ import annotations
@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.mmd.binary import BoundedReader, check_indices
-from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.model import (BONE_EXTERNAL_PARENT, BONE_FIXED_AXIS, BONE_GRANT_ROTATION, BONE_GRANT_TRANSLATION,
+from mimicbench.datagen.mmd.binary import BoundedReader, check_indices
+from mimicbench.datagen.mmd.errors import MMDFormatError
+from mimicbench.datagen.mmd.model import (BONE_EXTERNAL_PARENT, BONE_FIXED_AXIS, BONE_GRANT_ROTATION, BONE_GRANT_TRANSLATION,
                                BONE_IK, BONE_LOCAL_AXIS, BONE_TAIL_IS_BONE, IKChain, IKLink, MMDBone, MMDJoint,
                                MMDModel, MMDRigidBody)
 

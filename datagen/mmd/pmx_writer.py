@@ -1,5 +1,5 @@
 """Write a character (and its rigid bodies and joints) as a PMX 2.0 file: the inverse of
-:mod:`datagen.mmd.records` and :mod:`datagen.mmd.physics` (metres -> MMD units, z mirrored back,
+:mod:`mimicbench.datagen.mmd.records` and :mod:`mimicbench.datagen.mmd.physics` (metres -> MMD units, z mirrored back,
 faces reversed back, Euler angles R = Ry Rx Rz, limits swapped and negated back).
 
 Weights keep each vertex's 4 largest influences (PMX's BDEF4 limit), renormalised; BDEF1 or
@@ -13,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.mmd import frame
-from mimicbench.quaternion import quat_to_matrix
-from schemas.joint import KINDS
-from schemas.rigid_body import MODES, SHAPES
+from mimicbench.datagen.mmd import frame
+from mimicbench.geometry.quaternion import quat_to_matrix
+from mimicbench.schemas.joint import KINDS
+from mimicbench.schemas.rigid_body import MODES, SHAPES
 
 _ENC = "utf-16-le"
 

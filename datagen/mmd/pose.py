@@ -6,7 +6,7 @@
 2. global transforms from the roots down;
 3. bones in deform order (after-physics bones last, then by deform layer, then file index): a
    grant bone takes its share of its grant parent's rotation/translation
-   (:mod:`datagen.mmd.grant`), an IK bone runs CCD on its chain (:mod:`datagen.mmd.ik`), each
+   (:mod:`mimicbench.datagen.mmd.grant`), an IK bone runs CCD on its chain (:mod:`mimicbench.datagen.mmd.ik`), each
    followed by an update of the bone's subtree.
 
 Frames are independent, so every array carries a leading frame axis F and each step runs on all
@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.mmd.grant import apply_grant
-from datagen.mmd.ik import solve_ik
-from datagen.mmd.model import MMDModel
-from datagen.mmd.records import topological_order
-from mimicbench.quaternion import IDENTITY, quat_multiply, quat_to_matrix
+from mimicbench.datagen.mmd.grant import apply_grant
+from mimicbench.datagen.mmd.ik import solve_ik
+from mimicbench.datagen.mmd.model import MMDModel
+from mimicbench.datagen.mmd.records import topological_order
+from mimicbench.geometry.quaternion import IDENTITY, quat_multiply, quat_to_matrix
 
 
 def rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:

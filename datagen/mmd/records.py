@@ -1,7 +1,7 @@
 """An :class:`MMDModel` as the dataset's character record.
 
 Bones are put in topological order (parents first, file order otherwise kept); positions go to
-metres in the dataset frame (:mod:`datagen.mmd.frame`); faces are reversed to stay
+metres in the dataset frame (:mod:`mimicbench.datagen.mmd.frame`); faces are reversed to stay
 counter-clockwise seen from outside after the mirror; BDEF1/2/4 weights are summed per bone
 (SDEF as BDEF2, its C/R0/R1 kept in ``meta["mmd"]["sdef"]``; QDEF as BDEF4) and renormalised. Japanese names are kept as authored; the English
 canonical name, the file's own English name, and the IK, twist and grant (付与) roles of each bone
@@ -14,13 +14,13 @@ import json
 
 import numpy as np
 
-from datagen.mmd import frame
-from datagen.mmd.apparel import apparel_bones, apparel_chains, apparel_vertex_mask
-from datagen.mmd.errors import MMDFormatError
-from datagen.mmd.model import DEFORM_NAMES, MMDModel
-from datagen.mmd.names import english_name
-from schemas.character import CharacterRecord
-from schemas.weights import SparseWeights
+from mimicbench.datagen.mmd import frame
+from mimicbench.datagen.mmd.apparel import apparel_bones, apparel_chains, apparel_vertex_mask
+from mimicbench.datagen.mmd.errors import MMDFormatError
+from mimicbench.datagen.mmd.model import DEFORM_NAMES, MMDModel
+from mimicbench.datagen.mmd.names import english_name
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.weights import SparseWeights
 
 # Bones every MMD humanoid has (standard bone set): their presence makes the category humanoid
 HUMANOID_BONES = ("上半身", "下半身", "頭", "左腕", "右腕", "左足", "右足", "左ひざ", "右ひざ")

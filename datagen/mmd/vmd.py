@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.mmd.binary import BoundedReader
-from datagen.mmd.errors import MMDFormatError
+from mimicbench.datagen.mmd.binary import BoundedReader
+from mimicbench.datagen.mmd.errors import MMDFormatError
 
 MAGIC_V2 = b"Vocaloid Motion Data 0002"
 MAGIC_V1 = b"Vocaloid Motion Data file"
@@ -32,7 +32,7 @@ class VMDMotion:
     Bone keys: ``bone_names`` (n,) strings, ``frames`` (n,) int64 (30 fps), ``positions`` (n, 3)
     float32 translation from the rest pose in the parent's frame (MMD units, MMD frame),
     ``rotations`` (n, 4) float32 (x, y, z, w) local rotation from rest, ``interpolation`` (n, 64)
-    uint8 (see :mod:`datagen.mmd.bezier`). Morph keys: ``morph_names``, ``morph_frames``,
+    uint8 (see :mod:`mimicbench.datagen.mmd.bezier`). Morph keys: ``morph_names``, ``morph_frames``,
     ``morph_weights``. Show/IK keys: ``ik_frames`` (m,) int64 and ``ik_states`` m dicts
     ``{IK bone name: enabled}`` (an IK bone a key does not name keeps its state)."""
 

@@ -1,10 +1,10 @@
 """Runs inside a child process: render a job's meshes with Blender's Workbench engine.
 
-    python -m datagen.render.blender_child JOB.json
+    python -m mimicbench.datagen.render.blender_child JOB.json
 
 ``JOB.json`` names the meshes file (``.npz`` with ``v{i}`` (N, 3) float32 vertices in the
 dataset frame and ``f{i}`` (M, 3) int32 faces), the image size, the cameras (fitted by
-:func:`datagen.render.camera.fit_camera` in the parent) and, per panel, its mesh, colour, camera
+:func:`mimicbench.datagen.render.camera.fit_camera` in the parent) and, per panel, its mesh, colour, camera
 and output PNG. Every panel renders in this one process (Blender starts once per job, not once
 per mesh); each panel's PNG is written when done and ``JOB.result.json`` says which succeeded.
 Images have a transparent background (RGBA). Like the ingest's child, only bpy, numpy and the
@@ -19,7 +19,7 @@ import time
 import bpy  # noqa: I001  (first, before anything that loads another Embree)
 import numpy as np
 
-from datagen.ingest.blender_child import C  # Blender Z up -> dataset Y up; C.T is the way back
+from mimicbench.datagen.ingest.blender_child import C  # Blender Z up -> dataset Y up; C.T is the way back
 
 
 def _to_blender(v: np.ndarray) -> np.ndarray:

@@ -6,11 +6,11 @@ import difflib
 import numpy as np
 import pyarrow.compute as pc
 
-from datagen.render.panel import Panel
-from mimicbench.skinning import linear_blend_skinning
-from schemas.columns import table_to_records
-from schemas.shards import has_table, read_table
-from schemas.tables import record_type
+from mimicbench.datagen.render.panel import Panel
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.columns import table_to_records
+from mimicbench.schemas.shards import has_table, read_table
+from mimicbench.schemas.tables import record_type
 
 
 def _rows(dataset, table: str, column: str, value: str) -> list:

@@ -29,14 +29,14 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import time
 
-    from datagen.render.character import character_panel
-    from datagen.render.render import RenderError, render_sheet
-    from schemas.errors import UserError
+    from mimicbench.datagen.render.character import character_panel
+    from mimicbench.datagen.render.render import RenderError, render_sheet
+    from mimicbench.schemas.errors import UserError
 
     start = time.perf_counter()
     try:
         if args.contact_sheet:
-            from datagen.render.contact_sheet import write_contact_sheet
+            from mimicbench.datagen.render.contact_sheet import write_contact_sheet
 
             out = write_contact_sheet(args.dataset, args.out, panel_px=min(args.size, 320), timeout=args.timeout)
             what = "contact sheet"

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from datagen.render.panel import Panel
-from datagen.render.render import render_sheet
-from schemas.shards import read_records
+from mimicbench.datagen.render.panel import Panel
+from mimicbench.datagen.render.render import render_sheet
+from mimicbench.schemas.shards import read_records
 
 DEFAULT_PATH = Path("card") / "contact_sheet.png"
 MAX_CHARACTERS = 60
@@ -47,7 +47,7 @@ def write_contact_sheet(dataset, out_png=None, characters=None, limit: int = MAX
 
     Raises:
         ValueError: no character has a mesh.
-        datagen.render.RenderError: Blender is missing, crashed or timed out.
+        mimicbench.datagen.render.RenderError: Blender is missing, crashed or timed out.
     """
     chars = read_records(dataset, "characters") if characters is None else list(characters)
     total = sum(1 for c in chars if len(c.faces))

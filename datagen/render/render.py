@@ -1,7 +1,7 @@
 """Render panels through Blender in one child process, and lay them out as a labelled sheet.
 
 :func:`render_panels` writes the meshes and a job file, runs ``python -m
-datagen.render.blender_child`` with a timeout (the ingest's pattern: a crash or a hang in
+mimicbench.datagen.render.blender_child`` with a timeout (the ingest's pattern: a crash or a hang in
 Blender becomes an error here, never a dead parent), and reads the panels back as RGBA images.
 :func:`render_sheet` adds the layout: a grid of panels, each with its label above it, on white.
 """
@@ -18,8 +18,8 @@ from typing import Sequence
 
 import numpy as np
 
-from datagen.render.camera import OrthoCamera, fit_camera
-from datagen.render.panel import Panel
+from mimicbench.datagen.render.camera import OrthoCamera, fit_camera
+from mimicbench.datagen.render.panel import Panel
 
 PANEL_PX = 320
 
@@ -116,7 +116,7 @@ def render_panels(panels: Sequence[Panel], width: int = PANEL_PX, height: int = 
         job_file.write_text(json.dumps(job))
         start = time.perf_counter()
         try:
-            proc = subprocess.run([sys.executable, "-m", "datagen.render.blender_child", str(job_file)],
+            proc = subprocess.run([sys.executable, "-m", "mimicbench.datagen.render.blender_child", str(job_file)],
                                   capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired as exc:
             raise RenderError(f"Blender render of {len(panels)} panels timed out after {timeout:g} s") from exc

@@ -15,24 +15,9 @@ the union's slivers) would lift it; that belongs to the zoo.
 """
 from __future__ import annotations
 
-import importlib
-
 # the stage's face-count limits (checked by the stage, offered by the CLI); here so neither imports the other
 MIN_FACES = 100  # below this a character mesh is no longer a character; simplifiers stop early
 MAX_FACES = 1_000_000  # above this refinement would need gigabytes per character
 # in the stage's fingerprint, so a re-run redoes rows an older resample made; CHANGELOG.md says what each
 # version changed
 RESAMPLE_VERSION = "4"
-
-_LAZY = {
-    "resample_character": "datagen.resample.character",
-    "resample_dataset": "datagen.resample.stage",
-}
-__all__ = sorted(_LAZY)
-
-
-def __getattr__(name: str):
-    """Import the public functions on first use, so the CLI starts fast."""
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

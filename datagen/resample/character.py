@@ -5,14 +5,14 @@ import dataclasses
 
 import numpy as np
 
-from datagen.resample.clean import BadMesh, clean_mesh
-from datagen.resample.closest_point import closest_points
-from datagen.resample.pieces import own_piece_points
-from datagen.resample.quality import hausdorff_percent, transfer_error_percent
-from datagen.resample.reskin import interpolate_mask, interpolate_weights
-from datagen.resample.simplify import resample_to
-from schemas.character import CharacterRecord
-from schemas.validate import parents_problem
+from mimicbench.datagen.resample.clean import BadMesh, clean_mesh
+from mimicbench.datagen.resample.closest_point import closest_points
+from mimicbench.datagen.resample.pieces import own_piece_points
+from mimicbench.datagen.resample.quality import hausdorff_percent, transfer_error_percent
+from mimicbench.datagen.resample.reskin import interpolate_mask, interpolate_weights
+from mimicbench.datagen.resample.simplify import resample_to
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.validate import parents_problem
 
 SAMPLED_FRAMES = 8
 
@@ -34,13 +34,13 @@ def resample_character(record: CharacterRecord, motions: list, faces: int = 5000
     the input and output face counts, subdivision rounds, what cleaning removed, the symmetric
     Hausdorff distance and the skinning transfer error (both in percent of height), when the
     resampled mesh had short edges or zero-area faces to weld away, ``weld``: what
-    :func:`datagen.resample.clean.weld_short_edges` removed and the face count decimation aimed at,
+    :func:`mimicbench.datagen.resample.clean.weld_short_edges` removed and the face count decimation aimed at,
     and, when some new vertices lie closest to another piece than the one they came from,
     ``own_piece_vertices``: how many (they take their weights from their own piece,
-    :func:`datagen.resample.pieces.own_piece_points`).
+    :func:`mimicbench.datagen.resample.pieces.own_piece_points`).
 
     Raises:
-        datagen.resample.clean.BadMesh: the input mesh cannot be resampled (the reason says why): a
+        mimicbench.datagen.resample.clean.BadMesh: the input mesh cannot be resampled (the reason says why): a
             skeleton out of the format's order (a cycle), a rest mesh with no height, a quality value
             that is not finite.
     """

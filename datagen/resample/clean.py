@@ -20,8 +20,8 @@ import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from mimicbench.mesh import mesh_pieces
-from schemas.weights import SparseWeights
+from mimicbench.geometry.mesh import mesh_pieces
+from mimicbench.schemas.weights import SparseWeights
 
 
 class BadMesh(ValueError):

@@ -1,18 +1,18 @@
 """Closest points of resampled vertices on their own piece of the original mesh.
 
-A piece is a connected component along faces (:func:`mimicbench.mesh.mesh_pieces`). Re-skinning
+A piece is a connected component along faces (:func:`mimicbench.geometry.mesh.mesh_pieces`). Re-skinning
 takes a new vertex's weights at its closest point on the original surface. Taken on any piece, that
 point would give vertices of the zoo's thin hair strands, which decimation leaves a few millimetres
 off their own surface (a strand's link collapsed to a handful of vertices), the weights of the cape
-or of the next link lying nearer. :func:`datagen.resample.simplify.resample_to`
+or of the next link lying nearer. :func:`mimicbench.datagen.resample.simplify.resample_to`
 says which piece each new vertex came from, and the closest point is taken on that piece alone.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from datagen.resample.closest_point import SurfacePoints, closest_points
-from mimicbench.mesh import mesh_pieces
+from mimicbench.datagen.resample.closest_point import SurfacePoints, closest_points
+from mimicbench.geometry.mesh import mesh_pieces
 
 
 def own_piece_points(old_vertices: np.ndarray, old_faces: np.ndarray, new_vertices: np.ndarray,
@@ -22,8 +22,8 @@ def own_piece_points(old_vertices: np.ndarray, old_faces: np.ndarray, new_vertic
     Args:
         old_vertices: (N, 3) float64 and old_faces: (M, 3) int64, the original mesh.
         new_vertices: (Q, 3) float64, the resampled vertices.
-        new_pieces: (Q,) int, the piece of the original mesh (its :func:`mimicbench.mesh.mesh_pieces`
-            label) each new vertex came from, as :func:`datagen.resample.simplify.resample_to` gives it.
+        new_pieces: (Q,) int, the piece of the original mesh (its :func:`mimicbench.geometry.mesh.mesh_pieces`
+            label) each new vertex came from, as :func:`mimicbench.datagen.resample.simplify.resample_to` gives it.
         anywhere: closest points of the new vertices on the whole original mesh; computed when not
             given.
 

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.resample.closest_point import SurfacePoints, closest_points
-from mimicbench.skinning import linear_blend_skinning
-from schemas.weights import SparseWeights
+from mimicbench.datagen.resample.closest_point import SurfacePoints, closest_points
+from mimicbench.geometry.skinning import linear_blend_skinning
+from mimicbench.schemas.weights import SparseWeights
 
 
 def hausdorff_percent(old_v, old_f, new_v, new_f, height: float, new_to_old: SurfacePoints | None = None) -> float:

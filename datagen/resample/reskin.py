@@ -1,7 +1,7 @@
 """Skin weights for a resampled mesh by barycentric interpolation of the original weights.
 
 Each new vertex takes the closest point on the original surface, on the piece it came from
-(:func:`datagen.resample.pieces.own_piece_points`); its weights are the barycentric combination of
+(:func:`mimicbench.datagen.resample.pieces.own_piece_points`); its weights are the barycentric combination of
 the weights of that triangle's three vertices, pruned to the 8 largest and renormalised. The
 apparel mask is interpolated the same way (kept where >= 0.5).
 """
@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from datagen.resample.closest_point import SurfacePoints
-from schemas.weights import MAX_INFLUENCES, SparseWeights
+from mimicbench.datagen.resample.closest_point import SurfacePoints
+from mimicbench.schemas.weights import MAX_INFLUENCES, SparseWeights
 
 
 def barycentric_matrix(faces: np.ndarray, surface: SurfacePoints, num_vertices: int) -> csr_matrix:

@@ -7,14 +7,14 @@ Both backends say where each output vertex came from: fast-simplification's coll
 vertex it was collapsed into, and MeshLab keeps each surviving vertex's quality, which carries the
 input vertex's index. :func:`resample_to` turns that into the piece of the input mesh each output
 vertex lies on; re-skinning reads weights from that piece alone
-(:mod:`datagen.resample.pieces`)."""
+(:mod:`mimicbench.datagen.resample.pieces`)."""
 from __future__ import annotations
 
 import numpy as np
 import trimesh
 
-from datagen.resample.clean import weld_short_edges
-from mimicbench.mesh import mesh_pieces
+from mimicbench.datagen.resample.clean import weld_short_edges
+from mimicbench.geometry.mesh import mesh_pieces
 
 BACKENDS = ("fast", "pymeshlab")
 
@@ -82,14 +82,14 @@ def resample_to(vertices: np.ndarray, faces: np.ndarray, target: int, backend: s
 
     Meshes above the target are decimated; meshes below it are subdivided (each face into four,
     at edge midpoints) until they exceed it, then decimated. The result is welded
-    (:func:`datagen.resample.clean.weld_short_edges`): quadric edge collapse sends several
+    (:func:`mimicbench.datagen.resample.clean.weld_short_edges`): quadric edge collapse sends several
     vertices to one sharp corner of a low-poly mesh and leaves them there, a few 1e-7 of the size
     apart, in zero-area triangles. When welding takes the count more than 1% from ``target``, the
     refined mesh is decimated again, aiming higher by what welding removed (at most
     ``WELD_RETRIES`` decimations; the count nearest ``target`` is kept). A mesh with nothing to weld
     comes out exactly as decimation left it.
 
-    ``pieces`` (N',) int64 is the piece of the input mesh (its :func:`mimicbench.mesh.mesh_pieces`
+    ``pieces`` (N',) int64 is the piece of the input mesh (its :func:`mimicbench.geometry.mesh.mesh_pieces`
     label) each output vertex came from: subdivision, collapse and welding all join vertices along
     edges only.
 

@@ -7,39 +7,28 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from datagen.resample.character import resample_character
-from datagen.resample import MAX_FACES, MIN_FACES, RESAMPLE_VERSION
+from mimicbench.datagen.resample.character import resample_character
+from mimicbench.datagen.resample import MAX_FACES, MIN_FACES, RESAMPLE_VERSION
 from mimicbench.engines import Engine, TaskResources
-from mimicbench.validation import expect, is_whole
-from datagen.stage_runner import Stage, StageRun, run_stage, summarize_statuses
-from schemas.errors import DatasetError
-from schemas.fingerprint import fingerprint_mismatch
-from schemas.shard_stream import checked_parquet_file, iter_records, iter_row_groups, read_row_group
-from schemas.rigid_body import PHYSICS_TABLES
-from schemas.shards import readable_entries, remove_split, splits_of
-from schemas.status import StatusRecord
-from schemas.tables import ROW_GROUP_SIZE, rows_per_shard
+from mimicbench.geometry.validation import expect, is_whole
+from mimicbench.datagen.resample.params import BACKENDS, ResampleParams
+from mimicbench.datagen.stage_runner import Stage, StagePlan, StageRun, drive
+from mimicbench.runtime.summary import StageSummary
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.fingerprint import fingerprint_mismatch
+from mimicbench.schemas.shard_stream import checked_parquet_file, iter_records, iter_row_groups, read_row_group
+from mimicbench.schemas.rigid_body import PHYSICS_TABLES
+from mimicbench.schemas.shards import readable_entries, remove_split, splits_of
+from mimicbench.schemas.status import StatusRecord
+from mimicbench.schemas.tables import ROW_GROUP_SIZE, rows_per_shard
 
-BACKENDS = ("fast", "pymeshlab")
 PART = "part_"  # split-name prefix of the shards written while the stage runs
 TASK_RESOURCES = TaskResources(num_cpus=1, memory=2 << 30)  # one character: mesh, KD-tree, weights
 BATCH = 64  # input characters in memory (and handed to the engine) at a time
-
-
-@dataclass(frozen=True)
-class ResampleParams:
-    """version: the stage's code version (:data:`RESAMPLE_VERSION`); faces: target face count;
-    backend: one of :data:`BACKENDS`."""
-
-    version: str = RESAMPLE_VERSION
-    faces: int = 5000
-    backend: str = "fast"
 
 
 def _one(item, faces, backend):
@@ -47,15 +36,25 @@ def _one(item, faces, backend):
     return resample_character(record, motions, faces, backend)
 
 
+def _check(params: ResampleParams) -> None:
+    expect(is_whole(params.faces) and MIN_FACES <= params.faces <= MAX_FACES, "faces",
+           f"an integer from {MIN_FACES} to {MAX_FACES}", params.faces)
+    expect(params.backend in BACKENDS, "backend", f"one of {BACKENDS}", params.backend)
+    expect(params.jobs >= 1, "jobs", ">= 1", params.jobs)
+
+
 STAGE = Stage("resample", ResampleParams, inputs=("characters", "motions"), item=_one,
-              outputs=("characters", "status"), copies=("motions", "pairs", *PHYSICS_TABLES))
+              outputs=("characters", "status"), copies=("motions", "pairs", *PHYSICS_TABLES),
+              plan=lambda run: ResamplePlan(run), out_key="out_dataset", in_key="in_dataset",
+              constants=(("version", RESAMPLE_VERSION),), check=_check,
+              info=lambda params: {"source": str(params.in_dataset)}, what="character")
 
 
-def _reusable_rows(run: StageRun) -> tuple[dict, list[str]]:
+def _reusable_rows(run: StageRun) -> tuple[dict, list[str], list[tuple[str, str]]]:
     """Where the rows of OUT made with the same fingerprints as ``run.config`` are
-    (``{character_id: (manifest entry, row group)}``), and notes on the rows that cannot be reused
-    and why. Drops part shards of an interrupted run with other fingerprints."""
-    manifest, done, notes = run.manifest() or {"tables": {}}, {}, []
+    (``{character_id: (manifest entry, row group)}``), notes on the rows that cannot be reused
+    and why, and the part splits of an interrupted run with other fingerprints (to drop)."""
+    manifest, done, notes, drop = run.manifest() or {"tables": {}}, {}, [], []
     shards = manifest["tables"].get("characters", {}).get("shards", [])
     for parts in (False, True):  # a finished run's splits (its config), then an interrupted run's (pending)
         splits = sorted({s["split"] for s in shards if s["split"].startswith(PART) == parts})
@@ -65,12 +64,12 @@ def _reusable_rows(run: StageRun) -> tuple[dict, list[str]]:
             if why is None:
                 done.update(_rows_or_note(run.out_dir, split, notes))
             elif parts:
-                remove_split(run.out_dir, "characters", split)
+                drop.append(("characters", split))
         if why is not None:
             notes.append(f"dropped the parts of an interrupted run that does not match ({why})" if parts else
                          f"{run.out_dir} holds a run that does not match ({why}): every character is redone (the "
                          f"old rows are replaced once this run has produced some)")
-    return done, notes
+    return done, notes, drop
 
 
 def _rows_or_note(out_dir: Path, split: str, notes: list[str]) -> dict:
@@ -133,110 +132,118 @@ def _sampled(m):
                                scale=None if m.scale is None else np.ascontiguousarray(m.scale[idx]))
 
 
+class ResamplePlan(StagePlan):
+    """The characters of IN not reusable from OUT, :data:`BATCH` at a time (a row group read at a
+    time); finished ones go to part splits as they come (:meth:`done`), then :meth:`write` streams
+    every row into the final shards in input order."""
+
+    resources = TASK_RESOURCES
+    configs = ("characters",)
+    flush_every, flush_seconds = 8, 60.0  # write finished characters after this many, or this long
+
+    def __init__(self, run: StageRun):
+        super().__init__(run.stage)
+        params, in_dir = run.params, run.in_dir
+        self.order, self.meshless = [], {}  # (character ID, split, has a mesh) in input order; skeleton-only records
+        for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
+            for r in group:
+                self.order.append((r.character_id, r.split, len(r.faces) > 0))
+                if len(r.faces) == 0:
+                    self.meshless[r.character_id] = r
+        if not self.order:
+            raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
+        # a damaged motions shard stops the stage here, before OUT is touched
+        self.frames = _sampled_motions(in_dir) if "motions" in run.config["fingerprint"]["inputs"] else {}
+        self.reusable, self.notes, self.drop = _reusable_rows(run)
+        self.reused = [StatusRecord(cid, "resample", "skipped", "already resampled", 0.0) for cid in self.reusable]
+        self.kwargs = {"faces": params.faces, "backend": params.backend}
+        self.run, self.in_dir, self.out_dir = run, in_dir, run.out_dir
+        self.where = dict(self.reusable)  # character ID -> (shard entry, row group) of its resampled row
+        self.buffer: list = []
+        self.last_flush = time.monotonic()
+        self.next_part = None
+
+    def name_of(self, item) -> str:
+        return item[0].character_id
+
+    def batches(self):
+        todo = sum(has_mesh and cid not in self.reusable for cid, _, has_mesh in self.order)
+        for n, batch in enumerate(_batches(self.in_dir, self.reusable), 1):
+            label = "resample" if todo <= len(batch) else f"resample {min(n * BATCH, todo)}/{todo}"
+            yield label, [(r, self.frames.get(r.character_id, [])) for r in batch]
+
+    def flush(self, run: StageRun) -> None:
+        if self.next_part is None:
+            parts = [s for s in splits_of(self.out_dir, "characters", allow_incomplete=True) if s.startswith(PART)]
+            self.next_part = max((int(p[len(PART):]) for p in parts), default=-1) + 1
+        if self.buffer:
+            group_rows, shard_rows = ROW_GROUP_SIZE["characters"], rows_per_shard("characters", STAGE.name)
+            entries = run.write("characters", self.buffer, f"{PART}{self.next_part:05d}", config=None)
+            for k, r in enumerate(self.buffer):
+                self.where[r.character_id] = (entries[k // shard_rows], (k % shard_rows) // group_rows)
+            self.next_part += 1
+            self.buffer.clear()
+        self.last_flush = time.monotonic()
+
+    def done(self, run, item, ok, result) -> None:
+        if ok:
+            self.buffer.append(result)
+        if len(self.buffer) >= self.flush_every or time.monotonic() - self.last_flush >= self.flush_seconds:
+            self.flush(run)
+
+    def nothing_made(self, statuses) -> bool:
+        self.flush(self.run)
+        return any(m for *_, m in self.order) and not any(m and cid in self.where for cid, _, m in self.order)
+
+    def write(self, run, statuses):
+        read, quality, count = _row_reader(self.out_dir), [], 0
+        splits = splits_of(self.in_dir, "characters")
+        with run.streams([("characters", split) for split in splits], config=None) as streams:
+            for cid, split, has_mesh in self.order:
+                if not has_mesh:
+                    row = self.meshless[cid]
+                elif cid in self.where:
+                    row = read(cid, self.where[cid])
+                else:
+                    continue  # failed: its status row says why
+                streams["characters", split].add([row])
+                count += 1
+                if (row.meta or {}).get("resample"):
+                    quality.append((row.meta["resample"]["hausdorff_pct"], row.meta["resample"]["transfer_error_pct"]))
+        wanted = set(splits)
+        for split in splits_of(self.out_dir, "characters", allow_incomplete=True):
+            if split not in wanted:  # parts, and splits of an earlier run the input no longer has
+                remove_split(self.out_dir, "characters", split)
+        q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
+        return statuses + self.reused, {
+            "characters": count, "resampled": sum(s.status == "ok" for s in statuses),
+            "already_done": len(self.reused), "notes": self.notes,
+            "hausdorff_pct_mean": float(np.mean(q[:, 0])) if len(q) else None,
+            "transfer_error_pct_mean": float(np.mean(q[:, 1])) if len(q) else None}
+
+
 def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
-                     progress: bool = True, flush_every: int = 8, flush_seconds: float = 60.0,
-                     engine: Engine | None = None) -> dict:
-    """Resample every character of ``in_dir`` into ``out_dir``, writing finished work as it goes.
+                     progress: bool = True, engine: Engine | None = None) -> StageSummary:
+    """Resample every character of ``in_dir`` into ``out_dir`` (:func:`drive` with :data:`STAGE`),
+    writing finished work as it goes.
 
     Characters that fail get a status row (split ``resample``) with the reason and are left out;
     skeleton-only characters (no mesh) are copied as they are. The motions table (and pairs, if
     any) are copied unchanged (verified against the input's manifest).
 
     Args:
-        flush_every, flush_seconds: write finished characters after this many, or this long.
         engine: where characters are resampled (:mod:`mimicbench.engines`; default the local engine
             with ``jobs`` processes); one character a task of 1 CPU and 2 GiB.
 
     Returns:
-        Summary: counts, failures, mean Hausdorff and transfer error (% of height), seconds,
-        ``notes`` (why earlier rows in ``out_dir`` were not reused).
+        The summary; its ``details``: ``characters``, ``resampled``, ``already_done``, mean
+        Hausdorff and transfer error (% of height), ``notes`` (why earlier rows in ``out_dir``
+        were not reused).
 
     Raises:
         ValueError: a bad argument.
         DatasetError: ``in_dir`` is not a dataset or has no characters; ``out_dir`` holds another
             stage's dataset; every character failed (``out_dir`` is then left as it was).
     """
-    start = time.perf_counter()
-    in_dir, out_dir = Path(in_dir), Path(out_dir)
-    expect(is_whole(faces) and MIN_FACES <= faces <= MAX_FACES, "faces", f"an integer from {MIN_FACES} to {MAX_FACES}",
-           faces)
-    expect(backend in BACKENDS, "backend", f"one of {BACKENDS}", backend)
-    expect(jobs >= 1 and flush_every >= 1, "jobs, flush_every", ">= 1", (jobs, flush_every))
-    order, meshless = [], {}  # (character ID, split) in input order; skeleton-only records (copied as they are)
-    for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
-        for r in group:
-            order.append((r.character_id, r.split, len(r.faces) > 0))
-            if len(r.faces) == 0:
-                meshless[r.character_id] = r
-    if not order:
-        raise DatasetError(f"{in_dir}: the characters table has no rows; nothing to resample")
-    run = StageRun(STAGE, ResampleParams(faces=int(faces), backend=backend), out_dir, in_dir, info={"source": str(in_dir)})
-    # a damaged motions shard stops the stage here, before OUT is touched
-    frames = _sampled_motions(in_dir) if "motions" in run.config["fingerprint"]["inputs"] else {}
-    done, notes = _reusable_rows(run)
-    run.begin()
-
-    where = dict(done)  # character ID -> (shard entry, row group) of its resampled row
-    parts = [s for s in splits_of(out_dir, "characters", allow_incomplete=True) if s.startswith(PART)]
-    next_part = [max((int(p[len(PART):]) for p in parts), default=-1) + 1]
-    buffer: list = []
-    last_flush = [time.monotonic()]
-    group_rows, shard_rows = ROW_GROUP_SIZE["characters"], rows_per_shard("characters", STAGE.name)
-
-    def flush() -> None:
-        if buffer:
-            entries = run.write("characters", buffer, f"{PART}{next_part[0]:05d}", config=None)
-            for k, r in enumerate(buffer):
-                where[r.character_id] = (entries[k // shard_rows], (k % shard_rows) // group_rows)
-            next_part[0] += 1
-            buffer.clear()
-        last_flush[0] = time.monotonic()
-
-    def on_done(i, ok, result) -> None:
-        if ok:
-            buffer.append(result)
-        if len(buffer) >= flush_every or time.monotonic() - last_flush[0] >= flush_seconds:
-            flush()
-
-    statuses: list[StatusRecord] = []
-    todo = sum(has_mesh and cid not in done for cid, _, has_mesh in order)
-    fn = partial(STAGE.item, faces=run.params.faces, backend=run.params.backend)
-    for n, batch in enumerate(_batches(in_dir, done), 1):
-        label = "resample" if todo <= len(batch) else f"resample {min(n * BATCH, todo)}/{todo}"
-        statuses += run_stage([(r, frames.get(r.character_id, [])) for r in batch], fn, label,
-                              name_of=lambda item: item[0].character_id, jobs=jobs, progress=progress, on_done=on_done,
-                              engine=engine, resources=TASK_RESOURCES, keep_results=False)[1]
-    flush()
-    if any(has_mesh for *_, has_mesh in order) and not any(has_mesh and cid in where for cid, _, has_mesh in order):
-        raise run.abandon(statuses, "character")  # every meshed character failed
-
-    read, quality, count = _row_reader(out_dir), [], 0
-    splits = splits_of(in_dir, "characters")
-    with run.streams([("characters", split) for split in splits], config=None) as streams:
-        for cid, split, has_mesh in order:
-            if not has_mesh:
-                row = meshless[cid]
-            elif cid in where:
-                row = read(cid, where[cid])
-            else:
-                continue  # failed: its status row says why
-            streams["characters", split].add([row])
-            count += 1
-            if (row.meta or {}).get("resample"):
-                quality.append((row.meta["resample"]["hausdorff_pct"], row.meta["resample"]["transfer_error_pct"]))
-    wanted = set(splits)
-    for split in splits_of(out_dir, "characters", allow_incomplete=True):
-        if split not in wanted:  # parts, and splits of an earlier run the input no longer has
-            remove_split(out_dir, "characters", split)
-    skipped = [StatusRecord(cid, "resample", "skipped", "already resampled", 0.0) for cid in done]
-    run.write_status(statuses + skipped)
-    run.copy_inputs()
-    run.finish(configs=["characters"])
-    q = np.asarray(quality, dtype=np.float64).reshape(-1, 2)
-    if progress:
-        print(summarize_statuses(statuses))
-    return {"characters": count, "resampled": sum(s.status == "ok" for s in statuses), "already_done": len(done),
-            "failed": sum(s.status == "failed" for s in statuses),
-            "hausdorff_pct_mean": float(np.mean(q[:, 0])) if len(q) else None,
-            "transfer_error_pct_mean": float(np.mean(q[:, 1])) if len(q) else None,
-            "seconds": time.perf_counter() - start, "statuses": statuses, "notes": notes}
+    params = ResampleParams(str(in_dir), str(out_dir), faces=faces, backend=backend, jobs=jobs, quiet=not progress)
+    return drive(STAGE, params, engine=engine)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.summary import StageSummary
+from mimicbench.runtime.summary import StageSummary
 
 
 def register(subparsers) -> None:
@@ -30,8 +30,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> StageSummary:
-    from datagen.retarget.stage import retarget_datasets
-    from datagen.stage_runner import summarize_statuses
+    from mimicbench.datagen.retarget.stage import retarget_datasets
+    from mimicbench.datagen.stage_runner import summarize_statuses
 
     s = retarget_datasets(args.motions, args.characters, args.out, args.sources, args.targets, not args.quiet)
     print(summarize_statuses(s["statuses"]))

@@ -1,6 +1,6 @@
 """Put a clip of one humanoid skeleton onto another by bone roles.
 
-For each role both skeletons have (:mod:`datagen.retarget.roles`):
+For each role both skeletons have (:mod:`mimicbench.datagen.retarget.roles`):
 
 1. **Rest alignment**: A_r, the shortest rotation taking the target bone's rest direction (its
    head to the head of the role below it, e.g. upper arm -> forearm) onto the source's. T-pose and
@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.retarget.roles import direction_children, humanoid_roles
-from mimicbench.kinematics import array_to_transforms, transforms_to_array
-from mimicbench.quaternion import quat_apply, quat_multiply, quat_normalize
-from schemas.motion import MotionRecord
-from schemas.validate import parents_problem
+from mimicbench.datagen.retarget.roles import direction_children, humanoid_roles
+from mimicbench.geometry.kinematics import array_to_transforms, transforms_to_array
+from mimicbench.geometry.quaternion import quat_apply, quat_multiply, quat_normalize
+from mimicbench.schemas.motion import MotionRecord
+from mimicbench.schemas.validate import parents_problem
 
 
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Humanoid bone roles from bone names, through the correspondence stage's canonical names.
 
-A bone's canonical name (``datagen.correspond.canonical``: ``mixamorig:LeftForeArm`` -> ``left lower
+A bone's canonical name (``mimicbench.datagen.correspond.canonical``: ``mixamorig:LeftForeArm`` -> ``left lower
 arm``, MMD's ``左腕`` -> ``left arm``, CMU's ``LeftUpLeg`` -> ``left upper leg``) is looked up in a
 table of the names each role goes by across conventions; roles use the zoo's vocabulary (``hips``,
 ``spine/1``, ``left/upper_arm``, ...). The first bone (parents first) that takes a role keeps it.
@@ -55,7 +55,7 @@ def role_of(canonical: str) -> str | None:
 def humanoid_roles(bone_names: Sequence[str]) -> dict[str, int]:
     """Role -> bone index for the bones whose names say a humanoid role (bones in parents-first
     order, so the first bone with a role is the one nearest the root)."""
-    from datagen.correspond.canonical import canonicalize_names
+    from mimicbench.datagen.correspond.canonical import canonicalize_names
 
     out: dict[str, int] = {}
     canon = canonicalize_names(list(bone_names))

@@ -7,12 +7,12 @@ import json
 import time
 from dataclasses import dataclass
 
-from datagen.retarget.retarget import retarget_clip
-from datagen.retarget.roles import humanoid_roles
-from datagen.stage_runner import Stage, StageRun
-from schemas.rigid_body import PHYSICS_TABLES
-from schemas.shards import has_table, read_records
-from schemas.status import StatusRecord
+from mimicbench.datagen.retarget.retarget import retarget_clip
+from mimicbench.datagen.retarget.roles import humanoid_roles
+from mimicbench.datagen.stage_runner import Stage, StageRun
+from mimicbench.schemas.rigid_body import PHYSICS_TABLES
+from mimicbench.schemas.shards import has_table, read_records
+from mimicbench.schemas.status import StatusRecord
 
 MIN_ROLES = 8
 

@@ -9,5 +9,5 @@ Roles are ground truth only (the semantic score, correspondence reports), never 
 - :mod:`.attach`: writing the roles (and a file's categories) into a dataset's characters;
 - :mod:`.command`: ``mimicbench datagen roles DATASET --labels FILE``.
 
-A character's role classes: :func:`datagen.correspond.roles.record_role_classes`.
+A character's role classes: :func:`mimicbench.datagen.correspond.roles.record_role_classes`.
 """

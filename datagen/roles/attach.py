@@ -3,7 +3,7 @@ never a method input) and, where a file gives one, their ``category``.
 
 :func:`attach_roles` matches each file entry to characters (by character ID, or by the stem of
 the character's source file or of its ID), resolves the entry's rules against the character's bone
-names (:meth:`datagen.roles.labels.CharacterLabels.roles_for`), and rewrites the splits of the
+names (:meth:`mimicbench.datagen.roles.labels.CharacterLabels.roles_for`), and rewrites the splits of the
 ``characters`` table whose rows changed through the shard writer (each split's shards written
 under temporary names and renamed, the manifest updated atomically). While it writes, the dataset
 is marked incomplete (``pending.stage`` = ``datagen roles``); a killed run leaves it so, and a
@@ -20,15 +20,15 @@ import hashlib
 import sys
 from pathlib import Path
 
-from datagen.roles.labels import CharacterLabels, RoleLabelError, load_labels
-from schemas.character import CharacterRecord
-from schemas.errors import DatasetError
-from schemas.fingerprint import stale_inputs
-from schemas.folder_lock import hold
-from schemas.manifest import is_complete, load_manifest, load_manifest_for_write, mark_complete, mark_incomplete
-from schemas.shards import read_records, write_records
-from schemas.tables import rows_per_shard
-from schemas.validate import validate_dataset
+from mimicbench.datagen.roles.labels import CharacterLabels, RoleLabelError, load_labels
+from mimicbench.schemas.character import CharacterRecord
+from mimicbench.schemas.errors import DatasetError
+from mimicbench.schemas.fingerprint import stale_inputs
+from mimicbench.schemas.folder_lock import hold
+from mimicbench.schemas.manifest import is_complete, load_manifest, load_manifest_for_write, mark_complete, mark_incomplete
+from mimicbench.schemas.shards import read_records, write_records
+from mimicbench.schemas.tables import rows_per_shard
+from mimicbench.schemas.validate import validate_dataset
 
 STAGE = "datagen roles"
 

@@ -1,11 +1,11 @@
 """Where each character's category came from, for the summaries of ``datagen ingest`` and
-``datagen roles``: ``meta.category.source`` is ``inferred`` (:func:`datagen.ingest.category.infer_category`,
+``datagen roles``: ``meta.category.source`` is ``inferred`` (:func:`mimicbench.datagen.ingest.category.infer_category`,
 or an MMD model's standard bone set), ``map`` (``--category-map``) or ``labels`` (a role-label file)."""
 from __future__ import annotations
 
 import json
 
-from schemas.shards import read_table
+from mimicbench.schemas.shards import read_table
 
 
 def category_sources(dataset, ids=None) -> list[tuple[str, str, str, str]]:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from mimicbench.summary import StageSummary
+from mimicbench.runtime.summary import StageSummary
 
 
 def register(subparsers) -> None:
@@ -31,7 +31,7 @@ def register(subparsers) -> None:
 def run(args) -> StageSummary:
     import time
 
-    from datagen.roles.attach import attach_roles, print_warnings, summary_lines
+    from mimicbench.datagen.roles.attach import attach_roles, print_warnings, summary_lines
 
     start = time.perf_counter()
     s = attach_roles(args.dataset, args.labels)

@@ -18,7 +18,7 @@ JSON holds the same tree: ``{"version": 1, "characters": {"assets/Fox": {"catego
 or ``[`` that is not a bone's name is a glob (:func:`fnmatch.fnmatchcase`, case-sensitive). A
 bone named exactly takes that role; otherwise the first glob in file order that matches it
 does; a bone no key matches has no role. Roles are checked by
-:func:`datagen.roles.vocabulary.role_problem`.
+:func:`mimicbench.datagen.roles.vocabulary.role_problem`.
 """
 from __future__ import annotations
 
@@ -29,9 +29,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from datagen.roles.vocabulary import is_class_role, role_problem
-from schemas.character import CATEGORIES
-from schemas.errors import UserError
+from mimicbench.datagen.roles.vocabulary import is_class_role, role_problem
+from mimicbench.schemas.character import CATEGORIES
+from mimicbench.schemas.errors import UserError
 
 FORMAT_VERSION = 1
 GLOB_CHARS = frozenset("*?[")

@@ -1,10 +1,10 @@
 """Which strings a role-label file may give a bone, and what each means.
 
 A role is either a **zoo role** (``left/upper_arm``, ``spine/2``, ``left/front_leg/3``,
-``tail/4``, ``apparel/hair/1/2``; :mod:`datagen.zoo.naming`) or a **class**, optionally sided and
+``tail/4``, ``apparel/hair/1/2``; :mod:`mimicbench.datagen.zoo.naming`) or a **class**, optionally sided and
 numbered (``left/forelimb``, ``hindlimb``, ``tail``, ``head``, ``apparel``;
-:data:`datagen.correspond.roles.ROLE_CLASSES`). Both map to a class through
-:func:`datagen.correspond.roles.role_classes`. ``""`` means: no role.
+:data:`mimicbench.datagen.correspond.roles.ROLE_CLASSES`). Both map to a class through
+:func:`mimicbench.datagen.correspond.roles.role_classes`. ``""`` means: no role.
 
 Sides: limbs and ears (``forelimb``, ``midlimb``, ``hindlimb``, ``ear`` and the zoo parts that
 map to them) need ``left/`` or ``right/``; ``root``, ``spine``, ``neck``, ``head``, ``tail``,
@@ -12,8 +12,8 @@ map to them) need ``left/`` or ``right/``; ``root``, ``spine``, ``neck``, ``head
 """
 from __future__ import annotations
 
-from datagen.correspond.roles import ROLE_CLASSES, role_classes
-from datagen.zoo.naming import parse_role
+from mimicbench.datagen.correspond.roles import ROLE_CLASSES, role_classes
+from mimicbench.datagen.zoo.naming import parse_role
 
 SIDES = ("left", "right")
 SIDED_CLASSES = frozenset({"forelimb", "midlimb", "hindlimb", "ear"})

@@ -1,23 +1,9 @@
 """The procedural character zoo: rigged, skinned, animated characters of every kind, offline.
 
-``build_zoo(out_dir, num_characters, seed=0, ...)`` writes a dataset (characters and motions
+``dataset.build_zoo(out_dir, num_characters, seed=0, ...)`` writes a dataset (characters and motions
 shards, manifest, CARD.md); ``mimicbench zoo`` is its command line. Modules, one concept each:
 ``plan`` (counts, IDs, splits), ``templates/`` (one per category), ``skeleton``, ``naming``
 (bone-name styles), ``mesh_builder``, ``skin_weights``, ``motions`` and ``clips``, ``build``
 (one character), ``dataset`` (the whole zoo), ``export_obj``, ``export_bvh``, ``card``.
 """
 from __future__ import annotations
-
-import importlib
-
-_LAZY = {
-    "build_zoo": "datagen.zoo.dataset",
-}
-__all__ = sorted(_LAZY)
-
-
-def __getattr__(name: str):
-    """Import the public functions on first use, so the CLI starts fast."""
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -6,16 +6,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datagen.zoo.clips import clip_names, generator
-from datagen.zoo.mesh_builder import build_mesh
-from datagen.zoo.motions import FPS, NUM_FRAMES, clip_transforms
-from datagen.zoo.naming import ANIMAL_STYLES, HUMANOID_STYLES, bone_names
-from datagen.zoo.plan import CharacterSpec
-from datagen.zoo.skeleton import Skeleton, SkeletonBuilder
-from datagen.zoo.templates import TEMPLATES, ZOO_CATEGORIES
-from datagen.zoo.templates.humanoid import H2H_SKELETON_ID, H2H_TOPOLOGY, build_humanoid, humanoid_params
-from schemas.character import HUMANOID_LIKE, CharacterRecord
-from schemas.motion import MotionRecord
+from mimicbench.datagen.zoo.clips import clip_names, generator
+from mimicbench.datagen.zoo.mesh_builder import build_mesh
+from mimicbench.datagen.zoo.motions import FPS, NUM_FRAMES, clip_transforms
+from mimicbench.datagen.zoo.naming import ANIMAL_STYLES, HUMANOID_STYLES, bone_names
+from mimicbench.datagen.zoo.plan import CharacterSpec
+from mimicbench.datagen.zoo.skeleton import Skeleton, SkeletonBuilder
+from mimicbench.datagen.zoo.templates import TEMPLATES, ZOO_CATEGORIES
+from mimicbench.datagen.zoo.templates.humanoid import H2H_SKELETON_ID, H2H_TOPOLOGY, build_humanoid, humanoid_params
+from mimicbench.schemas.character import HUMANOID_LIKE, CharacterRecord
+from mimicbench.schemas.motion import MotionRecord
 
 ZOO_VERSION = "2"  # recorded in the zoo config; CHANGELOG.md says what each version changed
 TARGET_FACES = 8000
@@ -78,12 +78,12 @@ def build_character(spec: CharacterSpec, split: str, clips_per_character: int = 
                     num_frames: int = NUM_FRAMES, clip_set: str = "default") -> BuiltCharacter:
     """Build the character ``spec`` with ``clips_per_character`` clips of ``num_frames`` frames at 30 fps.
 
-    ``clip_set`` chooses the clips (:data:`datagen.zoo.clips.CLIP_SETS`; ``dynamic`` gives humanoids
+    ``clip_set`` chooses the clips (:data:`mimicbench.datagen.zoo.clips.CLIP_SETS`; ``dynamic`` gives humanoids
     spins, stops, jumps and turns first).
     """
     skel, params = build_skeleton(spec)
     verts, faces, owner = build_mesh(skel, TARGET_FACES)
-    from datagen.zoo.skin_weights import skin_weights
+    from mimicbench.datagen.zoo.skin_weights import skin_weights
 
     weights = skin_weights(skel, verts, owner)
     style = naming_style(spec)

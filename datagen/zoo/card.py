@@ -92,8 +92,8 @@ def add_contact_sheet(dataset, characters=None, timeout: float | None = None) ->
     """
     from pathlib import Path
 
-    from datagen.render.contact_sheet import DEFAULT_PATH, write_contact_sheet
-    from datagen.render.render import RenderError
+    from mimicbench.datagen.render.contact_sheet import DEFAULT_PATH, write_contact_sheet
+    from mimicbench.datagen.render.render import RenderError
 
     root = Path(dataset)
     try:
@@ -113,7 +113,7 @@ def put_card_section(card, begin: str, end: str, section: str) -> None:
     is created when missing), so a card's generated sections can be rewritten any number of times."""
     from pathlib import Path
 
-    from schemas.manifest import atomic_write_bytes
+    from mimicbench.schemas.manifest import atomic_write_bytes
 
     card = Path(card)
     text = card.read_text() if card.exists() else ""

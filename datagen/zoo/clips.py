@@ -1,7 +1,7 @@
 """Clip generators per kind of character: gaits, flaps, swims, slithers, idles, random poses.
 
 Each generator has the signature ``gen(skel, rng, num_frames) -> (rotvec (F, K, 3), root_offset (F, 3))``
-(see :mod:`datagen.zoo.motions`). Axes are in the rest frame: X is the character's left, Y up,
+(see :mod:`mimicbench.datagen.zoo.motions`). Axes are in the rest frame: X is the character's left, Y up,
 Z forward. Legs are found from the hidden roles; phase offsets make real gaits (a quadruped's
 lateral-sequence walk, an insect's alternating tripod, a biped's alternating legs).
 """
@@ -11,8 +11,8 @@ import re
 
 import numpy as np
 
-from datagen.zoo.motions import FPS, RAMP_FRAMES, random_poses
-from datagen.zoo.skeleton import Skeleton
+from mimicbench.datagen.zoo.motions import FPS, RAMP_FRAMES, random_poses
+from mimicbench.datagen.zoo.skeleton import Skeleton
 
 X, Y, Z = np.eye(3)
 
@@ -294,7 +294,7 @@ def generator(category: str, name: str):
     return table[name]
 
 
-# --- the "dynamic" clip set: motions where apparel lags and swings (opt-in, datagen.zoo.build.CLIP_SETS) ---
+# --- the "dynamic" clip set: motions where apparel lags and swings (opt-in, mimicbench.datagen.zoo.build.CLIP_SETS) ---
 
 GRAVITY = 9.8  # m/s^2, the apparel stage's default gravity, so a jump's flight is the simulation's free fall
 SPIN_ANGLE = 2 * np.pi  # a spin turns the root by one full turn (sign drawn per clip)

@@ -4,13 +4,13 @@ from __future__ import annotations
 import argparse
 
 from mimicbench.engines import add_engine_arguments
-from mimicbench.summary import StageSummary
-from mimicbench.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonnegative_int
+from mimicbench.runtime.summary import StageSummary
+from mimicbench.runtime.argtypes import MAX_JOBS, comma_choices, int_in, job_count, nonnegative_int
 
 MAX_CHARACTERS = 100_000
 MAX_CLIPS = 100
-MAX_FRAMES = 10_000  # as datagen.zoo.motions.MAX_FRAMES (kept here so --help stays fast)
-CLIP_SETS = ("default", "dynamic")  # as datagen.zoo.clips.CLIP_SETS
+MAX_FRAMES = 10_000  # as mimicbench.datagen.zoo.motions.MAX_FRAMES (kept here so --help stays fast)
+CLIP_SETS = ("default", "dynamic")  # as mimicbench.datagen.zoo.clips.CLIP_SETS
 
 DESCRIPTION = """\
 Generate procedural rigged, skinned and animated characters of every kind (humanoid, quadruped,
@@ -63,7 +63,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from mimicbench.engines import engine_from_args
-    from datagen.zoo import build_zoo
+    from mimicbench.datagen.zoo.dataset import build_zoo
 
     cats = [c.strip() for arg in args.categories for c in arg.split(",") if c.strip()] if args.categories else None
     s = build_zoo(args.out, args.characters, seed=args.seed, categories=cats,
@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     for f in s["failures"]:
         print(f"  FAILED {f}")
     if not args.no_contact_sheet:
-        from datagen.zoo.card import add_contact_sheet
+        from mimicbench.datagen.zoo.card import add_contact_sheet
 
         sheet = add_contact_sheet(args.out)
         print(f"contact sheet: {sheet['path'] or 'not rendered: ' + sheet['error']}")

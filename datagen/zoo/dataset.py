@@ -9,18 +9,18 @@ from pathlib import Path
 import numpy as np
 
 from mimicbench.engines import Engine
-from mimicbench.validation import expect, is_whole
-from datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
-from datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
-from datagen.zoo.clips import CLIP_SETS
-from datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries
-from datagen.zoo.export_bvh import write_bvh
-from datagen.zoo.export_obj import write_obj
-from datagen.zoo.motions import FPS, MAX_FRAMES, NUM_FRAMES, RAMP_FRAMES
-from datagen.zoo.plan import assign_splits, plan_zoo
-from datagen.zoo.templates.humanoid import H2H_SKELETON_ID
-from schemas.manifest import atomic_write_bytes
-from schemas.shards import SPLITS
+from mimicbench.geometry.validation import expect, is_whole
+from mimicbench.datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
+from mimicbench.datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
+from mimicbench.datagen.zoo.clips import CLIP_SETS
+from mimicbench.datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries
+from mimicbench.datagen.zoo.export_bvh import write_bvh
+from mimicbench.datagen.zoo.export_obj import write_obj
+from mimicbench.datagen.zoo.motions import FPS, MAX_FRAMES, NUM_FRAMES, RAMP_FRAMES
+from mimicbench.datagen.zoo.plan import assign_splits, plan_zoo
+from mimicbench.datagen.zoo.templates.humanoid import H2H_SKELETON_ID
+from mimicbench.schemas.manifest import atomic_write_bytes
+from mimicbench.schemas.shards import SPLITS
 
 EXPORT_FORMATS = ("obj", "bvh", "pmx")
 SPLIT_RULE = ("Split rule (stratified, deterministic; datagen/zoo/plan.py): per stratum (each category, the H2H "
@@ -40,8 +40,8 @@ def export_character(out: Path, built: BuiltCharacter, export: tuple[str, ...]) 
             write_bvh(out / "export" / name / f"{m.name}.bvh", r.bone_names, r.parents, r.keypoints,
                       built.skeleton.tails, m.transforms, m.fps)
     if "pmx" in export:
-        from datagen.mmd.chain_physics import chain_physics
-        from datagen.mmd.pmx_writer import write_pmx
+        from mimicbench.datagen.mmd.chain_physics import chain_physics
+        from mimicbench.datagen.mmd.pmx_writer import write_pmx
 
         write_pmx(out / "export" / f"{name}.pmx", r, *chain_physics(r))
 
@@ -76,7 +76,7 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
     Args:
         motions: total clips, spread evenly over the characters (instead of ``clips_per_character`` each).
         frames_per_clip: frames of every clip at 30 fps.
-        clip_set: which clips (``datagen.zoo.clips.CLIP_SETS``); in the config only when not ``default``.
+        clip_set: which clips (``mimicbench.datagen.zoo.clips.CLIP_SETS``); in the config only when not ``default``.
 
     Returns:
         A summary dict: ``characters``, ``motions``, ``frames``, ``failed``, ``by_category``,

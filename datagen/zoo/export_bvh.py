@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mimicbench.kinematics import array_to_transforms, local_from_global
-from mimicbench.quaternion import quat_to_matrix
+from mimicbench.geometry.kinematics import array_to_transforms, local_from_global
+from mimicbench.geometry.quaternion import quat_to_matrix
 
 
 def bvh_name(name: str) -> str:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.zoo.skeleton import Skeleton
+from mimicbench.datagen.zoo.skeleton import Skeleton
 
 
 def _frame(axis: np.ndarray, side_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -3,15 +3,15 @@
 A clip generator returns local rotations as rotation vectors (F, K, 3) (axis times angle in
 radians, axes in the rest frame, since rotations are relative to rest) and a root offset (F, 3)
 metres. :func:`clip_transforms` scales both by a ramp that is 0 at frame 0, so every clip starts
-at the rest pose exactly, then runs :func:`mimicbench.kinematics.forward_kinematics`.
+at the rest pose exactly, then runs :func:`mimicbench.geometry.kinematics.forward_kinematics`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from datagen.zoo.skeleton import Skeleton
-from mimicbench.kinematics import forward_kinematics, transforms_to_array
-from mimicbench.quaternion import quat_from_axis_angle
+from mimicbench.datagen.zoo.skeleton import Skeleton
+from mimicbench.geometry.kinematics import forward_kinematics, transforms_to_array
+from mimicbench.geometry.quaternion import quat_from_axis_angle
 
 FPS = 30.0
 NUM_FRAMES = 45

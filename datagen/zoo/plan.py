@@ -18,7 +18,7 @@ import hashlib
 import math
 from dataclasses import dataclass
 
-from datagen.zoo.templates import ZOO_CATEGORIES
+from mimicbench.datagen.zoo.templates import ZOO_CATEGORIES
 
 SHARES = {"humanoid": 0.3, "apparel": 0.15, "quadruped": 0.15, "bird": 0.1, "fish": 0.1, "reptile": 0.1,
           "insect": 0.1}

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.zoo.skeleton import Skeleton
-from mimicbench.segments import point_segment_distance
-from schemas.weights import MAX_INFLUENCES, SparseWeights
+from mimicbench.datagen.zoo.skeleton import Skeleton
+from mimicbench.geometry.segments import point_segment_distance
+from mimicbench.schemas.weights import MAX_INFLUENCES, SparseWeights
 
 
 def neighbourhood(skel: Skeleton, k: int, children: list[list[int]]) -> list[int]:

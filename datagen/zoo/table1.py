@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pyarrow.compute as pc
 
-from datagen.zoo.card import put_card_section
-from schemas.shards import has_table, read_table
+from mimicbench.datagen.zoo.card import put_card_section
+from mimicbench.schemas.shards import has_table, read_table
 
 PAPER = {"characters": 975, "motions": 28_809, "frames": 4_470_000, "joints_min": 11, "joints_max": 241,
          "pairs": 384_000}

@@ -20,8 +20,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from schemas.manifest import load_manifest
-    from schemas.validate import validate_dataset
+    from mimicbench.schemas.manifest import load_manifest
+    from mimicbench.schemas.validate import validate_dataset
 
     problems = validate_dataset(args.dataset, values=True)
     if problems:

@@ -2,7 +2,7 @@
 
 Every stage with per-item work takes ``--engine local|ray`` (and ``--ray-address``) through
 :func:`add_engine_arguments` and builds its engine with :func:`engine_from_args`; the stage then
-hands the engine to :func:`datagen.stage_runner.run_stage`. Output does not depend on the engine.
+hands the engine to :func:`mimicbench.datagen.stage_runner.run_stage`. Output does not depend on the engine.
 """
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import argparse
 
 from mimicbench.engines.base import Engine, Outcome, TaskResources, call_item
 from mimicbench.engines.local import LocalEngine
-from mimicbench.registry import Registry
+from mimicbench.runtime.registry import Registry
 
 
 def _local(jobs: int, address: str | None) -> Engine:

@@ -1,7 +1,7 @@
 """What every engine shares: one item's outcome, the resources a task declares, chunking.
 
 An engine runs a stage's per-item function ``fn(item) -> result`` over many items and yields
-``(index, Outcome)`` pairs as items finish (in completion order); :func:`datagen.stage_runner.run_stage`
+``(index, Outcome)`` pairs as items finish (in completion order); :func:`mimicbench.datagen.stage_runner.run_stage`
 turns them into results in item order and status records. Items travel in chunks (a list of
 consecutive items a task), so per-task overhead is paid once per chunk.
 """

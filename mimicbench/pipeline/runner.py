@@ -1,7 +1,7 @@
 """Run a pipeline: each step's command function in turn, skipping finished steps, with a summary.
 
 Each step calls its command's function with its options dataclass (:func:`~.spec.step_options`,
-no command line in between); the :class:`~mimicbench.summary.StageSummary` it returns fills the
+no command line in between); the :class:`~mimicbench.runtime.summary.StageSummary` it returns fills the
 step's row of the summary. A step whose exit status is 0 is recorded as finished. One with 1 wrote its output but
 some items failed (status rows: a character that would not build, a block of pairs whose worker
 died on every retry): the pipeline goes on and the step is not recorded, so the next run retries
@@ -22,7 +22,7 @@ from tqdm.auto import tqdm
 from mimicbench.cli import USER_ERRORS, build_parser, error_text, exit_code
 from mimicbench.pipeline.spec import Pipeline, step_argv, step_options
 from mimicbench.pipeline.state import PipelineState, outputs_digest, step_fingerprint
-from mimicbench.summary import StageSummary
+from mimicbench.runtime.summary import StageSummary
 
 
 @dataclass

@@ -14,7 +14,7 @@ characters = 16
 
 Every other key of a step is the command's option with ``_`` for ``-`` (``all_pairs = true`` is
 ``--all-pairs``; a list gives several values, or one comma-separated value), typed and checked
-when the file is loaded (:mod:`mimicbench.options`); ``help`` is refused (it would print the help and
+when the file is loaded (:mod:`mimicbench.runtime.options`); ``help`` is refused (it would print the help and
 run nothing). The folders a step writes must lie inside the workdir (``../../etc`` or an absolute
 path elsewhere is refused) unless the step says ``allow_outside = true``. A step with
 ``restart = true`` (the demo's bench steps) deletes the folders it writes before it runs again
@@ -66,7 +66,7 @@ class StepKind:
 
 STEP_KINDS = {
     "zoo": StepKind(("zoo",), folders=("out",), writes=(("out", ("characters", "motions")),), engine=True, jobs=True,
-                   versions=("datagen.zoo.build:ZOO_VERSION",)),
+                   versions=("mimicbench.datagen.zoo.build:ZOO_VERSION",)),
     "ingest": StepKind(("datagen", "ingest"), positional=("paths",), folders=("out", "paths"),
                        reads=(("paths", None),), writes=(("out", ("characters", "motions")),),
                        engine=True, jobs=True),
@@ -76,17 +76,17 @@ STEP_KINDS = {
                          writes=(("out", ("characters", "motions")),)),
     "resample": StepKind(("datagen", "resample"), positional=("in", "out"), folders=("in", "out"),
                          reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
-                         engine=True, jobs=True, versions=("datagen.resample:RESAMPLE_VERSION",)),
+                         engine=True, jobs=True, versions=("mimicbench.datagen.resample:RESAMPLE_VERSION",)),
     "apparel": StepKind(("datagen", "apparel"), positional=("in", "out"), folders=("in", "out"),
                         reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
-                        engine=True, jobs=True, versions=("datagen.apparel.setup:SIM_VERSION",
-                                                            "datagen.apparel.file_physics:FILE_PHYSICS_VERSION")),
+                        engine=True, jobs=True, versions=("mimicbench.datagen.apparel.setup:SIM_VERSION",
+                                                            "mimicbench.datagen.apparel.file_physics:FILE_PHYSICS_VERSION")),
     "correspond": StepKind(("datagen", "correspond"), positional=("dataset",), folders=("dataset",),
                            reads=(("dataset", ("characters",)),), writes=(("dataset", ("pairs",)),), engine=True,
                            jobs=True),
     "cases": StepKind(("bench", "cases"), positional=("dataset",), folders=("dataset",),
                       reads=(("dataset", ("characters", "motions")),), writes=(("dataset", ("cases",)),),
-                      versions=("benchmark.protocols.apparel:CASES_VERSION",)),
+                      versions=("mimicbench.benchmark.protocols.apparel:CASES_VERSION",)),
     "bench": StepKind(("bench", "run"), positional=("dataset",), folders=("dataset", "out"),
                       reads=(("dataset", ("characters", "motions", "cases")),), writes=(("out", None),), engine=True),
     "validity": StepKind(("bench", "validity"), positional=("dataset",), folders=("dataset", "out"),
@@ -254,8 +254,8 @@ def _check_shared_outputs(path: Path, steps: list[Step], workdir: Path) -> None:
 def _check_methods(step: Step, pipeline: Pipeline, options) -> None:
     """Refuse a bench step naming a method the registry does not know (checked before any step runs;
     the method's module is imported only when the step runs)."""
-    from benchmark.registry import METHODS
-    from mimicbench.registry import NameCollision, UnknownName
+    from mimicbench.benchmark.registry import METHODS
+    from mimicbench.runtime.registry import NameCollision, UnknownName
 
     index = pipeline.steps.index(step) + 1
     raw = step.options.get("methods")
@@ -300,7 +300,7 @@ def step_options(step: Step, pipeline: Pipeline, parser=None) -> tuple[Callable,
         ValueError: naming the file and the step: an unknown option, a wrong-typed or out-of-range value.
     """
     from mimicbench.cli import command_parser
-    from mimicbench.options import from_mapping
+    from mimicbench.runtime.options import from_mapping
 
     spec = step.spec
     command = command_parser(spec.command, parser)

@@ -16,8 +16,8 @@ from pathlib import Path
 import mimicbench
 
 from mimicbench.pipeline.spec import ENGINE_KEYS, Pipeline, Step
-from schemas.fingerprint import digest_of
-from schemas.manifest import MANIFEST, atomic_write_bytes, load_manifest
+from mimicbench.schemas.fingerprint import digest_of
+from mimicbench.schemas.manifest import MANIFEST, atomic_write_bytes, load_manifest
 
 
 def folder_digest(path: Path, tables: tuple[str, ...] | None) -> str:
@@ -49,7 +49,7 @@ def code_versions(step: Step) -> dict:
         module, name = ref.split(":")
         versions[ref] = str(getattr(importlib.import_module(module), name))
     if step.kind == "bench":
-        from benchmark.registry import METHODS, NameCollision, UnknownName
+        from mimicbench.benchmark.registry import METHODS, NameCollision, UnknownName
 
         names = step.options.get("methods") or []
         names = names if isinstance(names, list) else str(names).split(",")  # as the option's type reads it

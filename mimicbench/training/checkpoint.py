@@ -9,7 +9,7 @@ versions, UTC time; no git). Loading never unpickles anything.
 Every file written here gets a digest file beside it, ``<name>.sha256`` (``sha256sum`` format:
 ``<hex>  <name>``). :func:`verify_digest` checks a file against it; training verifies the
 checkpoint and the resume state before resuming, so a flipped byte is refused, never trained on.
-Any checkpoint or resume state that cannot be read is a :class:`~mimicbench.errors.UserError`
+Any checkpoint or resume state that cannot be read is a :class:`~mimicbench.runtime.errors.UserError`
 naming the file (one line, no traceback).
 
 The resume point of a stage is one unit (:func:`save_resume`): the weights (``last.safetensors``)
@@ -28,7 +28,7 @@ from typing import Callable
 
 import torch
 
-from mimicbench.errors import UserError
+from mimicbench.runtime.errors import UserError
 
 HEADER_KEY = "mimicbench"
 DIGEST_SUFFIX = ".sha256"
@@ -44,8 +44,8 @@ WEIGHTS_FILE, STATE_FILE = "last.safetensors", "state.pt"
 def dataset_provenance(dataset: str | os.PathLike) -> dict:
     """``{"name", "schema_version", "tables": {table: fingerprint}}`` of a dataset folder (what is known);
     for a folder without a manifest, ``"error"`` and ``"tables"``: ``{relative path: sha256}`` of its files."""
-    from schemas.fingerprint import table_fingerprint
-    from schemas.manifest import load_manifest, sha256_of
+    from mimicbench.schemas.fingerprint import table_fingerprint
+    from mimicbench.schemas.manifest import load_manifest, sha256_of
 
     info: dict = {"name": Path(dataset).name}
     try:
@@ -81,7 +81,7 @@ def _atomic_write(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` and its sha256 to :func:`digest_path` (each atomically)."""
     import hashlib
 
-    from schemas.manifest import atomic_write_bytes
+    from mimicbench.schemas.manifest import atomic_write_bytes
 
     atomic_write_bytes(path, data)
     atomic_write_bytes(digest_path(path), f"{hashlib.sha256(data).hexdigest()}  {path.name}\n".encode())
@@ -94,7 +94,7 @@ def verify_digest(path: str | os.PathLike, again: str = "use --no-resume to star
         UserError: the file or its digest file is missing or unreadable, or the digests differ
             (the message names the file and says how to start over).
     """
-    from schemas.manifest import sha256_of
+    from mimicbench.schemas.manifest import sha256_of
 
     path = Path(path)
     dpath = digest_path(path)
@@ -275,7 +275,7 @@ def save_resume(stage_dir: str | os.PathLike, weights: dict[str, torch.Tensor], 
     import shutil
     import uuid
 
-    from schemas.manifest import atomic_write_bytes
+    from mimicbench.schemas.manifest import atomic_write_bytes
 
     stage_dir = Path(stage_dir)
     epoch = int(state["epoch"])
@@ -305,7 +305,7 @@ def find_resume(stage_dir: str | os.PathLike) -> tuple[Path, Path] | None:
         UserError: ``resume.json`` unreadable or naming a path outside the stage folder, or a file
             that is missing or does not match its recorded sha256 (one line, saying how to start over).
     """
-    from schemas.manifest import sha256_of
+    from mimicbench.schemas.manifest import sha256_of
 
     stage_dir = Path(stage_dir)
     pointer_path = stage_dir / RESUME_FILE

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from schemas.errors import UserError
+from mimicbench.schemas.errors import UserError
 
 
 def _leaf_keys(config: dict, prefix: str = "") -> list[str]:

@@ -36,7 +36,7 @@ from mimicbench.training import checkpoint, loss_log
 from mimicbench.training.distributed import barrier, gather_objects, init_distributed
 from mimicbench.training.registry import trainable
 from mimicbench.training.stage import StageContext, TrainStage
-from schemas.errors import UserError
+from mimicbench.schemas.errors import UserError
 
 DEFAULT_LR = 1e-4
 DEFAULT_WEIGHT_DECAY = 0.01
@@ -145,7 +145,7 @@ def check_same_run(stage_dir: Path, stage: str, state: dict, header: dict, confi
         raise UserError(f"{weights_path} (epoch {header.get('epoch')}) and its state (epoch {state.get('epoch')}) "
                         f"disagree; use --no-resume to start this stage over")
     if "weights_sha256" in state:
-        from schemas.manifest import sha256_of
+        from mimicbench.schemas.manifest import sha256_of
 
         if sha256_of(weights_path) != state["weights_sha256"]:
             raise UserError(f"{weights_path}: not the weights its state was saved with; use --no-resume to start "

@@ -1,26 +1,18 @@
-"""Trainable models by name: :data:`TRAINABLES`, a :class:`mimicbench.registry.Registry`.
+"""Trainable models by name: :data:`TRAINABLES`, a :class:`mimicbench.runtime.registry.Registry`.
 
 A bundled model's training module builds its :class:`Trainable` (stages and config presets) with
-:func:`make_trainable` as ``TRAINABLE``; the registry names it lazily (``mimicat`` ->
-``baselines.mimicat.training:TRAINABLE``), so the CLI stays fast and the core never imports
-``baselines`` at module level. :func:`register_trainable` adds a model at run time.
+:func:`make_trainable` as ``TRAINABLE``; each is an entry point of the group ``mimicbench.trainables``
+(``mimicat = "mimicbench.baselines.mimicat.training:TRAINABLE"`` in ``pyproject.toml``), loaded on first
+use, so this floor never names a model's module. :func:`register_trainable` adds a model at run time.
 """
 from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
 
-from mimicbench.registry import Registry
+from mimicbench.runtime.registry import Registry
 from mimicbench.training.stage import TrainStage
-from schemas.errors import UserError
-
-BUILTIN = {
-    "mimicat": "baselines.mimicat.training:TRAINABLE",
-    "mmdmc": "baselines.mmdmc.training:TRAINABLE",
-    "npt": "baselines.npt.training:TRAINABLE",
-    "cgt": "baselines.cgt.training:TRAINABLE",
-    "sfpt": "baselines.sfpt.training:TRAINABLE",
-}
+from mimicbench.schemas.errors import UserError
 
 
 @dataclass(frozen=True)
@@ -47,7 +39,7 @@ class Trainable:
         return copy.deepcopy(self.configs[preset])
 
 
-TRAINABLES = Registry("trainable model", BUILTIN)
+TRAINABLES = Registry("trainable model", group="mimicbench.trainables")
 
 
 def make_trainable(name: str, stages: list[TrainStage], configs: dict[str, dict]) -> Trainable:

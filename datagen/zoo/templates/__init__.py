@@ -1,13 +1,13 @@
 """Category templates: ``TEMPLATES[category] = (params(rng, variant) -> dict, build(builder, params))``."""
 from __future__ import annotations
 
-from datagen.zoo.templates.apparel import apparel_params, build_apparel
-from datagen.zoo.templates.bird import bird_params, build_bird
-from datagen.zoo.templates.fish import build_fish, fish_params
-from datagen.zoo.templates.humanoid import build_humanoid, humanoid_params
-from datagen.zoo.templates.insect import build_insect, insect_params
-from datagen.zoo.templates.quadruped import build_quadruped, quadruped_params
-from datagen.zoo.templates.reptile import build_reptile, reptile_params
+from mimicbench.datagen.zoo.templates.apparel import apparel_params, build_apparel
+from mimicbench.datagen.zoo.templates.bird import bird_params, build_bird
+from mimicbench.datagen.zoo.templates.fish import build_fish, fish_params
+from mimicbench.datagen.zoo.templates.humanoid import build_humanoid, humanoid_params
+from mimicbench.datagen.zoo.templates.insect import build_insect, insect_params
+from mimicbench.datagen.zoo.templates.quadruped import build_quadruped, quadruped_params
+from mimicbench.datagen.zoo.templates.reptile import build_reptile, reptile_params
 
 TEMPLATES = {
     "humanoid": (lambda rng, variant: humanoid_params(rng), build_humanoid),

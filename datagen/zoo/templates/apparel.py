@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.zoo.skeleton import SkeletonBuilder
-from datagen.zoo.templates.humanoid import build_humanoid, humanoid_params
+from mimicbench.datagen.zoo.skeleton import SkeletonBuilder
+from mimicbench.datagen.zoo.templates.humanoid import build_humanoid, humanoid_params
 
 VARIANTS = (
     {"fingers": 5, "hair": (16, 6), "skirt": (12, 4), "cape": (3, 5), "tails": None, "ponytail": None},

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.zoo.skeleton import SIDES, SkeletonBuilder, arc_points
+from mimicbench.datagen.zoo.skeleton import SIDES, SkeletonBuilder, arc_points
 
 
 def fish_params(rng: np.random.Generator, variant: int) -> dict:

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from datagen.zoo.naming import FINGERS
-from datagen.zoo.skeleton import SIDES, SkeletonBuilder
+from mimicbench.datagen.zoo.naming import FINGERS
+from mimicbench.datagen.zoo.skeleton import SIDES, SkeletonBuilder
 
 # The family skeleton: 3 spine joints, five three-joint fingers, T-pose, Mixamo names.
 H2H_TOPOLOGY = {"spine": 3, "fingers": 5, "pose": "T", "style": "mixamo"}

@@ -5,16 +5,16 @@ posed; ``t_k`` is the posed position of keypoint k. Frames batch over leading di
 An optional per-keypoint ``scale`` (..., K, 6), the symmetric stretch U_k of a bone that
 scales (``s_xx, s_yy, s_zz, s_xy, s_xz, s_yz`` in the rest frame), makes the map
 ``R(q_k) U_k (vbar_i - cbar_k) + t_k``; without it U_k is the identity.
-The torch twin is :mod:`mimicbench.skinning_torch`.
+The torch twin is :mod:`mimicbench.geometry.skinning_torch`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.kinematics import array_to_transforms
-from mimicbench.quaternion import quat_to_matrix
-from mimicbench.validation import check_shape
-from schemas.weights import SparseWeights, as_dense
+from mimicbench.geometry.kinematics import array_to_transforms
+from mimicbench.geometry.quaternion import quat_to_matrix
+from mimicbench.geometry.validation import check_shape
+from mimicbench.schemas.weights import SparseWeights, as_dense
 
 
 def stretch_matrices(scale: np.ndarray) -> np.ndarray:

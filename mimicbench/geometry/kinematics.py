@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.quaternion import quat_apply, quat_conjugate, quat_multiply, quat_normalize
-from mimicbench.validation import check_parents, check_shape
+from mimicbench.geometry.quaternion import quat_apply, quat_conjugate, quat_multiply, quat_normalize
+from mimicbench.geometry.validation import check_parents, check_shape
 
 
 def forward_kinematics(

@@ -1,6 +1,6 @@
 """``mimicbench demo``: the whole toolkit end to end on a small procedural zoo, offline.
 
-The bundled pipeline file :data:`DEMO_PIPELINE` (``benchmark/demo.toml``) run by the pipeline code:
+The bundled pipeline file :data:`DEMO_PIPELINE` (``mimicbench/commands/demo.toml``) run by the pipeline code:
 a zoo resampled to 5,000 faces, bone-name correspondences, h2h and cct cases, every bundled method
 and its leaderboard; then the apparel characters' clips simulated with Bullet, apparel cases and
 the apparel methods' leaderboard. The demo's options replace the file's values (CLI > file).
@@ -13,7 +13,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from mimicbench.argtypes import positive_int
+from mimicbench.runtime.argtypes import positive_int
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -55,8 +55,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from benchmark.aggregate import aggregate
-    from benchmark.leaderboard import markdown_tables
+    from mimicbench.benchmark.aggregate import aggregate
+    from mimicbench.benchmark.leaderboard import markdown_tables
     from mimicbench.pipeline import format_summary, load_pipeline, run_pipeline
 
     out = Path(args.out)

@@ -7,7 +7,7 @@ convention) minimising the linear-blend-skinning residual of all vertices at onc
     E(R, t) = sum_i || sum_k W_ik (R_k (vbar_i - cbar_k) + t_k) - p_i ||^2
               + ridge * sum_k s_k (rho_k^2 ||log(R_k R0_k^T)||^2 + ||t_k - t0_k||^2)
 
-where (R0_k, t0_k) is bone k's own weighted Kabsch estimate (:mod:`mimicbench.kabsch`), s_k its
+where (R0_k, t0_k) is bone k's own weighted Kabsch estimate (:mod:`mimicbench.geometry.kabsch`), s_k its
 total skin weight and rho_k the weighted spread of its rest vertices (so the ridge is ``ridge``
 times the curvature of the per-bone Kabsch objective: it only decides what the mesh leaves
 undetermined). The fit has three steps:
@@ -32,11 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse import csr_matrix, issparse
 
-from mimicbench.kabsch import kabsch_rotations, weight_matrix
-from mimicbench.kinematics import transforms_to_array
-from mimicbench.quaternion import matrix_to_quat, quat_to_matrix
-from mimicbench.validation import check_shape
-from schemas.weights import SparseWeights, as_dense
+from mimicbench.geometry.kabsch import kabsch_rotations, weight_matrix
+from mimicbench.geometry.kinematics import transforms_to_array
+from mimicbench.geometry.quaternion import matrix_to_quat, quat_to_matrix
+from mimicbench.geometry.validation import check_shape
+from mimicbench.schemas.weights import SparseWeights, as_dense
 
 RIDGE = 1e-8
 """Weight of the pull towards each bone's Kabsch estimate, relative to the curvature of its own
@@ -78,7 +78,7 @@ def estimate_transforms(
     Args:
         rest_vertices: (N, 3) rest vertices, metres.
         posed_vertices: (..., N, 3) posed vertices, metres (frames batch over leading dimensions).
-        weights: dense (N, K) or :class:`~schemas.weights.SparseWeights`, rows summing to 1.
+        weights: dense (N, K) or :class:`~mimicbench.schemas.weights.SparseWeights`, rows summing to 1.
         rest_keypoints: (K, 3) rest keypoints cbar_k, metres.
         min_weight: a keypoint whose total weight is at most this owns no vertices.
         ridge: weight of the pull towards each bone's Kabsch estimate (:data:`RIDGE`), >= 0.
@@ -92,7 +92,7 @@ def estimate_transforms(
         rotation and ``t_k = cbar_k``; one that owns vertices but is not supported (fewer than
         three non-collinear vertices) gets the fit's value, which its ridge keeps at the Kabsch
         estimate about the directions the mesh does not determine. Callers replace both from
-        the skeleton (:func:`mimicbench.pose_readoff.read_pose`).
+        the skeleton (:func:`mimicbench.geometry.pose_readoff.read_pose`).
     """
     rest = check_shape(rest_vertices, (None, 3), "rest_vertices").astype(np.float64)
     posed = np.asarray(posed_vertices, dtype=np.float64)
@@ -136,9 +136,9 @@ def _frozen_owner(array) -> np.ndarray | None:
 
 def _design_of(rest_in, weights_in, keypoints_in, rest, w, keypoints, min_weight, ridge):
     """``(_Design, supported)`` of a rig, reused across calls when the caller's rest vertices,
-    keypoints and sparse weights are read-only arrays (as every :class:`benchmark.request.Rig`'s
+    keypoints and sparse weights are read-only arrays (as every :class:`mimicbench.benchmark.request.Rig`'s
     are): the cache holds those arrays, so their identities stay unique while cached."""
-    from schemas.weights import SparseWeights
+    from mimicbench.schemas.weights import SparseWeights
 
     owners = [_frozen_owner(a) for a in (rest_in, keypoints_in)]
     if isinstance(weights_in, SparseWeights):
@@ -174,7 +174,7 @@ def weight_support(rest_vertices: np.ndarray, weights, min_weight: float = 1e-8,
 
     Args:
         rest_vertices: (N, 3) rest vertices, metres.
-        weights: dense (N, K), scipy sparse (N, K) or :class:`~schemas.weights.SparseWeights`.
+        weights: dense (N, K), scipy sparse (N, K) or :class:`~mimicbench.schemas.weights.SparseWeights`.
         min_weight: smallest total weight that counts as owning vertices.
         min_spread: spread threshold as a fraction of the bounding-box diagonal.
     """

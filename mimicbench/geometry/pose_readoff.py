@@ -1,9 +1,9 @@
 """A posed mesh read back as a skeleton pose: every bone's world rotation and posed keypoint.
 
-The one read-off shared by every skeleton method (:func:`baselines.posing.source_pose`) and the
-protocols (:mod:`benchmark.motion_range`): the joint fit of all bones
-(:func:`mimicbench.transform_estimation.estimate_transforms`), then the bones the mesh does not
-determine (:func:`mimicbench.transform_estimation.weight_support`: no skin weight, or vertices on a
+The one read-off shared by every skeleton method (:func:`mimicbench.baselines.posing.source_pose`) and the
+protocols (:mod:`mimicbench.benchmark.motion_range`): the joint fit of all bones
+(:func:`mimicbench.geometry.transform_estimation.estimate_transforms`), then the bones the mesh does not
+determine (:func:`mimicbench.geometry.transform_estimation.weight_support`: no skin weight, or vertices on a
 line) completed from the skeleton:
 
 - rotation: when at least two of the bone's children carry skin weight at or below them, are
@@ -22,12 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimicbench.kinematics import array_to_transforms, transforms_to_array
-from mimicbench.quaternion import quat_angle, quat_apply
-from mimicbench.rotation_average import weighted_quaternion_average
-from mimicbench.transform_estimation import estimate_transforms
-from mimicbench.validation import check_parents, check_shape
-from schemas.weights import as_dense
+from mimicbench.geometry.kinematics import array_to_transforms, transforms_to_array
+from mimicbench.geometry.quaternion import quat_angle, quat_apply
+from mimicbench.geometry.rotation_average import weighted_quaternion_average
+from mimicbench.geometry.transform_estimation import estimate_transforms
+from mimicbench.geometry.validation import check_parents, check_shape
+from mimicbench.schemas.weights import as_dense
 
 AGREE_DEGREES = 20.0
 """Children's rotations that agree within this many degrees give an undetermined bone its rotation."""
@@ -63,10 +63,10 @@ def read_pose(rest_vertices: np.ndarray, rest_keypoints: np.ndarray, parents: np
         rest_vertices: (N, 3) rest vertices, metres.
         rest_keypoints: (K, 3) joint heads at rest, metres.
         parents: (K,) int, -1 for roots, ``parents[k] < k``.
-        weights: dense (N, K) or :class:`~schemas.weights.SparseWeights`.
+        weights: dense (N, K) or :class:`~mimicbench.schemas.weights.SparseWeights`.
         posed_vertices: (N, 3) the posed mesh, vertex for vertex the rest mesh's.
         **fit_options: ``ridge``, ``iterations``, ``min_weight`` of
-            :func:`~mimicbench.transform_estimation.estimate_transforms`.
+            :func:`~mimicbench.geometry.transform_estimation.estimate_transforms`.
     """
     keypoints = check_shape(rest_keypoints, (None, 3), "rest_keypoints").astype(np.float64)
     parents = check_parents(parents, keypoints.shape[0])
@@ -83,7 +83,7 @@ def read_pose(rest_vertices: np.ndarray, rest_keypoints: np.ndarray, parents: np
 
 def read_rig_pose(rig, posed_vertices: np.ndarray, **fit_options) -> PoseReadOff:
     """:func:`read_pose` of a rig object with ``vertices``, ``keypoints``, ``parents`` and ``weights``
-    (a :class:`benchmark.request.Rig` or a character record)."""
+    (a :class:`mimicbench.benchmark.request.Rig` or a character record)."""
     return read_pose(rig.vertices, rig.keypoints, rig.parents, rig.weights, posed_vertices, **fit_options)
 
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.validation import check_shape
+from mimicbench.geometry.validation import check_shape
 
 
 def unique_edges(faces: np.ndarray) -> np.ndarray:

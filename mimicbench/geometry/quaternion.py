@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.validation import check_last_dim
+from mimicbench.geometry.validation import check_last_dim
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 

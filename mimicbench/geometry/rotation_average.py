@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.quaternion import quat_canonical, quat_identity
-from mimicbench.validation import check_last_dim
+from mimicbench.geometry.quaternion import quat_canonical, quat_identity
+from mimicbench.geometry.validation import check_last_dim
 
 
 def weighted_quaternion_average(quaternions: np.ndarray, weights: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Torch twins of the skinning and quaternion functions the benchmark runs on tensors.
 
-Shapes and conventions match :mod:`mimicbench.skinning` and :mod:`mimicbench.quaternion`;
+Shapes and conventions match :mod:`mimicbench.geometry.skinning` and :mod:`mimicbench.geometry.quaternion`;
 tensors may live on any device.
 """
 from __future__ import annotations

@@ -8,6 +8,16 @@ a TOML table (:func:`from_mapping`), both through the same ``type=`` checks (``-
 
     opts = from_mapping(command_parser(("datagen", "resample")), {"in_dataset": "a", "out_dataset": "b"}, "step 2")
     opts.faces  # 5000, the parser's default
+
+A stage declares its options the other way round: one frozen dataclass whose fields carry their
+command-line form (:func:`option`: flag, help, type, choices, positional, group); :func:`add_options`
+adds them to a parser (which then hands back that very dataclass), :func:`params_parser` builds a
+bare parser from it for a pipeline file, so each option is declared once::
+
+    @dataclass(frozen=True)
+    class ResampleParams:
+        in_dataset: str = option(positional=True, key="in", help="input dataset")
+        faces: int = option(5000, type=int_in(100, 200_000), help="target face count")
 """
 from __future__ import annotations
 
@@ -17,6 +27,7 @@ import difflib
 from typing import Any
 
 _NUMBER = (int, float)
+_UNSET = dataclasses.MISSING
 _NAMES = {bool: "true or false", int: "an integer", float: "a number", str: "a string", list: "a list",
           dict: "a table"}  # TOML's value types; a date or time is named by its Python type
 
@@ -53,6 +64,97 @@ def options_class(parser: argparse.ArgumentParser) -> type:
                   for a in _actions(parser)]
         parser._options_class = dataclasses.make_dataclass(name or "Options", fields, frozen=True)
     return parser._options_class
+
+
+def option(default=_UNSET, *, help: str = "", flag: str | None = None, type=None, choices=None, nargs=None,
+           metavar: str | None = None, positional: bool = False, required: bool = False, group: str | None = None,
+           key: str | None = None, param: bool = True, omit=_UNSET, cli: bool = True):
+    """A params field with its command-line form.
+
+    Args:
+        default: the value when not given (none: a required field, listed before the defaulted ones).
+        help: the ``--help`` text.
+        flag: the option's flag (default ``--`` and the name with ``-`` for ``_``).
+        type, choices, nargs, metavar: as :meth:`argparse.ArgumentParser.add_argument` takes them; a
+            bool field with default False is a ``store_true`` flag.
+        positional: a positional argument (in field order) instead of a flag.
+        required: a flag that must be given.
+        group: fields of the same group are mutually exclusive.
+        key: the pipeline file's key when it differs from the name (``in`` for ``in_dataset``).
+        param: False for a field that does not change the output (folders, processes, progress):
+            left out of the stage's config.
+        omit: left out of the config while it holds this value (old configs keep their fingerprint).
+        cli: False for a field with no command-line option (set from Python only).
+    """
+    meta = {"cli": cli, "help": help, "flag": flag, "type": type, "choices": choices, "nargs": nargs,
+            "metavar": metavar, "positional": positional, "required": required, "group": group, "key": key,
+            "param": param}
+    if omit is not _UNSET:
+        meta["omit"] = omit
+    if isinstance(default, (list, dict, set)):
+        return dataclasses.field(default_factory=lambda d=default: type_of(d)(d), metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+type_of = type  # ``option`` shadows the builtin with its ``type`` argument
+
+
+def option_fields(cls: type) -> list[dataclasses.Field]:
+    """The fields of the params dataclass ``cls`` that are command-line options, in order."""
+    return [f for f in dataclasses.fields(cls) if f.metadata.get("cli", True)]
+
+
+def toml_keys(cls: type) -> dict[str, str]:
+    """``{pipeline-file key: field name}`` of the options of ``cls``."""
+    return {f.metadata.get("key") or f.name: f.name for f in option_fields(cls)}
+
+
+def add_options(parser: argparse.ArgumentParser, cls: type) -> argparse.ArgumentParser:
+    """Add one argparse argument per option field of ``cls`` to ``parser``; :func:`options_class`
+    of ``parser`` is then ``cls`` itself. Returns ``parser``."""
+    groups: dict[str, argparse._MutuallyExclusiveGroup] = {}
+    for f in option_fields(cls):
+        m = f.metadata
+        default = f.default if f.default is not dataclasses.MISSING else \
+            f.default_factory() if f.default_factory is not dataclasses.MISSING else None
+        kw = {"help": m.get("help") or None}
+        if m.get("metavar"):
+            kw["metavar"] = m["metavar"]
+        if m.get("choices") is not None:
+            kw["choices"] = m["choices"]
+        if m.get("nargs") is not None:
+            kw["nargs"] = m["nargs"]
+        if m.get("type") is not None:
+            kw["type"] = m["type"]
+        target = parser
+        if m.get("group"):
+            target = groups.setdefault(m["group"], parser.add_mutually_exclusive_group())
+        if m.get("positional"):
+            target.add_argument(f.name, **kw)
+            continue
+        flag = m.get("flag") or "--" + f.name.replace("_", "-")
+        if default is False and m.get("type") is None:
+            target.add_argument(flag, dest=f.name, action="store_true", help=kw["help"])
+            continue
+        target.add_argument(flag, dest=f.name, default=default, required=bool(m.get("required")), **kw)
+    parser._options_class = cls
+    return parser
+
+
+def params_parser(cls: type) -> argparse.ArgumentParser:
+    """A bare parser of the options of ``cls`` (cached on the class): what :func:`from_mapping`
+    checks a pipeline step's values with, without building the whole command line."""
+    if "_params_parser" not in vars(cls):
+        parser = add_options(argparse.ArgumentParser(prog=cls.__name__, add_help=False), cls)
+        type.__setattr__(cls, "_params_parser", parser)  # a frozen dataclass's class is not frozen
+    return vars(cls)["_params_parser"]
+
+
+def config_values(params) -> dict:
+    """The fields of ``params`` that change a stage's output (``param``), less those holding their
+    ``omit`` value: what the stage's config records."""
+    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params)
+            if f.metadata.get("param", True) and getattr(params, f.name) != f.metadata.get("omit", ())}
 
 
 def from_namespace(parser: argparse.ArgumentParser, args: argparse.Namespace):
@@ -112,4 +214,5 @@ def from_mapping(parser: argparse.ArgumentParser, values: dict, where: str):
     return options_class(parser)(**given)
 
 
-__all__ = ["from_mapping", "from_namespace", "options_class"]
+__all__ = ["add_options", "config_values", "from_mapping", "from_namespace", "option", "option_fields",
+           "options_class", "params_parser", "toml_keys"]

@@ -13,7 +13,7 @@ A name in two layers with different targets is a :class:`NameCollision` (a built
 as an entry point with the same ``module:attr`` is fine: that is how the bundled methods are
 declared). An unknown name raises :class:`UnknownName` with close matches (difflib) and the known
 names; an entry whose import fails raises :class:`LoadError` naming the entry. All three are
-:class:`~schemas.errors.UserError`, so the CLI prints ``mimicbench: error: ...`` and exits 2.
+:class:`~mimicbench.schemas.errors.UserError`, so the CLI prints ``mimicbench: error: ...`` and exits 2.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import difflib
 import importlib
 from importlib.metadata import entry_points
 
-from schemas.errors import UserError
+from mimicbench.schemas.errors import UserError
 
 
 class UnknownName(UserError, KeyError, ValueError):
@@ -109,9 +109,10 @@ class Registry:
         return self._loaded[target]
 
     def names(self) -> list[str]:
-        """Every name :meth:`get` accepts: built-ins in their order, then the others sorted."""
-        extra = (set(self._entry_points()) | set(self._runtime)) - set(self._builtins)
-        return list(self._builtins) + sorted(extra)
+        """Every name :meth:`get` accepts: built-ins and entry points in their declared order, then the
+        run-time registrations sorted."""
+        declared = list(dict.fromkeys([*self._builtins, *self._entry_points()]))
+        return declared + sorted(set(self._runtime) - set(declared))
 
     def __contains__(self, name: str) -> bool:
         return name in self._runtime or name in self._builtins or name in self._entry_points()

@@ -3,17 +3,17 @@
 For each keypoint k, find the rotation R_k and translation t_k (the posed keypoint position)
 minimising ``sum_i W_ik || R_k (vbar_i - cbar_k) + t_k - v_i ||^2``. Exact when keypoint k owns
 at least three non-collinear vertices that moved rigidly with it; biased where vertices blend
-several bones. The joint fit of all bones (:func:`mimicbench.transform_estimation.estimate_transforms`)
+several bones. The joint fit of all bones (:func:`mimicbench.geometry.transform_estimation.estimate_transforms`)
 starts from it and is regularised towards it.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from mimicbench.kinematics import transforms_to_array
-from mimicbench.quaternion import matrix_to_quat
-from mimicbench.validation import check_shape
-from schemas.weights import SparseWeights, as_dense
+from mimicbench.geometry.kinematics import transforms_to_array
+from mimicbench.geometry.quaternion import matrix_to_quat
+from mimicbench.geometry.validation import check_shape
+from mimicbench.schemas.weights import SparseWeights, as_dense
 
 
 def kabsch_transforms(
@@ -28,7 +28,7 @@ def kabsch_transforms(
     Args:
         rest_vertices: (N, 3) rest vertices, metres.
         posed_vertices: (..., N, 3) posed vertices (frames batch over leading dimensions).
-        weights: dense (N, K) or :class:`~schemas.weights.SparseWeights`.
+        weights: dense (N, K) or :class:`~mimicbench.schemas.weights.SparseWeights`.
         rest_keypoints: (K, 3) rest keypoints cbar_k.
         min_weight: keypoints whose total weight is below this own no vertices.
 
@@ -48,7 +48,7 @@ def kabsch_transforms(
 
 def weight_matrix(weights, num_keypoints: int):
     """Skin weights as a scipy sparse (N, K) float64 CSR matrix, from dense (N, K) weights or a
-    :class:`~schemas.weights.SparseWeights`."""
+    :class:`~mimicbench.schemas.weights.SparseWeights`."""
     from scipy.sparse import csr_matrix
 
     if isinstance(weights, SparseWeights):
