@@ -9,6 +9,9 @@ frame-to-frame noise on its apparel) against ``lbs_kinematic`` must move ``accel
 than 2 SE while PMD_a barely moves.
 
     python analyses/apparel_paired.py RESULTS --methods lbs_kinematic,probe_apparel_jitter,mmdmc
+
+A method written ``NAME@V`` reads its stored version V (default: the newest), so two versions of one
+method pair up: ``--methods mmdmc@9,mmdmc@10``.
 """
 from __future__ import annotations
 
@@ -22,13 +25,16 @@ COLUMNS = ("pmd_apparel_cm", "pmd_body_cm", "accel_error", "penetration_share")
 
 
 def per_case(results, method: str, metric: str, protocol: str = "apparel") -> dict[str, float | None]:
-    """case ID -> ``metric`` of the ``ok`` rows of the method's newest stored version."""
+    """case ID -> ``metric`` of the ``ok`` rows of the method's newest stored version, or of version V
+    when ``method`` is ``NAME@V``."""
     from mimicbench.benchmark.results import method_dir, method_versions, read_result_records
 
-    versions = [v for m, v in method_versions(results) if m == method]
-    if not versions:
-        raise SystemExit(f"{results}: no results of method {method!r}")
-    rows = read_result_records(method_dir(results, method, sorted(versions, key=str)[-1]))
+    name, _, wanted = method.partition("@")
+    versions = [str(v) for m, v in method_versions(results) if m == name]
+    if not versions or (wanted and wanted not in versions):
+        raise SystemExit(f"{results}: no results of method {method!r} (stored versions: {versions or 'none'})")
+    version = wanted or sorted(versions, key=lambda v: (len(v), v))[-1]
+    rows = read_result_records(method_dir(results, name, version))
     return {r.case_id: getattr(r, metric) for r in rows if r.protocol == protocol and r.status == "ok"}
 
 

@@ -8,7 +8,7 @@ The only thing an H could learn about those bones that carries over to other cha
 their motion follows the rest of the pose (a tail with the gait). This script runs every cct case
 of DATA (``bench cases``; the first ``--cases`` of those whose source is held out from the
 predictors' fit, see below) through ``mimicat_init_only`` (G's M decoded
-``hungarian_sym``, structured initialisation, H off, LBS + ARAP, exactly the method's answer) and
+``hungarian_sym``, structured initialisation, H off, LBS, ARAP as the method's default, exactly the method's answer) and
 rescores the return leg with the lost bones (``no forward match``) changed:
 
 - ``init``: unchanged (the method's cycle; checks that this script reproduces the evaluator);
@@ -237,7 +237,8 @@ def main() -> None:
             poses[_label(a)] = recompose(q2, t2, rig.keypoints, rig.parents, lost, local_ridge[a])
         for v, tr in poses.items():
             verts = linear_blend_skinning(rig.vertices, rig.keypoints, rig.weights, tr).astype(np.float32)
-            verts = method._refiner.refine(rig.character_id, rig.vertices, rig.faces, rig.weights.values, verts)
+            if method._refiner is not None:
+                verts = method._refiner.refine(rig.character_id, rig.vertices, rig.faces, rig.weights.values, verts)
             pmd[v].append(score_pose(verts, posed, ev.frame(src), "extent")["pmd_extent"])
         clip_of.append(c.motion_id.rsplit("/", 1)[-1])
         if (n + 1) % 50 == 0:
@@ -247,7 +248,7 @@ def main() -> None:
     res = {v: np.asarray(x) for v, x in pmd.items()}
     pairs = [pair_of(c.case_id) for c in cases]
     print(f"{args.data}: {len(cases)} cct cases, {len(set(pairs))} pairs, mimicat_init_only (hungarian_sym, H off, "
-          f"ARAP on); cycle PMD x100 (largest extent); paired difference to init +- pair-clustered SE")
+          f"ARAP {'on' if method.arap else 'off'}); cycle PMD x100 (largest extent); paired difference to init +- pair-clustered SE")
     for v in variants:
         d = res[v] - res["init"]
         print(f"  {v:<11} {res[v].mean():.4f}  {d.mean():+.4f} +- {pair_clustered_se(d, pairs):.4f}  "

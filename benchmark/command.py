@@ -179,7 +179,7 @@ def refuse_flat_characters(dataset, case_ids: bool = False) -> None:
                      f"height) and run `mimicbench bench cases` again")
 
 
-def run_cases(args) -> int:
+def run_cases(args) -> StageSummary:
     """``bench cases`` holding the writer's lock of the dataset."""
     from mimicbench.schemas.folder_lock import hold
 
@@ -187,13 +187,13 @@ def run_cases(args) -> int:
         return _run_cases(args)
 
 
-def _run_cases(args):
+def _run_cases(args) -> StageSummary:
     from mimicbench.benchmark.cases import build_cases, write_cases
 
     refuse_flat_characters(args.dataset)
     if args.all_pairs and args.split not in (None, "all"):
-        print(f"error: --all-pairs takes every pair across all splits; it cannot be limited to --split {args.split}")
-        return 2
+        raise ValueError(f"--all-pairs takes every pair across all splits; it cannot be limited to "
+                         f"--split {args.split}")
     split = "all" if args.all_pairs else (args.split or "test")
     protocols = list(args.protocols)
     cases = build_cases(args.dataset, split, args.h2h_pairs, args.h2h_poses, args.cct_pairs, args.cct_poses,
@@ -223,7 +223,7 @@ def _run_protocols(args) -> list[str]:
     return have or ["h2h", "cct"]
 
 
-def run_validity(args) -> int:
+def run_validity(args) -> StageSummary:
     from pathlib import Path
 
     from mimicbench.benchmark.evaluator import run_benchmark
@@ -240,7 +240,7 @@ def run_validity(args) -> int:
                         out=str(args.out))
 
 
-def run_run(args) -> int:
+def run_run(args) -> StageSummary:
     """``bench run`` holding the writer's lock of ``--out`` (of this rank's share under torchrun): a second
     run into the same results folder waits for the first, then skips the cases it computed."""
     import os
@@ -252,7 +252,7 @@ def run_run(args) -> int:
         return _run_run(args)
 
 
-def _run_run(args) -> int:
+def _run_run(args) -> StageSummary:
     from mimicbench.benchmark.evaluator import run_benchmark
     from mimicbench.benchmark.leaderboard import markdown_tables
     from mimicbench.engines import get_engine
@@ -276,7 +276,7 @@ def _run_run(args) -> int:
                         out=str(args.out), exit_code=1 if summary["unavailable"] else 0)
 
 
-def run_leaderboard(args) -> int:
+def run_leaderboard(args) -> StageSummary:
     from mimicbench.benchmark.leaderboard import markdown_tables, write_leaderboard
     from mimicbench.benchmark.aggregate import aggregate
 

@@ -62,7 +62,7 @@ def training_steps_per_second(dataset, steps: int) -> dict:
 
     model = trainable("mmdmc")
     # the settings the shipped weights were trained with (the last stage's header holds the run's config)
-    cfg = {**model.config("small"), **read_header(checkpoint_path("refine"))["config"]}
+    cfg = {**model.config("small"), **read_header(checkpoint_path("apparel"))["config"]}
     mods = load_modules()
     frozen = {"seg": mods.seg, "body": mods.body, "apparel": mods.apparel}
     out = {}

@@ -13,6 +13,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -114,6 +115,12 @@ class Stage:
     info: Callable | None = None  # ``info(params) -> dict``: config fields kept for the reader, not fingerprinted
     refuse_foreign: bool = True  # False: a stage that adds tables to its own input folder
     what: str = "item"  # how messages name an item ("character")
+    command: tuple[str, ...] = ()  # the `mimicbench` words of its command (``("datagen", "resample")``)
+    function: str = ""  # ``"module:attr"``: the command's function, params -> StageSummary (it prints the report)
+    versions: tuple[str, ...] = ()  # ``"module:NAME"`` version constants of the code that makes the output
+    step_reads: tuple | None = None  # for a pipeline: ``((params field, tables or None), ...)``; default IN's inputs
+    step_writes: tuple[str, ...] | None = None  # the tables of OUT the stage makes (default outputs less status)
+    config: Callable | None = None  # ``config(params) -> dict``: the config's entries, when not the params' own fields
 
 
 class StagePlan:
@@ -132,6 +139,8 @@ class StagePlan:
     """
 
     kwargs: dict = {}
+    unchanged: bool = False  # True: the run would change nothing; the driver writes nothing (``details`` says why)
+    details: dict = {}
     resources: TaskResources = TaskResources()
     chunk: int = 1
     ordered: bool = False
@@ -143,6 +152,12 @@ class StagePlan:
         self.reused: list[StatusRecord] = []
         self.statuses: list[StatusRecord] = []
         self.drop: list[tuple[str, str]] = []
+        self.reported: list[StatusRecord] | None = None  # set by :meth:`write`: the summary's rows, if not the items'
+
+    def start(self, run: StageRun) -> None:
+        """Called right after ``begin()``, before any item runs: drops :attr:`drop`."""
+        for table, split in self.drop:
+            run.drop_split(table, split)
 
     def function(self) -> Callable:
         """The per-item function the engine runs (picklable)."""
@@ -165,16 +180,30 @@ class StagePlan:
     def done(self, run: StageRun, item, ok: bool, result) -> None:
         """Called here as each item finishes (after ``begin()``: it may write)."""
 
+    def batch_done(self, run: StageRun, statuses: list[StatusRecord]) -> None:
+        """Called after each batch with this run's status rows so far (a stage that writes as it goes)."""
+
     def nothing_made(self, statuses: list[StatusRecord]) -> bool:
         """True when the run must be undone: it had items, every one failed, and nothing was reused."""
         return bool(statuses) and not self.reused and all(s.status == "failed" for s in statuses)
 
-    def write(self, run: StageRun, statuses: list[StatusRecord]) -> tuple[list[StatusRecord], dict]:
-        """Write the output tables; return (the status rows to write, the summary's details)."""
+    def write(self, run: StageRun, statuses: list[StatusRecord]) -> tuple[list[StatusRecord] | None, dict]:
+        """Write the output tables; return (the status rows to write, None to remove the stage's
+        split of the status table; the summary's details)."""
         return statuses + self.reused, {}
 
     def after(self, run: StageRun) -> None:
         """Work after ``finish()`` on the complete dataset (exports)."""
+
+    def abort(self, run: StageRun, exc: BaseException | None) -> None:
+        """Called (perhaps twice) when the run stops between ``begin()`` and the tables written:
+        with ``exc``, or None before every item failed. Drops what :meth:`start` opened; the work
+        already written stays for a re-run to resume."""
+
+    @property
+    def what(self) -> str:
+        """How the message of a run whose every item failed names an item."""
+        return self.stage.what
 
     def counts(self, statuses: list[StatusRecord]) -> tuple[int, int]:
         """(items done or reused, items failed) of this run."""
@@ -200,8 +229,6 @@ def drive(stage: Stage, params, engine: Engine | None = None, progress: bool | N
     Raises:
         DatasetError: every item failed and nothing was reused (OUT is then left as it was).
     """
-    import time
-
     start = time.perf_counter()
     progress = not getattr(params, "quiet", False) if progress is None else progress
     if stage.check is not None:
@@ -210,30 +237,42 @@ def drive(stage: Stage, params, engine: Engine | None = None, progress: bool | N
     run = StageRun(stage, params, getattr(params, stage.out_key), in_dir,
                    info=stage.info(params) if stage.info else None, refuse_foreign=stage.refuse_foreign)
     plan = stage.plan(run)
+    if plan.unchanged:  # nothing to write: OUT is left as it is
+        run.lock.release()
+        return StageSummary(*plan.counts([]), time.perf_counter() - start, str(run.out_dir), details=plan.details)
     run.begin()
-    for table, split in plan.drop:
-        run.drop_split(table, split)
-    statuses = list(plan.statuses)
-    engine = plan.engine(engine or engine_of(params))
-    fn = plan.function()
-    for label, batch in plan.batches():
-        batch = list(batch)
-        statuses += run_stage(batch, fn, label, name_of=plan.name_of, progress=progress,
-                              on_done=lambda i, ok, result, batch=batch: plan.done(run, batch[i], ok, result),
-                              engine=engine, chunk=plan.chunk, resources=plan.resources, ordered=plan.ordered,
-                              keep_results=False)[1]
-    if plan.nothing_made(statuses):
-        raise run.abandon([s for s in statuses if s.status == "failed"], stage.what)
-    rows, details = plan.write(run, statuses)
-    run.write_status(rows, plan.status_config)
+    try:
+        plan.start(run)
+        statuses = list(plan.statuses)
+        engine = plan.engine(engine or engine_of(params))
+        fn = plan.function()
+        for label, batch in plan.batches():
+            batch = list(batch)
+            statuses += run_stage(batch, fn, label, name_of=plan.name_of, progress=progress,
+                                  on_done=lambda i, ok, result, batch=batch: plan.done(run, batch[i], ok, result),
+                                  engine=engine, chunk=plan.chunk, resources=plan.resources, ordered=plan.ordered,
+                                  keep_results=False)[1]
+            plan.batch_done(run, statuses)
+        if plan.nothing_made(statuses):
+            plan.abort(run, None)
+            raise run.abandon([s for s in statuses if s.status == "failed"], plan.what)
+        rows, details = plan.write(run, statuses)
+    except BaseException as exc:
+        plan.abort(run, exc)
+        raise
+    if rows is None:  # no row to keep: an earlier run's go
+        remove_split(run.out_dir, "status", stage.name)
+    else:
+        run.write_status(rows, plan.status_config)
     run.copy_inputs()
     run.finish(plan.configs)
     plan.after(run)
     ok, failed = plan.counts(statuses)
+    reported = statuses if plan.reported is None else plan.reported
     if progress:
-        print(summarize_statuses(statuses))
+        print(summarize_statuses([s for s in reported if s.status != "skipped"]))
     return StageSummary(ok, failed, time.perf_counter() - start, str(run.out_dir), skipped=len(plan.reused),
-                        statuses=tuple(statuses), details=details)
+                        statuses=tuple(reported), details=details)
 
 
 class StageRun:
@@ -252,8 +291,11 @@ class StageRun:
         if refuse_foreign and self.in_dir is not None and (a.is_relative_to(b) or b.is_relative_to(a)):
             raise UserError(f"{stage.name}: {stage.out_name} {out_dir} and the input {in_dir} must be separate "
                             f"folders, neither inside the other")
-        inputs = [t for t in stage.inputs if self.in_dir is not None and has_table(self.in_dir, t)]
-        values = {**dict(stage.constants), **config_values(params)}
+        pending = ((self.manifest() or {}).get("pending") or {}).get("stage") if a == b else None
+        self.resuming = pending == stage.name  # a stage writing its input folder, resuming its killed run there
+        inputs = [t for t in stage.inputs if self.in_dir is not None
+                  and has_table(self.in_dir, t, allow_incomplete=self.resuming)]
+        values = {**dict(stage.constants), **(stage.config(params) if stage.config else config_values(params))}
         self.config = stage_config({"stage": stage.name, **{k: v.to_json() if hasattr(v, "to_json") else v
                                                             for k, v in values.items()}},
                                    tables_fingerprint(self.in_dir, inputs) if inputs else {},
@@ -337,8 +379,7 @@ class StageRun:
     @contextmanager
     def streams(self, keys: Iterable[tuple[str, str]], config: dict | None | str = "run"):
         """``{(table, split): ShardStream}`` (``config`` as in :meth:`write`): closed at the end, aborted on an error."""
-        streams = {(t, s): ShardStream(self.out_dir, t, s, rows_per_shard(t, self.stage.name),
-                                       self.config if config == "run" else config) for t, s in keys}
+        streams = self.open_streams(keys, config)
         try:
             yield streams
         except BaseException:
@@ -347,6 +388,11 @@ class StageRun:
             raise
         for stream in streams.values():
             stream.close()
+
+    def open_streams(self, keys: Iterable[tuple[str, str]], config: dict | None | str = "run") -> dict:
+        """``{(table, split): ShardStream}`` (``config`` as in :meth:`write`); the caller closes or aborts each."""
+        return {(t, s): ShardStream(self.out_dir, t, s, rows_per_shard(t, self.stage.name),
+                                    self.config if config == "run" else config) for t, s in keys}
 
     def write_splits(self, table: str, records, splits=()) -> None:
         """Write ``records`` of ``table`` a split at a time, in sorted order; a split of ``splits``

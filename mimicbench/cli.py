@@ -20,13 +20,9 @@ import sys
 
 from mimicbench import __version__
 from mimicbench.runtime.options import from_namespace
-from mimicbench.runtime.summary import StageSummary
-from mimicbench.schemas.errors import UserError
+from mimicbench.runtime.errors import USER_ERRORS, error_text  # noqa: F401 (USER_ERRORS: part of this module's API)
+from mimicbench.runtime.summary import exit_code
 
-# Exceptions that mean "the user asked for something impossible", not "mimicbench has a bug".
-# Any OSError (disk full, a read-only folder, a missing file) is the machine's state, not a bug:
-# shown as ``<path>: <reason>``.
-USER_ERRORS = (UserError, OSError, ValueError)
 
 
 def command_modules() -> tuple:
@@ -139,11 +135,6 @@ def command_parser(words: tuple[str, ...], parser: argparse.ArgumentParser | Non
     return parser
 
 
-def exit_code(result) -> int:
-    """A command function's exit status: its :class:`StageSummary`'s, or the int it returned."""
-    return result.exit_code if isinstance(result, StageSummary) else int(result or 0)
-
-
 def main(argv: list[str] | None = None) -> int:
     from mimicbench.runtime.address_space import fit_to_address_space_limit, limit_text
 
@@ -175,14 +166,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mimicbench: error: {error_text(exc)}", file=sys.stderr)
         print("(run with --debug for the traceback)", file=sys.stderr)
         return 2
-
-
-def error_text(exc: BaseException) -> str:
-    """One line (or a few) for the user: the message, with the file for OS errors."""
-    if isinstance(exc, OSError) and exc.filename is not None:
-        return f"{exc.filename}: {exc.strerror or exc}"
-    text = str(exc) or type(exc).__name__
-    return text if isinstance(exc, (UserError, ValueError)) else f"{type(exc).__name__}: {text}"
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -133,3 +133,56 @@ def test_chains_never_sleep():
             world.set_body_pose(pose)
             world.step()
         assert world.body_poses()[0][1][0] - start[0] > 0.1
+
+
+def _pushed_bob_gaps(speed, body_velocity):
+    """A bob hanging at rest, struck and pushed along +X by a static (bone-following) box moving at
+    ``speed`` m/s for 0.3 s: the gap (metres) between the bob's surface and the box's face after each
+    step, negative when the bob is sunk into the box."""
+    half = 0.05
+    bodies, joints, keypoints = _pendulum(np.array([0.0, -ARM, 0.0]))
+    start = PIVOT + [-0.2, -ARM, 0.0]  # the box's centre: its face 0.15 m - RADIUS from the bob
+    bodies.append(_body(2, "box", [half, half, half], start, "static", group=2, bone=2))
+    keypoints = np.concatenate([keypoints, start[None]])
+    rate = PARAMS.file_step_rate
+    rest = rest_transforms(keypoints).astype(np.float64)
+    gaps = []
+    with FileWorld(bodies, joints, keypoints, np.array([-1, 0, -1]), 1.0 / rate, PARAMS.file_solver_iterations,
+                   0.08, apparel=np.array([False, True, False]), erp=PARAMS.file_erp, gravity=G,
+                   body_velocity=body_velocity) as world:
+        world.reset(rest)
+        for s in range(1, int(0.3 * rate) + 1):
+            pose = rest.copy()
+            pose[2, 4] += speed * s / rate
+            world.set_body_pose(pose)
+            world.step()
+            gaps.append(world.body_poses()[0][1][0] - RADIUS - (start[0] + speed * s / rate + half))
+    return np.array(gaps)
+
+
+@pytest.mark.parametrize("speed", [0.5, 1.0])
+def test_a_moving_body_pushes_apparel_at_its_own_speed_when_contacts_see_it_move(speed):
+    # a critically damped contact spring (stiffness m w^2, damping 2 m w) whose damping takes the
+    # pushing body as standing still settles where the spring's force balances the damping's drag at
+    # the body's speed v: sunk 2 v / w into the body (27 mm at 1 m/s and 75 rad/s). Moving with the
+    # body's speed (the players' kinematic bodies), the contact only has to take the bob from rest to
+    # v when struck: it sinks less than v / w, and is not dragged once it moves with the body.
+    w = PARAMS.file_contact_frequency
+    still = _pushed_bob_gaps(speed, body_velocity=False)
+    assert -still[-12:].mean() == pytest.approx(2 * speed / w, rel=0.05)
+    moving = _pushed_bob_gaps(speed, body_velocity=True)
+    assert moving.min() > -speed / w and moving[-12:].mean() > -0.1 * 2 * speed / w
+
+
+def test_an_opt_in_switch_enters_the_record_only_when_on():
+    """Off, ``file_body_velocity`` is absent from the run's JSON (the fingerprint of a run made without the
+    switch); on, it is there; both read back to the same parameters."""
+    import dataclasses
+
+    from mimicbench.datagen.apparel.params import ApparelParams, SimParams, params_from_json
+
+    off = ApparelParams()
+    on = ApparelParams(dataclasses.replace(SimParams(), file_body_velocity=True))
+    assert "file_body_velocity" not in off.to_json()["simulation"]
+    assert on.to_json()["simulation"]["file_body_velocity"] is True
+    assert params_from_json(off.to_json()) == off and params_from_json(on.to_json()) == on

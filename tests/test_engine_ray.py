@@ -24,7 +24,7 @@ from mimicbench.engines import TaskResources, get_engine  # noqa: E402
 from mimicbench.engines.ray_engine import RayEngine  # noqa: E402
 from mimicbench.datagen.resample.stage import resample_dataset  # noqa: E402
 from mimicbench.datagen.stage_runner import run_stage  # noqa: E402
-from mimicbench.datagen.zoo import build_zoo  # noqa: E402
+from mimicbench.datagen.zoo.dataset import build_zoo  # noqa: E402
 from mimicbench.cli import main  # noqa: E402
 from mimicbench.schemas.shards import read_records  # noqa: E402
 

@@ -142,12 +142,6 @@ def test_cli_rejects_bad_options(tmp_path, capsys, args, needle):
     assert e.value.code == 2 and needle in capsys.readouterr().err
 
 
-def test_cli_export_formats_match_the_runner():
-    from mimicbench.datagen.ingest import command, runner
-
-    assert command.EXPORT_FORMATS == runner.EXPORT_FORMATS
-
-
 def test_category_map_names_assets(tmp_path):
     from pathlib import Path
 
@@ -311,10 +305,10 @@ def test_bvh_rest_height_and_auto_unit_by_hand(tmp_path):
 
 
 def test_ingest_option_bvh_scale_accepts_auto_or_a_positive_number():
-    from mimicbench.datagen.ingest.runner import IngestOptions
+    from mimicbench.datagen.ingest.params import IngestParams
 
-    IngestOptions(bvh_scale="auto").check()
-    IngestOptions(bvh_scale=0.01).check()
+    IngestParams(bvh_scale="auto").check()
+    IngestParams(bvh_scale=0.01).check()
     for bad in (0, -1.0, "cm"):
         with pytest.raises(ValueError, match="--bvh-scale"):
-            IngestOptions(bvh_scale=bad).check()
+            IngestParams(bvh_scale=bad).check()

@@ -116,3 +116,30 @@ def test_initialisation_of_the_shipped_checkpoint_and_of_init_only(requests):
         qb, tb = structured_pose(torch.as_tensor(q), torch.as_tensor(p), s.keypoints, s.parents, t.keypoints,
                                  t.parents, m, r.target.size / r.source.size)
         np.testing.assert_allclose(got, pose_mesh(t, qb, tb).numpy(), atol=2e-5)
+
+
+def test_the_refinement_moves_only_the_bones_g_leaves_unmatched(requests):
+    """``mimicat`` refines H's answer on the target bones that G's decoded M matches to no source
+    bone; the matched bones' rotations, read back off the returned mesh by the shared joint fit,
+    are those of the same model without the refinement."""
+    from mimicbench.baselines.mimicat.transfer_data import CharacterTensors
+    from mimicbench.geometry.pose_readoff import read_rig_pose
+    from mimicbench.geometry.quaternion import quat_angle
+
+    full = Mimicat()
+    full.setup("cpu")
+    plain = Mimicat()
+    plain.use_range = False
+    plain.interpolate = False
+    plain.setup("cpu")
+    moved_free = 0.0
+    for r, a, b in zip(requests, full.transfer(requests), plain.transfer(requests)):
+        s, t = CharacterTensors.of_rig(r.source, full.points), CharacterTensors.of_rig(r.target, full.points)
+        matched = full._correspondences([r], [s], [t])[0].numpy().sum(axis=0) > 0
+        qa, qb = read_rig_pose(r.target, a), read_rig_pose(r.target, b)
+        ok = matched & qa.supported & qb.supported
+        assert np.degrees(quat_angle(qa.rotations[ok], qb.rotations[ok])).max() < 0.05
+        free = ~matched & qa.supported & qb.supported
+        if free.any():
+            moved_free = max(moved_free, float(np.degrees(quat_angle(qa.rotations[free], qb.rotations[free])).max()))
+    assert moved_free > 1.0  # some unmatched bone of these pairs does move

@@ -72,3 +72,24 @@ def test_the_shipped_method_reads_the_structured_pipeline_from_its_checkpoint():
         assert method.decode == small["transfer"]["m_decode"] == "hungarian_sym"
         assert method.m_temperature == small["transfer"]["m_temperature"]
         assert method.points == small["data"]["points"]
+
+
+def test_shipped_range_model_holds_the_documented_settings():
+    import json
+
+    from safetensors import safe_open
+
+    from mimicbench.baselines.mimicat.config import SHIPPED_RANGE
+    from mimicbench.baselines.mimicat.range_model import FEATURE_SCALES, RangeModel
+
+    path = BUNDLED / "range.safetensors"
+    assert path.stat().st_size <= 2 * 2**20
+    with safe_open(str(path), framework="numpy") as f:
+        meta = f.metadata()
+    stored = {"k": int(meta["k"]), "slack_deg": float(meta["slack_deg"]), "parts": meta["parts"], "keep": meta["keep"],
+              "scope": meta["scope"], "max_deg": float(meta["max_deg"]),
+              "feature_scales": json.loads(meta["feature_scales"])}
+    assert stored == SHIPPED_RANGE and FEATURE_SCALES == SHIPPED_RANGE["feature_scales"]
+    model = RangeModel.load(path)
+    assert len(model.features) == len(model.twist) == len(model.characters) == len(model.hull_offsets) - 1
+    assert model.source["characters"] == 40  # every character of the seed-11 training zoo

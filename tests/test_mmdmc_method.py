@@ -13,7 +13,7 @@ from mimicbench.benchmark.request import MotionRequest, Rig
 from mimicbench.geometry.quaternion import quat_to_matrix
 from mimicbench.schemas.weights import SparseWeights
 
-NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_refine", "mmdmc_no_apparel", "mmdmc_gt_mask")
+NAMES = ("mmdmc", "mmdmc_body_only", "mmdmc_no_apparel", "mmdmc_gt_mask")
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +52,7 @@ def test_methods_are_registered_for_the_apparel_protocol():
         m = get_method(name)
         assert m.metadata.name == name and m.metadata.protocols == ("apparel",) and m.metadata.needs_training
     assert "reads_gt_apparel_mask" in get_method("mmdmc_gt_mask").metadata.tags
-    assert not any("reads_gt_apparel_mask" in get_method(n).metadata.tags for n in NAMES[:4])
+    assert not any("reads_gt_apparel_mask" in get_method(n).metadata.tags for n in NAMES[:3])
 
 
 def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(character):
@@ -60,7 +60,7 @@ def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(characte
 
     rig, window, rec = character
     outs = {}
-    for name in NAMES[:3]:
+    for name in NAMES[:2]:
         m = get_method(name)
         m.setup("cpu")
         [out] = m.transfer_motion([request(rig, window, rec)])
@@ -78,7 +78,7 @@ def test_shipped_checkpoint_answers_and_body_only_is_lbs_of_its_weights(characte
     np.testing.assert_allclose(body, ref, atol=2e-4)
     # the apparel path moves only the vertices f_c finds apparel and those whose weights its apparel
     # skinning changed (smoothed across a seam); the rest stays the body's
-    m2, apparel = outs["mmdmc_no_refine"]
+    m2, apparel = outs["mmdmc"]
     moved = np.abs(apparel - body).max(axis=(0, 2)) > 0
     mods, prep2 = m2.modules, next(iter(m2._prepared.values()))
     mask = apparel_probability(mods.seg, prep2, mods.mask_by_piece) > mods.threshold
@@ -147,9 +147,7 @@ def test_no_apparel_is_the_full_model_with_f_d_left_out(character):
     bones = np.flatnonzero(~np.asarray(rec.apparel_bone_mask, bool))
     ref = naive_lbs(np.asarray(rig.vertices, np.float64), np.asarray(rig.keypoints, np.float64)[bones], w,
                     window[:, bones].astype(np.float64))
-    m.modules = dataclasses.replace(mods, refine=None)
-    [unrefined] = m.transfer_motion([request(rig, window, rec)])
-    np.testing.assert_allclose(unrefined, ref, atol=2e-4)
+    np.testing.assert_allclose(out, ref, atol=2e-4)
 
 
 def test_the_apparel_is_restored_by_soft_arap_as_the_modules_weight_asks(character):
@@ -160,7 +158,7 @@ def test_the_apparel_is_restored_by_soft_arap_as_the_modules_weight_asks(charact
     from mimicbench.baselines.mmdmc.pipeline import apparel_probability
 
     rig, window, rec = character
-    m = get_method("mmdmc_no_refine")
+    m = get_method("mmdmc")
     m.transfer_motion([request(rig, window, rec)])  # loads the modules
     mods = m.modules
     outs = {}

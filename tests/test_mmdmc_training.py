@@ -11,19 +11,18 @@ from mimicbench.training.loop import train_stage
 from mimicbench.training.registry import trainable
 from mimicbench.training.stage import StageContext
 
-STAGES = ("seg", "body", "apparel", "refine")
+STAGES = ("seg", "body", "apparel")
 pytestmark = pytest.mark.slow  # simulates a zoo character with pybullet, then trains every stage
 
 
 def tiny_config() -> dict:
     cfg = trainable("mmdmc").config("small")
     cfg.update({"points": 192, "batch_size": 2, "batches_per_epoch": 2, "window": 3, "apparel_points": 200,
-                "seg_hidden": 8, "body_hidden": 8, "apparel_hidden": 8, "refine_hidden": 8, "code": 4,
+                "seg_hidden": 8, "body_hidden": 8, "apparel_hidden": 8, "code": 4,
                 # an untrained f_c finds no apparel; in this toy every vertex counts as apparel
                 "threshold": 0.0})
     for s in STAGES:
         cfg[s] = {"epochs": 1}
-    cfg["refine"]["batches_per_epoch"] = 1
     return cfg
 
 
@@ -85,7 +84,7 @@ def test_a_few_steps_lower_each_loss(apparel_data, run, stage):
     assert last["total"] < first["total"], (first, last)
     # the term that dominates each stage's total drops too (the body's total starts on the geodesic
     # prior's near-right weights, where the smoothness term leads, so it is judged by its total)
-    main = {"seg": "bce", "apparel": "vertex", "refine": "vertex"}.get(stage)
+    main = {"seg": "bce", "apparel": "vertex"}.get(stage)
     if main:
         assert last[main] < first[main], (first, last)
 
@@ -180,7 +179,7 @@ def test_attachment_options_train_and_skin_apparel_to_its_chains_body_bone(appar
     clip = TrainingData.load(apparel_data).clips[0]
     zero = copy.copy(mods)
     zero.apparel = ApparelDynamics(cfg["apparel_hidden"], cfg["code"])
-    got = predict(zero, c, clip.kinematic[:4], "no_refine")
+    got = predict(zero, c, clip.kinematic[:4], "full")
     assert (apparel_probability(mods.seg, c, True) > 0).all()
     w = skinning_weights(mods.body, c).numpy().copy()
     attach = attachment_bones(c.parents, c.body)
@@ -293,7 +292,7 @@ def test_apparel_rollouts_start_at_rest_at_the_clips_first_frame_as_a_request_do
     with torch.no_grad():
         states, _ = apparel_states(mods.apparel, _tensors(batch), cfg)
     got = states[0].numpy() * c.height + c.centre
-    answered = predict(mods, c, clip.kinematic, "no_refine")[:, idx]
+    answered = predict(mods, c, clip.kinematic, "full")[:, idx]
     assert np.abs(answered - (batch["body"][0] * c.height + c.centre)).max() > 1e-6  # f_d moved it
     np.testing.assert_allclose(got, answered, atol=2e-5)
 
@@ -355,6 +354,6 @@ def test_body_history_model_trains_and_its_batches_are_what_a_request_is_answere
     with torch.no_grad():
         states, _ = apparel_states(mods.apparel, batch, cfg)
     got = states[0].numpy() * c.height + c.centre
-    answered = predict(mods, c, clip.kinematic, "no_refine")[:, idx]
+    answered = predict(mods, c, clip.kinematic, "full")[:, idx]
     assert np.abs(answered - (batch["body"][0].numpy() * c.height + c.centre)).max() > 1e-6  # f_d moved it
     np.testing.assert_allclose(got, answered, atol=2e-5)

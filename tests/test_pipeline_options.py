@@ -19,10 +19,13 @@ ZOO = "[[steps]]\nrun = 'zoo'\nout = 'zoo'\ncharacters = 3\nclips_per_character 
 
 
 def test_the_options_dataclass_has_the_parsers_defaults_and_both_fillers_agree():
+    from mimicbench.datagen.resample.params import ResampleParams
+
     parser = command_parser(("datagen", "resample"))
     cls = options_class(parser)
+    assert cls is ResampleParams  # the stage's own params: the parser is made from it
     fields = {f.name: f.default for f in dataclasses.fields(cls)}
-    assert fields == {"in_dataset": None, "out_dataset": None, "faces": 5000,
+    assert fields == {"in_dataset": dataclasses.MISSING, "out_dataset": dataclasses.MISSING, "faces": 5000,
                       "backend": "fast", "jobs": 1, "engine": "local", "ray_address": None, "quiet": False}
     argv = ["datagen", "resample", "a", "b", "--faces", "800", "--backend", "pymeshlab", "--jobs", "2"]
     from_cli = from_namespace(parser, build_parser().parse_args(argv))
@@ -40,7 +43,7 @@ def test_the_options_dataclass_has_the_parsers_defaults_and_both_fillers_agree()
 
 def test_a_stage_function_called_with_its_dataclass_returns_its_summary(tmp_path):
     parser = command_parser(("zoo",))
-    options = options_class(parser)(out=str(tmp_path / "zoo"), characters=3, clips_per_character=1,
+    options = options_class(parser)(out=str(tmp_path / "zoo"), num_characters=3, clips_per_character=1,
                                     frames_per_clip=12, no_contact_sheet=True, quiet=True)
     summary = parser.get_default("func")(options)
     assert isinstance(summary, StageSummary)
@@ -100,7 +103,7 @@ def test_a_summary_says_its_exit_status():
 def test_the_demo_is_its_bundled_pipeline_file_and_its_help_states_the_files_values():
     import re
 
-    from mimicbench.benchmark.demo import DEMO_PIPELINE, OPTION_STEPS
+    from mimicbench.commands.demo import DEMO_PIPELINE, OPTION_STEPS
 
     pipeline = load_pipeline(DEMO_PIPELINE, workdir="demo-output")  # every step's options checked
     steps = {s.name: s for s in pipeline.steps}

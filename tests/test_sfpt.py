@@ -93,6 +93,34 @@ def test_networks_have_the_published_widths(hidden, code, convs):
         (2 * code + 7, 4 * hidden), (4 * hidden, 2 * hidden), (2 * hidden, 2 * hidden), (2 * hidden, 7)]
 
 
+def test_relu_init_gives_he_normal_weights_and_zero_biases():
+    from mimicbench.baselines.sfpt.model import relu_init
+
+    torch.manual_seed(0)
+    layer = torch.nn.Linear(400, 300)
+    relu_init(layer)
+    assert abs(float(layer.weight.std()) - (2.0 / 400) ** 0.5) < 0.002  # He: std sqrt(2 / fan_in)
+    assert float(layer.bias.abs().max()) == 0.0
+
+
+def test_untrained_networks_tell_vertices_and_handles_apart():
+    """PyTorch's default init shrinks the signal over the dozen ReLU layers, so every vertex gets the same
+    handle logits (std over vertices about 1e-4) and every handle the same code; the model's init keeps it."""
+    from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
+    from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer
+
+    v, f = grid_mesh(12)
+    rest, edges = torch.as_tensor(0.5 * v), torch.as_tensor(mesh_edges(f, len(v)))
+    normals = vertex_normals(rest, torch.as_tensor(f))
+    torch.manual_seed(0)
+    model = SkeletonFreePoseTransfer(16, 40, 64)
+    with torch.no_grad():
+        logits = model.skinning.head(model.skinning.features(torch.cat([rest, normals], -1), edges))
+        code = model.encoder(rest, normals, torch.softmax(logits, -1), edges)
+    assert float(logits.std(0).mean()) > 0.01
+    assert float(code.std(0).mean() / code.abs().mean()) > 1e-3
+
+
 def paper_sized_parameters():
     from mimicbench.baselines.sfpt.training import build_sfpt
     from mimicbench.training.registry import trainable

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from mimicbench.baselines.mimicat.method import BUNDLED, Mimicat, MimicatInitOnly, MimicatNaiveAvg, MimicatNoPrior
-from mimicbench.baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMask, MmdmcNoRefine
+from mimicbench.baselines.mmdmc.method import CHECKPOINTS, Mmdmc, MmdmcBodyOnly, MmdmcGtMask, MmdmcNoApparel
 from mimicbench.baselines.cgt.method import Cgt, CgtNoAttention
 from mimicbench.baselines.npt.method import Npt, NptConstantCode
 from mimicbench.baselines.sfpt.method import Sfpt, SfptKabschOnly
@@ -19,15 +19,15 @@ from mimicbench.baselines.sfpt.method import Sfpt, SfptKabschOnly
 # version of every method reading the folder -> sha256 over its .safetensors files (sorted by name,
 # each as name + NUL + bytes)
 SHIPPED = {
-    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior, MimicatInitOnly), "9",
-                "7c458276d82928ffd6a2401a7be1d3a96f4ad25a1e2925584bcd540053b2a1b5"),
-    "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoRefine, MmdmcGtMask), "9",
-              "c0ba1a01ddb5ad9cf3f33002b62926c2d7c4ec92bb1100d3b1d5b6321c0ad3af"),
+    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior, MimicatInitOnly), "10",
+                "f46b59fcc13c4bf0224244f17e1bac9b87c4f70c56c46bdafb6ff5c8e416b3ff"),
+    "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoApparel, MmdmcGtMask), "10",
+              "dc0d47f4b628021125659154d214ce3732bc043c8f252b475592a8c6cca472aa"),
     "cgt": (Cgt.shipped, (Cgt, CgtNoAttention), "4", "e7f2475c1ab545fd77731100d52c1d6832458eaf52cb1ad8c3e5ce3edacaede3"),
     "npt": (Npt.shipped, (Npt, NptConstantCode), "5",
             "2d8db86fb21597b375cade060c7926ba302417a28da4d437df4bb48f6f62b8e3"),
-    "sfpt": (Sfpt.shipped, (Sfpt, SfptKabschOnly), "2",
-             "450ffa43ce98fbf9fc076e92df4a0be94d9074c9e1cfa9acad2db8ffff88b18d"),
+    "sfpt": (Sfpt.shipped, (Sfpt, SfptKabschOnly), "3",
+             "372ac8aa20fb1b006aca386c1ce5717cd00a29f13d1d93b200de3f2276abec82"),
 }
 
 
@@ -62,7 +62,7 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
         {k: hashlib.sha256(Path(v).read_bytes()).hexdigest() for k, v in files.items()},
         sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     shipped = {"shape": BUNDLED / "shape.safetensors", "corr": BUNDLED / "corr.safetensors",
-               "transfer": BUNDLED / "transfer.safetensors"}
+               "transfer": BUNDLED / "transfer.safetensors", "range": BUNDLED / "range.safetensors"}
     assert Mimicat().weights_fingerprint() == by_hand(shipped)
     assert MimicatNoPrior().weights_fingerprint() != Mimicat().weights_fingerprint()
     copy = tmp_path / "mimicat"
@@ -79,7 +79,7 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
     shutil.copytree(CHECKPOINTS, run)
     monkeypatch.setenv(MMDMC_ENV, str(run))
     assert Mmdmc().weights_fingerprint() == full
-    (run / "refine.safetensors").write_bytes(b"other")
+    (run / "apparel.safetensors").write_bytes(b"other")
     assert Mmdmc().weights_fingerprint() != full and MmdmcBodyOnly().weights_fingerprint() == body_only
 
     for method in (Npt, Cgt, Sfpt):  # one file each, shipped as <stage>.safetensors or a run's <stage>/model.safetensors
@@ -98,7 +98,7 @@ def test_methods_fingerprint_the_weights_they_load(tmp_path, monkeypatch):
 
 
 def test_shipped_published_baselines_are_small():
-    # the bound docs/methods/published-deviations.md states: each shipped checkpoint below 5 MB
+    # the bound docs/methods/published-deviations.md states: each shipped checkpoint below 2 MB
     for method in (Npt, Cgt, Sfpt):
         size = (method.shipped / f"{method.stage}.safetensors").stat().st_size
-        assert size < 5 * 10**6, (method.metadata.name, size)
+        assert size < 2 * 10**6, (method.metadata.name, size)

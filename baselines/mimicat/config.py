@@ -104,6 +104,15 @@ and data only (every character of the training zoo, fewer epochs, the prior's sa
 time), never a setting the method reads at inference (sizes, ``m_temperature``, ``init``,
 ``m_decode``, ``geometry_weight``); :data:`BUDGET_KEYS` lists what an override may touch."""
 
+SHIPPED_RANGE = {"k": 3, "slack_deg": 0.0, "parts": "both", "keep": "local", "scope": "free", "max_deg": 180.0,
+                 "feature_scales": {"axis": 2.0, "position": 1.0, "parent_axis": 1.0, "length": 4.0, "children": 0.5,
+                                    "depth": 0.5}}
+"""Settings of the shipped range model (``checkpoints/range.safetensors``, see
+:mod:`mimicbench.baselines.mimicat.range_model`), chosen on the training zoo (seed 11) with each
+target's own bones left out of the neighbours: ``scope=free`` (only the bones G matches to no
+source bone move; they share the turn between their matched neighbours and are moved into the
+range of their 3 nearest training bones); ``tests/test_mimicat_shipped_config.py`` checks the file."""
+
 BUDGET_KEYS = ("data.split", "shape.epochs", "prior.epochs", "prior.sampling_weight", "corr.epochs",
                "transfer.epochs", "transfer_no_prior.epochs")
 """Settings that change how a stage is trained but not what the trained module computes."""

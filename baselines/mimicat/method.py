@@ -8,15 +8,19 @@ for checkpoints without it, ``hungarian``: one to one, ``hungarian_sym``: one to
 of both directions, one assignment of the pair); H the target's transforms from its
 initialisation (``transfer.init`` of the transfer checkpoint's config: ``structured`` for the
 presets and the shipped checkpoint, ``paper``, Eq. 3-4 as published, for a config without the
-key); LBS poses the target and ARAP refines it (:mod:`mimicbench.baselines.mimicat.arap`, ``arap=False``
-switches it off). The shipped checkpoints' configs are the documented ones
+key); the refinement of H's answer: target bones G matches to no source bone share the turn
+between their matched neighbours and are moved into the ranges the range model predicts from the
+target's shape (:mod:`mimicbench.baselines.mimicat.range_model`); LBS poses the target; ARAP
+(:mod:`mimicbench.baselines.mimicat.arap`) refines it only when ``arap=True`` (off by default: the
+shared joint-fit read-off returns an LBS pose's transforms exactly, an ARAP-refined mesh's not). The shipped checkpoints' configs are the documented ones
 (:func:`mimicbench.baselines.mimicat.config.shipped_config`): ``structured``, ``hungarian_sym``, temperature 0.1.
 
 Weights: the checkpoint folder given as ``checkpoint=`` or by the environment variable
 ``MIMICAT_CHECKPOINT``, else the bundled one (``baselines/mimicat/checkpoints``). A folder holds
 either ``<stage>.safetensors`` files (the bundled layout) or a training run's
 ``<stage>/model.safetensors`` (``mimicbench train mimicat DATA --out RUN``), stages ``shape``,
-``corr``, ``transfer`` and, for ``mimicat_no_prior``, ``transfer_no_prior``.
+``corr``, ``transfer`` and, for ``mimicat_no_prior``, ``transfer_no_prior``; the range model is
+the folder's ``range.safetensors`` (or ``range/model.safetensors``), else the bundled one.
 
 Registered names:
 - ``mimicat``: the full model.
@@ -24,9 +28,11 @@ Registered names:
   by the normalised plain weighted sum of quaternions in the initialisation. With a one-to-one M
   (``hungarian_sym``, the shipped config) every column holds one quaternion, so both give that
   quaternion and A1 answers exactly as ``mimicat``; it differs only with ``m_decode=soft``.
-- ``mimicat_no_prior`` (ablation A2): H trained without the prior term L_reg.
+- ``mimicat_no_prior`` (ablation A2): the pose prior left out in both its forms, H trained
+  without L_reg and no range model (the interpolation of unmatched bones kept).
 - ``mimicat_init_only``: the shipped G, its M of both directions decoded as one one-to-one
-  assignment of the pair (``hungarian_sym``) and the structured initialisation, H off (the initialisation is the answer), so that H's own
+  assignment of the pair (``hungarian_sym``) and the structured initialisation, H, the
+  interpolation and the range model off (the initialisation is the answer), so that H's own
   contribution shows on the leaderboard.
 """
 from __future__ import annotations
@@ -56,13 +62,13 @@ class Mimicat(PoseTransferMethod):
     Args:
         checkpoint: folder of weights (see the module docstring); None for MIMICAT_CHECKPOINT or
             the bundled one.
-        arap: refine the LBS result by ARAP.
+        arap: refine the LBS result by ARAP (off by default).
         batch_size: requests run through the networks at once.
     """
 
-    metadata = MethodMetadata(name="mimicat", version="9", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mimicat", version="10", licence="MIT", needs_training=True, citation=CITATION,
                               description="MimiCAT cascade: shape encoder, correspondence transformer G, "
-                                          "pose-transfer transformer H, LBS + ARAP (bundled checkpoint)")
+                                          "pose-transfer transformer H, range model from shape, LBS (bundled checkpoint)")
     transfer_stage = "transfer"
     average = "eq4"
     init: str | None = None
@@ -73,6 +79,10 @@ class Mimicat(PoseTransferMethod):
     ``transfer.m_decode`` (``soft`` for a config without the key)."""
     use_h = True
     """False: the initialisation is the answer (H's correction left out)."""
+    interpolate = True
+    """True: the target bones G's decoded M matches to no source bone share the turn between their
+    matched neighbours (:func:`mimicbench.baselines.mimicat.range_model.interpolate_free`) instead
+    of keeping their parent's rotation."""
     use_range = True
     """True: each target bone's local rotation is projected into the range predicted from the
     target's shape (:mod:`mimicbench.baselines.mimicat.range_model`, the ``range`` file of the
@@ -81,7 +91,7 @@ class Mimicat(PoseTransferMethod):
     """True: the range model leaves the target's own character id out of its neighbours
     (leave-one-out checks on the zoo the range model was fitted on; never for a benchmark run)."""
 
-    def __init__(self, checkpoint: str | os.PathLike | None = None, arap: bool = True, batch_size: int = 16):
+    def __init__(self, checkpoint: str | os.PathLike | None = None, arap: bool = False, batch_size: int = 16):
         self.checkpoint = Path(checkpoint or os.environ.get("MIMICAT_CHECKPOINT") or BUNDLED)
         self.arap = arap
         self._range = None
@@ -93,11 +103,15 @@ class Mimicat(PoseTransferMethod):
         self._refiner = None
 
     def weights_fingerprint(self) -> str:
-        """Fingerprint of the shape, corr and transfer weights this instance loads."""
+        """Fingerprint of the shape, corr and transfer weights this instance loads, and of the range
+        model when it reads one."""
         from mimicbench.schemas.fingerprint import files_fingerprint
 
         stages = ("shape", "corr", self.transfer_stage)
-        return files_fingerprint({s: checkpoint_path(self.checkpoint, s) for s in stages})
+        files = {s: checkpoint_path(self.checkpoint, s) for s in stages}
+        if self.use_range:
+            files["range"] = range_path(self.checkpoint)
+        return files_fingerprint(files)
 
     def setup(self, device: str = "cpu") -> None:
         import torch
@@ -168,27 +182,42 @@ class Mimicat(PoseTransferMethod):
                 result, _, _ = transfer_batch(m["shape"], m["corr"], m["transfer"], src, q_s, t_s, posed, tgt, ms)
             else:
                 result = [m["transfer"].initialise(*args)[:2] for args in zip(src, q_s, t_s, tgt, ms)]
-            if self._range is not None:
-                result = [self._project(r.target, q, p) for r, (q, p) in zip(requests, result)]
+            if self.interpolate or self._range is not None:
+                result = [self._refine(r.target, q, p, mm) for r, (q, p), mm in zip(requests, result, ms)]
             verts = [pose_mesh(t, q, p).cpu().numpy().astype(np.float32) for t, (q, p) in zip(tgt, result)]
         if self._refiner is not None:
             verts = [self._refiner.refine(r.target.character_id, r.target.vertices, r.target.faces,
                                           r.target.weights.values, v) for r, v in zip(requests, verts)]
         return verts
 
-    def _project(self, rig, q, p):
-        """H's answer q (Kt, 4), p (Kt, 3) (tensors) with every bone moved into the range the range
-        model predicts for ``rig`` (:func:`mimicbench.baselines.mimicat.range_model.project_pose`)."""
+    def _refine(self, rig, q, p, m):
+        """H's answer q (Kt, 4), p (Kt, 3) (tensors) refined for ``rig`` with the decoded M (Ks, Kt):
+        the target bones M matches to no source bone share the turn between their matched
+        neighbours (``interpolate``, :func:`mimicbench.baselines.mimicat.range_model.interpolate_free`),
+        and, with the range model (``use_range``), bones are moved into the ranges it predicts for
+        ``rig``: the unmatched ones (scope ``free``, :func:`mimicbench.baselines.mimicat.range_model.refine_free`),
+        every bone (scope ``all``, :func:`mimicbench.baselines.mimicat.range_model.project_pose`) or
+        the first and then the second (scope ``both``)."""
         import torch
 
-        from mimicbench.baselines.mimicat.range_model import project_pose
+        from mimicbench.baselines.mimicat.range_model import project_pose, refine_free
 
-        key = (rig.character_id, len(rig.vertices), len(rig.parents))
-        if key not in self._predicted:
-            self._predicted[key] = self._range.predict(rig, rig.character_id if self.range_exclude_self else None)
-        q2, p2 = project_pose(q.detach().cpu().numpy(), p.detach().cpu().numpy(), rig.parents, self._predicted[key],
-                              self._range.slack_deg)
-        return torch.as_tensor(q2, dtype=q.dtype, device=q.device), torch.as_tensor(p2, dtype=p.dtype, device=p.device)
+        rng = self._range
+        predicted = None
+        if rng is not None:
+            key = (rig.character_id, len(rig.vertices), len(rig.parents))
+            if key not in self._predicted:
+                self._predicted[key] = rng.predict(rig, rig.character_id if self.range_exclude_self else None)
+            predicted = self._predicted[key]
+        qn, pn = q.detach().cpu().numpy(), p.detach().cpu().numpy()
+        if self.interpolate:
+            matched = m.detach().cpu().numpy().sum(axis=0) > 0
+            free_ranges = predicted if rng is not None and rng.scope in ("free", "both") else None
+            qn, pn = refine_free(qn, pn, rig.parents, matched, free_ranges, rng.slack_deg if rng else 0.0,
+                                 rng.parts if rng else "both")
+        if rng is not None and rng.scope in ("all", "both"):
+            qn, pn = project_pose(qn, pn, rig.parents, predicted, rng.slack_deg, rng.parts, rng.keep, rng.max_deg)
+        return torch.as_tensor(qn, dtype=q.dtype, device=q.device), torch.as_tensor(pn, dtype=p.dtype, device=p.device)
 
     def _correspondences(self, requests, src, tgt) -> list:
         """G's correspondence M (Ks, Kt) of each request's characters (prepared ``src``, ``tgt``),
@@ -219,25 +248,27 @@ def _header_config(path: Path) -> dict:
 
 
 class MimicatNaiveAvg(Mimicat):
-    metadata = MethodMetadata(name="mimicat_naive_avg", version="9", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_naive_avg", version="10", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT ablation A1: plain weighted quaternion sum instead of Eq. 4")
     average = "naive"
 
 
 class MimicatNoPrior(Mimicat):
-    metadata = MethodMetadata(name="mimicat_no_prior", version="9", licence="MIT", needs_training=True,
-                              citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg")
+    metadata = MethodMetadata(name="mimicat_no_prior", version="10", licence="MIT", needs_training=True,
+                              citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg, "
+                                                              "no range model")
     transfer_stage = "transfer_no_prior"
     use_range = False
 
 
 class MimicatInitOnly(Mimicat):
-    metadata = MethodMetadata(name="mimicat_init_only", version="9", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_init_only", version="10", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT without H: G's correspondences of both directions decoded as "
-                                          "one one-to-one assignment and the structured initialisation, LBS + ARAP")
+                                          "one one-to-one assignment and the structured initialisation, LBS")
     init = "structured"
     m_decode = "hungarian_sym"
     use_h = False
+    interpolate = False
     use_range = False

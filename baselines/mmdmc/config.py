@@ -59,15 +59,15 @@ COMMON = {
 }
 
 SMALL = {**COMMON, "lr": 1e-3, "weight_decay": 1e-4, "points": 1024, "batch_size": 4, "batches_per_epoch": 40,
-         "seg_hidden": 64, "body_hidden": 32, "apparel_hidden": 48, "refine_hidden": 32, "code": 16,
+         "seg_hidden": 64, "body_hidden": 32, "apparel_hidden": 48, "code": 16,
          "apparel_points": 1024,
          # per-stage settings (the trainer reads config[stage][key] before config[key])
          "seg": {"epochs": 12}, "body": {"epochs": 6, "batches_per_epoch": 100, "points": 512},
-         "apparel": {"epochs": 2, "batches_per_epoch": 12}, "refine": {"epochs": 1, "batches_per_epoch": 6}}
+         "apparel": {"epochs": 2, "batches_per_epoch": 12}}
 
 PAPER = {**COMMON, "lr": 1e-4, "weight_decay": 1e-4, "points": 4096, "batch_size": 8, "batches_per_epoch": 500,
-         "seg_hidden": 128, "body_hidden": 64, "apparel_hidden": 128, "refine_hidden": 64, "code": 64,
+         "seg_hidden": 128, "body_hidden": 64, "apparel_hidden": 128, "code": 64,
          "apparel_points": 0,
-         "seg": {"epochs": 20}, "body": {"epochs": 50}, "apparel": {"epochs": 30}, "refine": {"epochs": 10}}
+         "seg": {"epochs": 20}, "body": {"epochs": 50}, "apparel": {"epochs": 30}}
 
 CONFIGS = {"small": SMALL, "paper": PAPER}

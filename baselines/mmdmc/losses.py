@@ -1,4 +1,4 @@
-"""MMDMC's losses (Eq. 8-10 body, Eq. 14-15 apparel, Sec. 4.4 refinement), on tensors in the
+"""MMDMC's losses (Eq. 8-10 body, Eq. 14-15 apparel), on tensors in the
 character's unit-height frame. Weights (``config.py``, the paper's): vertex 1.0, edge 100,
 smoothness and regulariser 0.01.
 """

@@ -1,9 +1,10 @@
 """The registered MMDMC methods for the ``apparel`` protocol (MMDMC Table 2's rows):
 
-- ``mmdmc``: the full model (f_c mask, f_s body, f_d apparel, f_j refinement);
+- ``mmdmc``: the full model (f_c mask, f_s body, f_d apparel), the paper's Body + Apparel row: the
+  paper's joint refinement f_j is not part of it (it moves no score by 2 standard errors, even on
+  its own training data: ``docs/methods/mmdmc.md``);
 - ``mmdmc_body_only``: the Body Module row (f_s alone: apparel skinned to body joints);
-- ``mmdmc_no_refine``: the Body + Apparel row (no f_j);
-- ``mmdmc_no_apparel``: the full model with f_d's displacement zero (same mask, skinning and f_j),
+- ``mmdmc_no_apparel``: the full model with f_d's displacement zero (same mask and skinning),
   so ``mmdmc`` against it is f_d's effect alone: the paper's Body Module row for this model;
 - ``mmdmc_gt_mask``: Full Model + GT Mask (the dataset's apparel vertex mask instead of f_c's;
   the only variant that reads it).
@@ -27,9 +28,8 @@ CHECKPOINTS = Path(__file__).resolve().parent / "checkpoints"
 ENV = "MIMICBENCH_MMDMC_CHECKPOINTS"
 CITATION = ("Rong Wang, Wei Mao, Changsheng Lu, Hongdong Li. Towards High-Quality 3D Motion Transfer with "
             "Realistic Apparel Animation. ECCV 2024.")
-STAGES = ("seg", "body", "apparel", "refine")
-VARIANT_STAGES = {"full": STAGES, "no_refine": ("seg", "body", "apparel"), "body_only": ("body",),
-                  "no_apparel": STAGES}  # f_d's header holds the mask vote and apparel skinning it shares
+STAGES = ("seg", "body", "apparel")
+VARIANT_STAGES = {"full": STAGES, "body_only": ("body",), "no_apparel": STAGES}  # f_d's header holds the mask vote and apparel skinning it shares
 
 
 def checkpoint_path(stage: str, folder: str | os.PathLike | None = None) -> Path:
@@ -58,17 +58,17 @@ def load_modules(folder=None, device: str = "cpu", stages=STAGES):
     # the mask's piece vote and how apparel is skinned before f_d are the apparel stage's settings,
     # the weights' smoothing (iterations, radius) the body stage's
     apparel = read_header(checkpoint_path("apparel", folder))["config"] if "apparel" in stages else {}
-    return Modules(mods["seg"], mods["body"], mods["apparel"], mods["refine"], config["knn"], config["threshold"],
+    return Modules(mods["seg"], mods["body"], mods["apparel"], config["knn"], config["threshold"],
                    apparel.get("apparel_skinning", "fs"), bool(apparel.get("mask_by_piece", False)),
                    int(config.get("weight_smoothing", 0)), float(config.get("weight_smoothing_radius", 0.0)))
 
 
 class Mmdmc(PoseTransferMethod):
-    metadata = MethodMetadata(name="mmdmc", version="9", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mmdmc", version="10", licence="MIT", needs_training=True, citation=CITATION,
                               protocols=("apparel",), tags=("learned", "apparel"),
                               description="MMDMC reference: apparel mask, geodesic-attention skinning, "
                                           "apparel offsets from the body's motion history kept to their lengths by "
-                                          "soft ARAP, joint refinement")
+                                          "soft ARAP")
     variant = "full"
     uses_gt_mask = False
 
@@ -116,29 +116,22 @@ class Mmdmc(PoseTransferMethod):
 
 
 class MmdmcBodyOnly(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_body_only", version="9", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mmdmc_body_only", version="10", licence="MIT", needs_training=True,
                               citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
                               description="MMDMC ablation: the body module alone (Table 2, Body Module)")
     variant = "body_only"
 
 
-class MmdmcNoRefine(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_no_refine", version="9", licence="MIT", needs_training=True,
-                              citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
-                              description="MMDMC ablation: body + apparel modules, no refinement (Table 2)")
-    variant = "no_refine"
-
-
 class MmdmcNoApparel(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_no_apparel", version="9", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mmdmc_no_apparel", version="10", licence="MIT", needs_training=True,
                               citation=CITATION, protocols=("apparel",), tags=("learned", "apparel", "ablation"),
                               description="MMDMC ablation: full model with f_d's displacement zero (same mask, "
-                                          "skinning and refinement; f_d's effect is mmdmc against this)")
+                                          "skinning; f_d's effect is mmdmc against this)")
     variant = "no_apparel"
 
 
 class MmdmcGtMask(Mmdmc):
-    metadata = MethodMetadata(name="mmdmc_gt_mask", version="9", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mmdmc_gt_mask", version="10", licence="MIT", needs_training=True,
                               citation=CITATION, protocols=("apparel",),
                               tags=("learned", "apparel", "ablation", GT_MASK_TAG),
                               description="MMDMC ablation: full model with the ground-truth apparel mask (Table 2)")

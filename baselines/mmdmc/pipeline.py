@@ -1,5 +1,6 @@
 """The MMDMC forward pass at inference (Fig. 2): f_c's apparel mask, f_s's weights and LBS of the
-body motion, f_d's rollout on the apparel vertices, f_j's refinement.
+body motion, f_d's apparel on the apparel vertices (the paper's joint refinement f_j is not part of
+this model: docs/methods/mmdmc.md).
 
 With the body-history f_d (the shipped one, :mod:`mimicbench.baselines.mmdmc.apparel_history`) there is no
 rollout: each frame's apparel is predicted from the body's history in the request, and (config
@@ -39,7 +40,6 @@ class Modules:
     seg: torch.nn.Module | None
     body: torch.nn.Module
     apparel: torch.nn.Module | None
-    refine: torch.nn.Module | None
     knn: int = 8
     threshold: float = 0.5
     apparel_skinning: str = "fs"
@@ -242,7 +242,7 @@ def apparel_from_body(dyn: torch.nn.Module, prep: Prepared, body: torch.Tensor, 
     return rollout_from_body(dyn, prep, body, joints, idx, neighbours)
 
 
-VARIANTS = ("full", "no_refine", "no_apparel", "body_only")
+VARIANTS = ("full", "no_apparel", "body_only")
 
 
 @torch.no_grad()
@@ -251,9 +251,8 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
     """Posed vertices (F, N, 3) float32, metres, of a window of transforms (F, K, 7).
 
     Args:
-        variant: ``full`` (body + apparel + refinement), ``no_refine`` (body + apparel),
-            ``no_apparel`` (the full model with f_d's displacement zero: apparel vertices stay where
-            f_s's skinning with the same mask puts them, then the refinement), ``body_only`` (the
+        variant: ``full`` (body + apparel), ``no_apparel`` (the full model with f_d's displacement
+            zero: apparel vertices stay where f_s's skinning with the same mask puts them), ``body_only`` (the
             body module alone, apparel skinned to body joints as f_s scores them).
         gt_mask: (N,) bool apparel mask to use instead of f_c's (the ``GT Mask`` ablation).
     """
@@ -272,8 +271,4 @@ def predict(modules: Modules, prep: Prepared, transforms, variant: str = "full",
     if mask.any() and variant != "no_apparel":
         idx, nb = apparel_layout(prep, mask, modules.knn)
         y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(modules.apparel, prep, s, transforms, w, idx, nb)
-    if variant in ("full", "no_apparel") and modules.refine is not None:
-        p = torch.as_tensor(np.array(mask if gt_mask is not None else prob), dtype=s.dtype, device=s.device)
-        rest = torch.as_tensor(prep.rest_norm, device=s.device)
-        y = y + modules.refine(s, y, p.expand(len(y), -1), rest[None])
     return from_unit(prep, y).cpu().numpy().astype(np.float32)

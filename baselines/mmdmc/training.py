@@ -42,9 +42,6 @@ end to end on their outputs):
   request of it starts, with each apparel vertex's frame rotations and rest offset; ``history_frames``
   of its scored frames are predicted, and the loss is vertex L1 plus ``w_stretch`` times the relative
   stretch of the apparel's mesh edges.
-- ``refine`` (needs seg, body, apparel): f_j on windows rolled out as at inference (with
-  ``apparel_start="clip"`` f_d rolls out from the window's request start, its burn-in, as a
-  request does); L1 vertex, edge length, L2 on the corrections.
 
 Each batch is built from the training dataset (``mimicbench datagen apparel`` output) with the
 epoch's generator; a vertex subsample (``points``) stands in for the whole mesh in ``seg`` and
@@ -69,9 +66,8 @@ from mimicbench.baselines.mmdmc.body import BodySkinning, skin
 from mimicbench.baselines.mmdmc.config import CONFIGS
 from mimicbench.baselines.mmdmc.data import Prepared, TrainingData, body_target_weights, posed
 from mimicbench.baselines.mmdmc.losses import edge_length, edge_stretch, l2_regulariser, vertex_l1, weight_smoothness, weighted_total
-from mimicbench.baselines.mmdmc.pipeline import (apparel_from_body, apparel_layout, apparel_probability, body_states,
-                                      history_inputs, mesh_weights, rollout_from_rest, to_unit)
-from mimicbench.baselines.mmdmc.refine import JointRefiner
+from mimicbench.baselines.mmdmc.pipeline import (apparel_probability, history_inputs, mesh_weights, rollout_from_rest,
+                                      to_unit)
 from mimicbench.baselines.mmdmc.segmentation import SEG_INPUTS, ApparelSegmenter, segmenter_inputs
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.registry import make_trainable
@@ -472,52 +468,10 @@ def loss_apparel(module, batch, context) -> dict:
                            "reg": l2_regulariser(disp)}, context.config)
 
 
-# ---- refine ----------------------------------------------------------------------------------
-
-def build_refine(config: dict, context: StageContext | None = None) -> torch.nn.Module:
-    return JointRefiner(config["refine_hidden"])
-
-
-def batches_refine(config: dict, context: StageContext, rng: np.random.Generator):
-    data = training_data(config, context)
-    t = config["window"]
-    windows = _windows(data, 0, t)
-    for batch in _draws(config, context, rng, len(windows), "refine"):
-        for pick, _seed in batch:
-            ci, t0 = windows[pick]
-            clip = data.clips[ci]
-            c = data.characters[clip.character_id]
-            # f_d rolls out from where a request of this window starts ("clip": its burn-in) to the window's end
-            q = max(0, t0 - config["burn_in"]) if apparel_start(config) == "clip" else t0
-            kin = clip.kinematic[q:t0 + t]
-            prob = apparel_probability(context.frozen["seg"], c, config.get("mask_by_piece", False))
-            mask = prob > config["threshold"]
-            w = mesh_weights(context.frozen["body"], c, mask, config.get("apparel_skinning", "fs"),
-                             config.get("weight_smoothing", 0), config.get("weight_smoothing_radius", 0.0))
-            s = body_states(c, w, kin)
-            y = s.clone()
-            if mask.any():
-                idx, nb = apparel_layout(c, mask, config["knn"])
-                y[:, torch.as_tensor(idx, device=s.device)] = apparel_from_body(context.frozen["apparel"], c, s, kin,
-                                                                                w, idx, nb)
-            s, y, kin = s[t0 - q:], y[t0 - q:], kin[t0 - q:]
-            yield {"body": s.cpu().numpy(), "combined": y.cpu().numpy(), "prob": np.tile(prob, (t, 1)),
-                   "rest": c.rest_norm[None], "truth": c.norm(posed(c, clip.simulated[t0:t0 + t])), "edges": c.edges}
-
-
-def loss_refine(module, batch, context) -> dict:
-    corr = module(batch["body"], batch["combined"], batch["prob"], batch["rest"])
-    pred = batch["combined"] + corr
-    return weighted_total({"vertex": vertex_l1(pred, batch["truth"]),
-                           "edge": edge_length(pred, batch["truth"], batch["edges"]),
-                           "reg": l2_regulariser(corr)}, context.config)
-
-
 STAGES = [
     TrainStage("seg", build_seg, batches_seg, loss_seg),
     TrainStage("body", build_body, batches_body, loss_body),
     TrainStage("apparel", build_apparel, batches_apparel, loss_apparel, needs=("seg", "body")),
-    TrainStage("refine", build_refine, batches_refine, loss_refine, needs=("seg", "body", "apparel")),
 ]
 BUILDERS = {s.name: s.build for s in STAGES}
 

@@ -49,7 +49,7 @@ class Sfpt(CheckpointedMethod):
         arap: run the test-time ARAP refinement (step 5).
     """
 
-    metadata = MethodMetadata(name="sfpt", version="2", licence=LICENCE, needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="sfpt", version="3", licence=LICENCE, needs_training=True, citation=CITATION,
                               protocols=("h2h", "cct", "apparel"), reads_rig=False,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="Skeleton-free Pose Transfer (40 learned handles, EdgeConv over mesh "
@@ -143,7 +143,7 @@ class SfptKabschOnly(Sfpt):
     """Ablation of ``sfpt``: the pose decoder replaced by the bare Kabsch fit of each source handle (the
     learned handle weights and test-time ARAP kept)."""
 
-    metadata = MethodMetadata(name="sfpt_kabsch_only", version="2", licence=LICENCE, needs_training=True,
+    metadata = MethodMetadata(name="sfpt_kabsch_only", version="3", licence=LICENCE, needs_training=True,
                               citation=CITATION, protocols=("h2h", "cct", "apparel"), reads_rig=False,
                               tags=("learned", "published", "ablation"),
                               description="sfpt with its pose decoder replaced by the handles' Kabsch fit")

@@ -26,6 +26,19 @@ from mimicbench.baselines.mmdmc.nn import mlp
 from mimicbench.baselines.sfpt.handles import handle_centres, kabsch_transforms
 
 
+def relu_init(module: nn.Module) -> None:
+    """He (Kaiming) normal weights for the ReLU layers of every ``nn.Linear`` in ``module``, zero biases.
+
+    PyTorch's default ``nn.Linear`` init shrinks a ReLU network's signal by about 1/sqrt(6) a layer; over
+    the dozen layers between a vertex and its handle logits the input is gone and every vertex gets the same
+    weights and codes. He init keeps the signal's scale (the published EdgeConv keeps it with batch norm).
+    """
+    for layer in module.modules():
+        if isinstance(layer, nn.Linear):
+            nn.init.kaiming_normal_(layer.weight, nonlinearity="relu")
+            nn.init.zeros_(layer.bias)
+
+
 class MeshEdgeConv(nn.Module):
     """x_i' = MLP_out(max over edges (i, j) of MLP_edge([x_i, x_j - x_i])): (N, c_in) -> (N, c_out)."""
 
@@ -100,6 +113,7 @@ class PoseDecoder(nn.Module):
     def __init__(self, hidden: int, code: int, residual: bool = False):
         super().__init__()
         self.net = mlp([2 * code + 7, 4 * hidden, 2 * hidden, 2 * hidden, 7], last_act=False)
+        relu_init(self.net)
         self.residual = bool(residual)
         if self.residual:
             nn.init.zeros_(self.net[-1].weight)
@@ -122,6 +136,8 @@ class SkeletonFreePoseTransfer(nn.Module):
         super().__init__()
         self.skinning = SkinningPredictor(hidden, handles)
         self.encoder = ShapeEncoder(hidden, code)
+        relu_init(self.skinning)
+        relu_init(self.encoder)
         self.decoder = PoseDecoder(hidden, code, residual)
         self.handles = handles
 

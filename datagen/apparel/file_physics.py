@@ -22,6 +22,7 @@ from mimicbench.datagen.apparel.params import SimParams
 from mimicbench.datagen.apparel.selection import dominant_bone
 from mimicbench.datagen.apparel.setup import CharacterPhysics, simulated_record, substeps_for
 from mimicbench.datagen.apparel.simulate import simulate_clip
+from mimicbench.datagen.apparel.world import MOVING_PIECE_MASS, piece_velocities
 from mimicbench.geometry.quaternion import quat_apply, quat_multiply
 from mimicbench.schemas.joint import JointRecord
 from mimicbench.schemas.rigid_body import RigidBodyRecord
@@ -61,6 +62,13 @@ class FileWorld:
         erp: Bullet's non-contact error reduction (0..1, the share of a joint's error removed each
             step); None keeps Bullet's default (0.2).
         sleeping: whether Bullet may deactivate chains that stay still (players never let it).
+        body_velocity: each static (bone-following) body is a body of
+            :data:`~mimicbench.datagen.apparel.world.MOVING_PIECE_MASS` kg placed every step where the
+            step before left it, with the speed that carries it to its bone's pose by the step's end
+            (:func:`~mimicbench.datagen.apparel.world.piece_velocities`), as Bullet moves the players'
+            kinematic bodies: contacts see the limb's speed. False: mass-0 bodies teleported to their
+            poses, which contacts take as standing still. Static bodies never collide with each other
+            (kinematic pairs in Bullet make no contact).
     Use as a context manager (the client is disconnected on exit).
     """
 
@@ -69,7 +77,7 @@ class FileWorld:
                  gravity: float = FILE_GRAVITY, apparel: np.ndarray | None = None,
                  max_speed: float = SimParams.max_speed,
                  contact_frequency: float = SimParams.file_contact_frequency, erp: float | None = None,
-                 sleeping: bool = False):
+                 sleeping: bool = False, body_velocity: bool = False):
         import pybullet
 
         self.pb, pb = pybullet, pybullet
@@ -88,16 +96,24 @@ class FileWorld:
             pb.setPhysicsEngineParameter(erp=float(erp), physicsClientId=cid)
         self.static = [i for i, b in enumerate(bodies) if b.mode == "static"]
         self.static_ids = []
+        self.dt, self.gravity, self.body_velocity = float(dt), float(gravity), bool(body_velocity)
         for i in self.static:
             b = bodies[i]
-            body = pb.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=_shape(pb, b, cid),
+            body = pb.createMultiBody(baseMass=MOVING_PIECE_MASS if self.body_velocity else 0.0,
+                                      baseCollisionShapeIndex=_shape(pb, b, cid),
                                       basePosition=np.asarray(b.position, np.float64).tolist(),
                                       baseOrientation=rotation_xyzw(wxyz_rotation(b.rotation)), physicsClientId=cid)
             pb.setCollisionFilterGroupMask(body, -1, *collision_filter(b.collision_group, b.collision_mask),
                                            physicsClientId=cid)
             pb.changeDynamics(body, -1, lateralFriction=float(b.friction), restitution=float(b.restitution),
                               physicsClientId=cid)
+            if self.body_velocity:
+                pb.changeDynamics(body, -1, linearDamping=0.0, angularDamping=0.0,
+                                  activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
+                for other in self.static_ids:
+                    pb.setCollisionFilterPair(body, other, -1, -1, 0, physicsClientId=cid)
             self.static_ids.append(body)
+        self._placed = np.full((len(self.static), 7), np.nan)  # (S, 7) where each static body was put last
         self.chains: list[tuple[ChainPlan, ChainBuild, int, int]] = []
         self.link_of: dict[int, tuple[int, int]] = {}  # body -> (multibody id, link index)
         with tempfile.TemporaryDirectory(prefix="mimicbench-file-physics-") as tmp:
@@ -174,17 +190,30 @@ class FileWorld:
         """Move static bodies and chain anchors with the bones at ``pose`` (K, 7) (w, x, y, z, t)."""
         pb, cid = self.pb, self.client
         positions, rotations = self.static_poses(np.asarray(pose, np.float64))
-        xyzw = rotations[:, [1, 2, 3, 0]].tolist()
-        positions = positions.tolist()
-        for k, body in enumerate(self.static_ids):
-            pb.resetBasePositionAndOrientation(body, positions[k], xyzw[k], physicsClientId=cid)
+        xyzw = rotations[:, [1, 2, 3, 0]]
+        if self.body_velocity:  # put where the last step left it, moving to this step's pose
+            placed = np.concatenate([positions, xyzw], axis=1)
+            before = self._placed
+            speed = piece_velocities(placed, before, self.dt, self.gravity).tolist()  # (S, 2, 3)
+            start = np.where(np.isnan(before), placed, before)
+            self._placed = placed
+            for k, body in enumerate(self.static_ids):
+                pb.resetBasePositionAndOrientation(body, start[k, :3].tolist(), start[k, 3:].tolist(),
+                                                   physicsClientId=cid)
+                pb.resetBaseVelocity(body, speed[k][0], speed[k][1], physicsClientId=cid)
+        else:
+            for k, body in enumerate(self.static_ids):
+                pb.resetBasePositionAndOrientation(body, positions[k].tolist(), xyzw[k].tolist(), physicsClientId=cid)
+        positions, xyzw = positions.tolist(), xyzw.tolist()
         for (plan, build, mb, constraint), k in zip(self.chains, self._anchor_rows):
             pb.changeConstraint(constraint, jointChildPivot=positions[k], jointChildFrameOrientation=xyzw[k],
                                 maxForce=ANCHOR_ACCEL * build.mass, physicsClientId=cid)
 
     def place_at(self, pose: np.ndarray) -> None:
-        """Teleport every chain rigidly with its anchor to ``pose`` (once, before the first step)."""
+        """Teleport every chain rigidly with its anchor, and every static body, to ``pose`` (before the
+        first step; static bodies start there at rest)."""
         positions, rotations = self.static_poses(np.asarray(pose, np.float64))
+        self._placed[:] = np.nan
         for (plan, build, mb, _), k in zip(self.chains, self._anchor_rows):
             self.pb.resetBasePositionAndOrientation(mb, positions[k].tolist(), rotations[k, [1, 2, 3, 0]].tolist(),
                                                     physicsClientId=self.client)
@@ -316,7 +345,7 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     with FileWorld(bodies, joints, record.keypoints, record.parents, 1.0 / (motion.fps * steps),
                    sim.file_solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed,
                    contact_frequency=sim.file_contact_frequency, erp=sim.file_erp,
-                   sleeping=sim.file_sleeping) as world:
+                   sleeping=sim.file_sleeping, body_velocity=sim.file_body_velocity) as world:
         simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles, warmup=sim.file_warmup)
         plan = world.plan
     pieces = body_pieces(record.vertices, record.keypoints, dominant_bone(record.weights, record.num_joints),
@@ -326,6 +355,7 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
         "physics": "file", "substeps": steps, "relax_frames": int(relax), "gravity": FILE_GRAVITY,
         "step_rate": motion.fps * steps, "erp": sim.file_erp, "solver_iterations": sim.file_solver_iterations,
         "sleeping": sim.file_sleeping, "warmup": sim.file_warmup,
+        **({"body_velocity": True} if sim.file_body_velocity else {}),  # recorded only when on
         "links": sum(len(c.links) for c in plan.chains), "chains": len(plan.chains),
         "static_bodies": sum(b.mode == "static" for b in bodies), "loop_constraints": len(plan.loops),
         "dropped_joints": len(plan.dropped), "unanchored_bodies": len(plan.unanchored)})

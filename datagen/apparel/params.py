@@ -127,7 +127,14 @@ class SimParams:
     rigid contacts, as the players do; above 0 each dynamic body touches others through a
     critically damped contact spring of that frequency (it sinks g / w^2 under its own weight,
     1.7 mm at 75): under rigid contacts, hair resting on the shoulders' bodies shook frame to frame
-    on motion capture (Gene's `guide`: peak 39.0 m/s^2 against a jitter bound of 10.0; 14.4 at 75)."""
+    on motion capture (Gene's `guide`: peak 39.0 m/s^2 against a jitter bound of 10.0; 14.4 at 75).
+    ``file_body_velocity``: True makes each bone-following body a heavy body placed every step where
+    the step before left it and given the speed that carries it to its bone's pose (Bullet's
+    kinematic bodies in the players; the zoo's ``piece_velocity``), so contacts see a limb's speed;
+    False (the default) teleports mass-0 bodies, which contacts take as
+    standing still: a contact spring's damping then drags what a limb pushes, which sinks 2 v / w
+    into it (27 mm at 1 m/s and 75 rad/s) and springs out when the limb slows (the strand on top
+    of Gene's head on `walk-left`; measurements in ``docs/physics-mmd.md``)."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -145,6 +152,7 @@ class SimParams:
     file_solver_iterations: int = 30
     file_sleeping: bool = False
     file_warmup: bool = True
+    file_body_velocity: bool = False
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -174,6 +182,10 @@ _RANGES = {  # field: (low, high, low_open)
 }
 
 
+RECORDED_WHEN_ON = ("file_body_velocity",)
+"""Opt-in :class:`SimParams` switches that enter a run's record only when true."""
+
+
 @dataclass(frozen=True)
 class ApparelParams:
     """All parameters of a run: the scene and the chain parameters per kind."""
@@ -186,9 +198,14 @@ class ApparelParams:
         return self.kinds.get(kind, self.kinds["default"])
 
     def to_json(self) -> dict:
-        """Plain JSON (for the manifest and the resume fingerprint)."""
-        return {"simulation": dataclasses.asdict(self.simulation),
-                "kinds": {k: dataclasses.asdict(v) for k, v in sorted(self.kinds.items())}}
+        """Plain JSON (for the manifest and the resume fingerprint). The opt-in switches of
+        :data:`RECORDED_WHEN_ON` appear only when on, so a run that leaves them off has the
+        fingerprint (and reuses the output) of a run made without them."""
+        simulation = dataclasses.asdict(self.simulation)
+        for name in RECORDED_WHEN_ON:
+            if not simulation[name]:
+                del simulation[name]
+        return {"simulation": simulation, "kinds": {k: dataclasses.asdict(v) for k, v in sorted(self.kinds.items())}}
 
 
 def _checked(cls, base, values: dict, where: str):

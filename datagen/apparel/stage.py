@@ -7,9 +7,6 @@ FORMAT.md, "Stages and resume". Correspondences (``pairs``) are not carried over
 from __future__ import annotations
 
 import dataclasses
-import time
-from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +18,9 @@ from mimicbench.datagen.apparel.selection import apparel_vertex_mask, bones_matc
 from mimicbench.datagen.apparel.card import write_apparel_card
 from mimicbench.datagen.apparel.setup import SIM_VERSION, physics_step, simulate_motion
 from mimicbench.datagen.apparel.world_cache import character_world, close_cached_world
-from mimicbench.datagen.stage_runner import NO_ROWS, Stage, StageRun, run_stage, summarize_statuses
+from mimicbench.datagen.apparel.stage_params import ApparelOptions
+from mimicbench.datagen.stage_runner import NO_ROWS, Stage, StagePlan, StageRun, drive
+from mimicbench.runtime.summary import StageSummary
 from mimicbench.engines import Engine
 from mimicbench.schemas.errors import UserError
 from mimicbench.schemas.motion import SIM_SUFFIX
@@ -49,20 +48,11 @@ def _simulate_one(item, params: ApparelParams, physics_fps: float, relax: int):
     return sim, quality
 
 
-@dataclass(frozen=True)
-class ApparelStageParams:
-    """The simulation version and the arguments of :func:`simulate_dataset`."""
-
-    version: int
-    physics_fps: float
-    relax_frames: int
-    params: ApparelParams
-    apparel_bones: list | None = None
-
-
-STAGE = Stage("apparel", ApparelStageParams, inputs=("characters", "motions", *PHYSICS_TABLES),
-              item=_simulate_one, outputs=("characters", "motions", "status"), copies=PHYSICS_TABLES,
-              made_by="motions", title="the apparel stage")
+def apparel_config(options: ApparelOptions) -> dict:
+    """The config of a run: physics rate, relaxation, the simulation parameters, the bone patterns."""
+    return {"physics_fps": float(options.fps), "relax_frames": int(options.relax_frames),
+            "params": options.simulation_params().to_json(),
+            "apparel_bones": list(options.apparel_bones) if options.apparel_bones else None}
 
 
 def _apparel_masks(record, patterns: list[str] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -105,10 +95,101 @@ def _previous_work(run: StageRun, progress: bool) -> tuple[dict, dict]:
     return {k: v for k, v in sims.items() if k in quality}, quality
 
 
+class ApparelPlan(StagePlan):
+    """Every kinematic clip of a character with apparel bones one item (not those OUT already holds
+    from a run with the same fingerprints), ``batch`` clips at a time; the dataset is written after
+    each batch (:meth:`batch_done`), so a killed run keeps what it simulated."""
+
+    def __init__(self, run: StageRun):
+        super().__init__(run.stage)
+        o, in_dir = run.params, run.in_dir
+        if not has_table(in_dir, "characters") or not has_table(in_dir, "motions"):
+            raise UserError(f"{in_dir}: expected a dataset with characters and motions tables (manifest.json)")
+        self.params = o.simulation_params()
+        self.patterns = list(o.apparel_bones) if o.apparel_bones else None
+        self.sims, self.quality = _previous_work(run, not o.quiet)
+        self.records = read_records(in_dir, "characters")
+        self.kinematic = [m for m in read_records(in_dir, "motions") if not is_simulated(m)]
+        self.masks = {r.character_id: _apparel_masks(r, self.patterns) for r in self.records}
+        by_id = {r.character_id: r for r in self.records}
+        unknown = sorted({m.character_id for m in self.kinematic} - set(by_id))
+        if unknown:
+            raise UserError(f"{in_dir}: motions of unknown characters {unknown[:3]}; expected every motion's "
+                            f"character_id in the characters table")
+        self.reused_clips, file_rows = len(self.sims), _file_physics(in_dir, self.patterns)
+        todo = [m for m in self.kinematic if self.masks[m.character_id][0].any()
+                and m.motion_id + SIM_SUFFIX not in self.sims]
+        unusable = {cid: problem for cid, (bones, vertices) in self.masks.items()
+                    if bones.any() and cid not in file_rows
+                    and (problem := selection_problem(by_id[cid].bone_names, by_id[cid].parents, bones, vertices))}
+        self.statuses = [StatusRecord(m.motion_id, STAGE.name, "failed", unusable[m.character_id], 0.0) for m in todo
+                         if m.character_id in unusable]  # the kinematic clip stays; a fixed selection re-runs them
+        self.items = [(by_id[m.character_id], *self.masks[m.character_id], m, file_rows.get(m.character_id))
+                      for m in todo if m.character_id not in unusable]
+        self.kwargs = {"params": self.params, "physics_fps": o.fps, "relax": o.relax_frames}
+        self.batch, self.run = o.batch, run
+
+    def name_of(self, item) -> str:
+        return item[3].motion_id
+
+    def batches(self):
+        for i in range(0, max(len(self.items), 1), self.batch):
+            yield STAGE.name, self.items[i:i + self.batch]
+
+    def done(self, run, item, ok, result) -> None:
+        if ok:
+            sim, q = result
+            self.sims[sim.motion_id] = sim
+            self.quality[sim.motion_id] = q
+
+    def batch_done(self, run, statuses) -> None:
+        self.rows = _write(run, self.records, self.kinematic, self.masks, self.sims, self.quality, statuses,
+                           self.patterns)
+
+    def nothing_made(self, statuses) -> bool:
+        return False  # a failed clip keeps its kinematic clip and gets a status row
+
+    def write(self, run, statuses):
+        close_cached_world()
+        qs = list(self.quality.values())
+
+        def mean(key):
+            return float(np.mean([q[key] for q in qs])) if qs else None
+
+        self.failed = sum(s.status == "failed" for s in statuses)
+        self.simulated = sum(s.status == "ok" for s in statuses)
+        return self.rows, {
+            "characters": sum(1 for b, _ in self.masks.values() if b.any()), "clips": len(self.kinematic),
+            "simulated": self.simulated, "reused": self.reused_clips, "failed": self.failed,
+            "resettled": sum(q["resettles"] > 0 for q in qs),
+            "over_jitter_bound": sorted(k for k, q in self.quality.items() if over_jitter_bound(q)),
+            "new_inside_pct_mean": mean("new_inside_pct"), "inside_pct_mean": mean("inside_pct"),
+            "secondary_motion_pct_mean": mean("secondary_motion_pct"),
+            "max_edge_stretch": max((q["max_edge_stretch"] for q in qs), default=None)}
+
+    def after(self, run) -> None:
+        write_apparel_card(run.out_dir, {k.removesuffix(SIM_SUFFIX): q for k, q in self.quality.items()})
+
+    def counts(self, statuses) -> tuple[int, int]:
+        return self.simulated + self.reused_clips, self.failed
+
+
+STAGE = Stage("apparel", ApparelOptions, inputs=("characters", "motions", *PHYSICS_TABLES),
+              item=_simulate_one, outputs=("characters", "motions", "status"), copies=PHYSICS_TABLES,
+              made_by="motions", title="the apparel stage", plan=ApparelPlan, out_key="out_dataset",
+              in_key="in_dataset", constants=(("version", SIM_VERSION),), config=apparel_config,
+              info=lambda o: {"source": str(o.in_dataset)}, what="clip", command=("datagen", "apparel"),
+              function="mimicbench.datagen.apparel.stage:run_command",
+              versions=("mimicbench.datagen.apparel.setup:SIM_VERSION",
+                        "mimicbench.datagen.apparel.file_physics:FILE_PHYSICS_VERSION"),
+              step_reads=(("in_dataset", ("characters", "motions")),), step_writes=("characters", "motions"))
+
+
 def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 30, params: ApparelParams | None = None,
                      apparel_bones: list[str] | None = None, jobs: int = 1, batch: int = 16,
                      progress: bool = True, engine: Engine | None = None) -> dict:
-    """Simulate the apparel of every clip of ``in_dir`` into ``out_dir`` (a re-run resumes).
+    """Simulate the apparel of every clip of ``in_dir`` into ``out_dir`` (:func:`drive` with
+    :data:`STAGE`; a re-run resumes).
 
     Args:
         physics_fps: physics steps per second (each frame gets ``ceil(physics_fps / clip fps)``).
@@ -126,67 +207,16 @@ def simulate_dataset(in_dir, out_dir, physics_fps: float = 240.0, relax: int = 3
         acceleration is over :data:`~mimicbench.datagen.apparel.quality.JITTER_RATIO` times their kinematic peaks,
         :func:`~mimicbench.datagen.apparel.quality.over_jitter_bound`), mean quality, seconds, statuses.
     """
-    start = time.perf_counter()
-    in_dir, out_dir = Path(in_dir), Path(out_dir)
-    if not has_table(in_dir, "characters") or not has_table(in_dir, "motions"):
-        raise UserError(f"{in_dir}: expected a dataset with characters and motions tables (manifest.json)")
-    params = params or ApparelParams()
-    run = StageRun(STAGE, ApparelStageParams(SIM_VERSION, float(physics_fps), int(relax), params,
-                                             list(apparel_bones) if apparel_bones else None),
-                   out_dir, in_dir, info={"source": str(in_dir)})
-    sims, quality = _previous_work(run, progress)
-    records = read_records(in_dir, "characters")
-    kinematic = [m for m in read_records(in_dir, "motions") if not is_simulated(m)]
-    masks = {r.character_id: _apparel_masks(r, apparel_bones) for r in records}
-    by_id = {r.character_id: r for r in records}
-    unknown = sorted({m.character_id for m in kinematic} - set(by_id))
-    if unknown:
-        raise UserError(f"{in_dir}: motions of unknown characters {unknown[:3]}; expected every motion's "
-                        f"character_id in the characters table")
-    reused, file_rows = len(sims), _file_physics(in_dir, apparel_bones)
-    todo = [m for m in kinematic if masks[m.character_id][0].any() and m.motion_id + SIM_SUFFIX not in sims]
-    run.begin()
-    statuses: list[StatusRecord] = []
-    unusable = {cid: problem for cid, (bones, vertices) in masks.items() if bones.any() and cid not in file_rows
-                and (problem := selection_problem(by_id[cid].bone_names, by_id[cid].parents, bones, vertices))}
-    statuses += [StatusRecord(m.motion_id, STAGE.name, "failed", unusable[m.character_id], 0.0) for m in todo
-                 if m.character_id in unusable]  # the kinematic clip stays; a fixed selection re-runs them
-    todo = [m for m in todo if m.character_id not in unusable]
-    fn = partial(STAGE.item, params=params, physics_fps=physics_fps, relax=relax)
-    for i in range(0, max(len(todo), 1), batch):
-        chunk = todo[i:i + batch]
-        items = [(by_id[m.character_id], *masks[m.character_id], m, file_rows.get(m.character_id)) for m in chunk]
-        results, chunk_statuses = run_stage(items, fn, STAGE.name, name_of=lambda it: it[3].motion_id, jobs=jobs,
-                                            progress=progress, engine=engine)
-        for sim, q in results:
-            sims[sim.motion_id] = sim
-            quality[sim.motion_id] = q
-        statuses += chunk_statuses
-        _write(run, records, kinematic, masks, sims, quality, statuses, apparel_bones)
-    close_cached_world()
-    run.copy_inputs()  # the physics tables travel with their characters
-    run.finish()
-    write_apparel_card(run.out_dir, {k.removesuffix(SIM_SUFFIX): q for k, q in quality.items()})
-    qs = list(quality.values())
-
-    def mean(key):
-        return float(np.mean([q[key] for q in qs])) if qs else None
-
-    resettled = sum(q["resettles"] > 0 for q in qs)
-    jittery = sorted(k for k, q in quality.items() if over_jitter_bound(q))
-    if progress:
-        print(summarize_statuses(statuses) + f", {resettled} re-settled (chains put back at rest after an escape)")
-    return {"characters": sum(1 for b, _ in masks.values() if b.any()), "clips": len(kinematic),
-            "simulated": sum(s.status == "ok" for s in statuses), "reused": reused,
-            "failed": sum(s.status == "failed" for s in statuses), "resettled": resettled, "over_jitter_bound": jittery,
-            "new_inside_pct_mean": mean("new_inside_pct"), "inside_pct_mean": mean("inside_pct"),
-            "secondary_motion_pct_mean": mean("secondary_motion_pct"),
-            "max_edge_stretch": max((q["max_edge_stretch"] for q in qs), default=None),
-            "seconds": time.perf_counter() - start, "statuses": statuses}
+    options = ApparelOptions(str(in_dir), str(out_dir), fps=physics_fps, relax_frames=relax,
+                             params=params or ApparelParams(), apparel_bones=list(apparel_bones) if apparel_bones
+                             else None, jobs=jobs, quiet=not progress, batch=batch)
+    s = drive(STAGE, options, engine=engine)
+    return {**s.details, "seconds": s.seconds, "statuses": list(s.statuses)}
 
 
-def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, patterns) -> None:
-    """Write characters (masks, meta), motions (kinematic, then each one's simulated clip), status."""
+def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, patterns) -> list[StatusRecord]:
+    """Write characters (masks, meta), motions (kinematic, then each one's simulated clip), status;
+    return the status rows."""
     chars = []
     for r in records:
         bones, vertices = masks[r.character_id]
@@ -212,3 +242,34 @@ def _write(run: StageRun, records, kinematic, masks, sims, quality, statuses, pa
     rows += [StatusRecord(r.character_id, STAGE.name, "skipped", "no mesh" if len(r.faces) == 0 else "no apparel bones", 0.0)
              for r in records if not masks[r.character_id][0].any()]
     run.write_status(rows)
+    return rows
+
+
+def run_command(params: ApparelOptions) -> StageSummary:
+    """``mimicbench datagen apparel``: the stage on ``params`` and its report (what the command line and a
+    pipeline step call)."""
+    from mimicbench.datagen.apparel.quality import JITTER_RATIO
+
+    summary = drive(STAGE, params)
+    s = summary.details
+
+    def fmt(x, digits=3):
+        return "n/a" if x is None else round(x, digits)
+
+    print(f"{s['simulated']} clips simulated, {s['reused']} reused, {s['failed']} failed, {s['resettled']} "
+          f"re-settled on {s['characters']} "
+          f"characters with apparel in {summary.seconds:.1f} s; apparel inside the body {fmt(s['inside_pct_mean'])} % "
+          f"(new {fmt(s['new_inside_pct_mean'])} %), secondary motion {fmt(s['secondary_motion_pct_mean'])} % of "
+          f"height, max edge stretch {fmt(s['max_edge_stretch'])} -> {params.out_dataset}")
+    if s["over_jitter_bound"]:
+        n = len(s["over_jitter_bound"])
+        print(f"{n} {'clip peaks' if n == 1 else 'clips peak'} above {JITTER_RATIO:g}x the acceleration of the kinematic apparel and "
+              f"of the body that touches it (jitter, not a limb's strike): {', '.join(s['over_jitter_bound'][:5])}"
+              f"{' ...' if len(s['over_jitter_bound']) > 5 else ''}; their quality is in the characters' "
+              f"meta['apparel']")
+    share = s["failed"] / max(1, s["simulated"] + s["reused"] + s["failed"])
+    if s["failed"]:
+        print(f"{s['failed']} failed clips ({100 * share:.1f} % of the clips, --max-failed "
+              f"{100 * params.max_failed:g} %): see the status rows in {params.out_dataset}/status; their kinematic "
+              f"clips are kept")
+    return dataclasses.replace(summary, exit_code=1 if share > params.max_failed else 0)

@@ -1,7 +1,7 @@
 """The asset files a ``datagen ingest`` argument names: a file as given, a folder walked.
 
-A folder stands for every asset file under it, at any depth, in sorted order: the Blender
-formats (``SUPPORTED``) and MMD models (.pmx, .pmd). MMD motions (.vmd) in a folder are not taken
+A folder stands for every asset file under it, at any depth, in sorted order: the suffixes whose
+loader is ``walked`` (:data:`.loaders.LOADERS`: the Blender formats and MMD models, .pmx, .pmd). MMD motions (.vmd) in a folder are not taken
 on their own: a model plays the .vmd files beside it whose names tie them to it
 (:func:`mimicbench.datagen.mmd.ingest.motions_for`), so a folder of many models and motions does not play
 every motion on every model. Hidden files and folders (names starting with ``.``) are skipped,
@@ -12,10 +12,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from mimicbench.datagen.mmd import MODEL_SUFFIXES
+from mimicbench.datagen.ingest.loaders import BLENDER_SUFFIXES, WALKED_SUFFIXES  # noqa: F401
 
-BLENDER_SUFFIXES = (".glb", ".gltf", ".fbx", ".bvh", ".obj", ".blend")
-FOLDER_SUFFIXES = BLENDER_SUFFIXES + MODEL_SUFFIXES
+FOLDER_SUFFIXES = WALKED_SUFFIXES  # the suffixes a folder walk takes (:data:`.loaders.LOADERS`)
 
 
 def assets_in_folder(folder: Path, skip: Path | None = None) -> list[Path]:

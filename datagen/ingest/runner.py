@@ -7,36 +7,35 @@ only their own rows (by character ID).
 from __future__ import annotations
 
 import fnmatch
+import glob
 import json
-import math
-import time
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
 from pathlib import Path
-from queue import Queue
 
 import numpy as np
-from tqdm.auto import tqdm
 
-from mimicbench.datagen.ingest import blender_pool
-from mimicbench.datagen.ingest.asset_paths import BLENDER_SUFFIXES, FOLDER_SUFFIXES, expand_asset_paths
-from mimicbench.datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M, auto_bvh_scale, bvh_rest_height
+from mimicbench.datagen.ingest.asset_paths import expand_asset_paths
+from mimicbench.datagen.ingest.blender_engine import BlenderThreads
+from mimicbench.datagen.ingest.bvh_units import PLAUSIBLE_HEIGHT_M
+from mimicbench.datagen.ingest.card import write_card
 from mimicbench.datagen.ingest.category import infer_category
-from mimicbench.datagen.ingest.clip_length import MAX_CLIP_FRAMES, check_clip_frames
+from mimicbench.datagen.ingest.clip_length import check_clip_frames
+from mimicbench.datagen.ingest.engine_task import BLENDER, TASK_RESOURCES
 from mimicbench.datagen.ingest.identity import cache_key, character_id_for, file_sha256, skeleton_id
-from mimicbench.datagen.ingest.job import run_job, status_of
+from mimicbench.datagen.ingest.job import status_of
+from mimicbench.datagen.ingest.loaders import BLENDER_SUFFIXES, WALKED_SUFFIXES, ingest_item, loader_for
+from mimicbench.datagen.ingest.params import EXPORT_FORMATS, IngestParams  # noqa: F401
 from mimicbench.datagen.ingest.uris import external_uri_problems
-from mimicbench.datagen.mmd.frame import MMD_UNIT_METRES
-from mimicbench.datagen.splits import split_of
-from mimicbench.datagen.stage_runner import Stage, StageRun, not_a_param
-from mimicbench.runtime.argtypes import MAX_JOBS
-from mimicbench.runtime.errors import UserError
+from mimicbench.datagen.mmd.ingest import MMDIngest, model_items, write_physics
+from mimicbench.datagen.mmd.loaders import MMD_MODEL
+from mimicbench.datagen.roles.attach import carry_labels
+from mimicbench.datagen.splits import load_split_file, split_of
+from mimicbench.datagen.stage_runner import Stage, StagePlan, StageRun, drive
+from mimicbench.runtime.summary import StageSummary
 from mimicbench.geometry.kinematics import transforms_to_array
 from mimicbench.geometry.skinning import linear_blend_skinning
-from mimicbench.geometry.validation import expect, is_whole
-from mimicbench.schemas.character import CATEGORIES, CharacterRecord
+from mimicbench.runtime.errors import UserError
+from mimicbench.schemas.character import CharacterRecord
 from mimicbench.schemas.finite import nonfinite_arrays
-from mimicbench.schemas.folder_lock import hold
 from mimicbench.schemas.manifest import MANIFEST
 from mimicbench.schemas.motion import MotionRecord
 from mimicbench.schemas.status import StatusRecord
@@ -44,82 +43,7 @@ from mimicbench.schemas.weights import SparseWeights
 
 CACHE = ".ingest"
 SUPPORTED = BLENDER_SUFFIXES
-EXPORT_FORMATS = ("obj", "bvh")
-DEFAULT_BVH_SCALE = "auto"  # metres per BVH unit from the rest skeleton (datagen/ingest/bvh_units.py)
 PLAUSIBLE_EXTENT_M = (0.05, 30.0)  # a meshed character's largest rest extent outside this: warn (--mesh-unit)
-
-
-def _positive(x) -> bool:
-    """A finite number > 0 (not a bool)."""
-    return not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x) and x > 0
-
-
-@dataclass
-class IngestOptions:
-    """What ``datagen ingest`` may be asked (the stage's params; ``--help`` says each); :meth:`check`
-    says what is allowed. ``mmd_unit``: metres per MMD unit; ``mesh_unit``: metres per unit of the
-    scene Blender imports (every length times it; a rest extent outside :data:`PLAUSIBLE_EXTENT_M`
-    warns); ``split_file``: JSON split -> character IDs; ``assets_per_process``: before a fresh Blender."""
-
-    jobs: int = not_a_param(1)
-    timeout: float = 300.0
-    bvh_scale: float | str = DEFAULT_BVH_SCALE
-    allow_external_uris: bool = False
-    export: tuple = not_a_param(())
-    split: str | None = None
-    split_file: str | None = None
-    assets_per_process: int = not_a_param(50)
-    category_map: dict = field(default_factory=dict)
-    mmd_unit: float = MMD_UNIT_METRES
-    mesh_unit: float = 1.0
-    max_clip_frames: int = MAX_CLIP_FRAMES
-
-    def __post_init__(self):
-        self.export, self.category_map = tuple(self.export), dict(self.category_map or {})
-
-    def check(self) -> None:
-        """Raise ValueError naming the option and the allowed range."""
-        expect(isinstance(self.jobs, int) and 1 <= self.jobs <= MAX_JOBS, "--jobs",
-                f"a whole number of Blender processes from 1 to {MAX_JOBS}", self.jobs)
-        expect(self.timeout > 0, "--timeout", "seconds per asset greater than 0", self.timeout)
-        expect(self.bvh_scale == "auto" or (isinstance(self.bvh_scale, (int, float)) and self.bvh_scale > 0),
-                "--bvh-scale", "'auto' or metres per BVH unit greater than 0 (0.01 for centimetres)", self.bvh_scale)
-        expect(_positive(self.mmd_unit), "--mmd-unit",
-                "metres per MMD unit, a finite number greater than 0 (MMD's usual 0.08)", self.mmd_unit)
-        expect(_positive(self.mesh_unit), "--mesh-unit", "metres per unit of the imported scene, a finite number "
-                "greater than 0 (1: glTF's metres; 0.01 for a file authored in centimetres)", self.mesh_unit)
-        expect(is_whole(self.max_clip_frames) and self.max_clip_frames >= 1, "--max-clip-frames",
-                f"a whole number of frames of at least 1 (default {MAX_CLIP_FRAMES})", self.max_clip_frames)
-        expect(isinstance(self.assets_per_process, int) and self.assets_per_process >= 1, "assets_per_process",
-                "at least 1", self.assets_per_process)
-        unknown = [x for x in self.export if x not in EXPORT_FORMATS]
-        expect(not unknown, "--export", f"a comma-separated list of {', '.join(EXPORT_FORMATS)}", unknown)
-        bad = {k: v for k, v in self.category_map.items() if v not in CATEGORIES}
-        expect(not bad, "--category-map", f"categories of {', '.join(CATEGORIES)}", bad)
-        expect(self.split is None or self.split_file is None, "--split and --split-file", "one of them, not both",
-                self.split_file)
-        expect(self.split in (None, "train", "val", "test"), "--split", "train, val or test", self.split)
-
-    def child_options(self, asset: Path) -> dict:
-        """The options that change what a child writes for ``asset`` (part of its cache key); the
-        clip length bound only when it is not the default (so default cache keys stay as they were)."""
-        out = {"bvh_scale": self.bvh_scale_for(asset)[0]} if asset.suffix.lower() == ".bvh" else {}
-        if self.max_clip_frames != MAX_CLIP_FRAMES:
-            out["max_clip_frames"] = int(self.max_clip_frames)
-        return out
-
-    def bvh_scale_for(self, asset: Path) -> tuple[float, dict]:
-        """Metres per unit of the BVH file ``asset`` and how it was chosen (``--bvh-scale``)."""
-        if self.bvh_scale != "auto":
-            return float(self.bvh_scale), {"bvh_scale_source": "--bvh-scale"}
-        height = bvh_rest_height(asset)
-        scale, unit, plausible = auto_bvh_scale(height)
-        return scale, {"bvh_scale_source": "auto", "bvh_unit": unit, "bvh_rest_height_units": round(height, 4),
-                       "bvh_unit_plausible": plausible}
-
-
-STAGE = Stage("ingest", IngestOptions, inputs=(), item=run_job, outputs=("characters", "motions", "status"),
-              out_name="--out folder")
 
 
 def category_from_map(asset: Path, category_map: dict | None) -> str | None:
@@ -249,7 +173,7 @@ def bvh_declared_frames(path: Path) -> int | None:
     return None
 
 
-def _blender_problem(a: Path, opts: IngestOptions) -> str | None:
+def _blender_problem(a: Path, opts: IngestParams) -> str | None:
     """Why the asset ``a`` is not handed to Blender (None: it is): missing, unsupported, a glTF
     resource outside its folder (unless allowed), a malformed GLB, a BVH clip over the length bound."""
     if not a.is_file():
@@ -270,116 +194,157 @@ def _blender_problem(a: Path, opts: IngestOptions) -> str | None:
     return None
 
 
-def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options) -> dict:
-    """Ingest ``paths`` into ``out_dir`` (keeping what earlier runs put there); return a summary.
+class IngestPlan(StagePlan):
+    """The assets of this run as items, one per file, each read by its format's loader
+    (:data:`.loaders.LOADERS`): a Blender format into the cache ``OUT/.ingest`` (an asset whose
+    cached result matches its content and options is reused), an MMD model here. :meth:`write`
+    merges them with the rows earlier runs put in OUT, by character ID."""
 
-    Args:
-        paths: asset files (.glb, .gltf, .fbx, .bvh, .obj, .blend through Blender; .pmx, .pmd, .vmd
-            through :mod:`mimicbench.datagen.mmd`) or folders, walked for them (:mod:`.asset_paths`; never ``out_dir``).
-        engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task with its worker's
-            own Blender (:mod:`.engine_task`); None or a local engine: ``jobs`` Blender processes here.
-        options: the fields of :class:`IngestOptions`.
+    status_config = None
 
-    A character or clip with a NaN or infinite value is not stored: the asset or the clip
-    (``<asset>#<clip>``) gets a failed status row.
-
-    Raises:
-        ValueError: an option out of range (the message says what is allowed).
-        UserError: ``out_dir`` holds files but no manifest (:func:`check_output_folder`).
-    """
-    from mimicbench.datagen.splits import load_split_file
-
-    opts = IngestOptions(**options)
-    opts.check()
-    split_map = load_split_file(opts.split_file) if opts.split_file else {}
-
-    def split_for(cid: str) -> str:
-        return opts.split or split_map.get(cid) or split_of(cid)
-
-    start = time.perf_counter()
-    out_dir = Path(out_dir)
-    writer = hold(out_dir)  # noqa: F841 -- one writer at a time, from before the checks; released on return
-    check_output_folder(out_dir)
-    run = StageRun(STAGE, opts, out_dir, info={"cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"})
-    cache = out_dir / CACHE
-    cache.mkdir(parents=True, exist_ok=True)
-    old_chars, old_motions, old_status = (run.earlier_rows(t) for t in ("characters", "motions", "status"))
-    taken = {c.character_id: c.source for c in old_chars}
-    assets, empty_folders = expand_asset_paths(paths, skip=out_dir)
-    from mimicbench.datagen.mmd.ingest import ingest_mmd, split_mmd_paths  # MMD files: no Blender (datagen/mmd)
-
-    assets, mmd_assets = split_mmd_paths(assets)
-    statuses: list[StatusRecord] = [
-        StatusRecord(f, "ingest", "failed", f"folder holds no asset files (expected {', '.join(FOLDER_SUFFIXES)})", 0.0)
-        for f in empty_folders]
-    jobs_todo, plan = [], {}
-    for a in assets:
-        problem = _blender_problem(a, opts)
-        if problem:
-            statuses.append(StatusRecord(str(a), "ingest", "failed", problem, 0.0))
-            continue
-        key = cache_key(a, file_sha256(a), opts.child_options(a))
-        cid = character_id_for(a, taken)
-        taken[cid] = str(a)
-        plan[a] = (key, cid)
-        if status_of(cache / f"{key}.json") == "ok" and (cache / f"{key}.npz").exists():
-            statuses.append(StatusRecord(str(a), "ingest", "skipped", "already ingested", 0.0))
-        else:
-            jobs_todo.append(a)
-    skipped = sum(s.status == "skipped" for s in statuses)
-    if engine is not None and engine.name != "local":
-        from mimicbench.datagen.ingest.engine_task import TASK_RESOURCES, ingest_task
-        from mimicbench.datagen.stage_runner import run_stage
-
-        items = [(str(a), str(cache / f"{plan[a][0]}.npz"), opts.child_options(a), opts.timeout, opts.assets_per_process)
-                 for a in jobs_todo]
-        returned, task_rows = run_stage(items, ingest_task, "ingest", name_of=lambda it: it[0], progress=progress,
-                                        engine=engine, resources=TASK_RESOURCES)
-        by_asset = {s.asset: s for s in returned}
-        statuses += [by_asset.get(t.asset, t) for t in task_rows]  # a task whose worker died for good: its row
-        jobs_todo = []
-    workers: Queue = Queue()
-    for _ in range(min(opts.jobs, max(1, len(jobs_todo)))):
-        workers.put(blender_pool.BlenderWorker(blender_pool.CHILD_MODULE, opts.assets_per_process))
-
-    def job(a: Path) -> StatusRecord:
-        w = workers.get()
-        try:
-            return run_job(w, a, cache / f"{plan[a][0]}.npz", opts.child_options(a), opts.timeout)
-        finally:
-            workers.put(w)
-
-    try:
-        with ThreadPoolExecutor(max_workers=opts.jobs) as pool:
-            statuses += tqdm(pool.map(job, jobs_todo), total=len(jobs_todo), desc="ingest", unit="asset",
-                             disable=not progress)
-    finally:
-        while not workers.empty():
-            workers.get().stop()
-    chars, motions = [], []
-    for a, (key, cid) in plan.items():
-        if status_of(cache / f"{key}.json") != "ok":
-            continue
-        c, m = records_from_cache(a, cache, key, cid, split_for(cid), opts.category_map,
-                                  opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None, opts.mesh_unit)
-        bad = nonfinite_arrays(c, ("vertices", "keypoints", "weight_values"))
-        if bad:
-            statuses = [s for s in statuses if s.asset != str(a)] + [StatusRecord(  # the asset's own rows
-                str(a), "ingest", "failed", f"non-finite values (NaN or inf) in {', '.join(bad)}: not stored", 0.0)]
-            continue
-        for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
-            statuses.append(StatusRecord(f"{a}#{e['name']}", "ingest", "failed", f"clip {e['name']!r}: {e['reason']}", 0.0))
-        chars.append(c)
-        for rec in m:
-            if bad := nonfinite_arrays(rec, ("transforms", "scale")):
-                statuses.append(StatusRecord(f"{a}#{rec.name}", "ingest", "failed", f"clip {rec.name!r}: non-finite "
-                                             f"values (NaN or inf) in {', '.join(bad)}: not stored", 0.0))
+    def __init__(self, run: StageRun):
+        super().__init__(run.stage)
+        opts, out_dir = run.params, run.out_dir
+        check_output_folder(out_dir)
+        self.run, self.opts, self.cache = run, opts, out_dir / CACHE
+        self.categories = opts.categories()
+        split_map = load_split_file(opts.split_file) if opts.split_file else {}
+        self.split_for = lambda cid: opts.split or split_map.get(cid) or split_of(cid)
+        self.old = {t: run.earlier_rows(t) for t in ("characters", "motions", "status")}
+        taken = {c.character_id: c.source for c in self.old["characters"]}
+        paths = []
+        for pattern in opts.paths:
+            matches = sorted(glob.glob(pattern))
+            paths.extend(matches or [pattern])
+        if opts.motions:  # MMD motions for every model (datagen/mmd/ingest.py)
+            paths.extend(str(p) for p in sorted(Path(opts.motions).glob("*.vmd")))
+        assets, empty_folders = expand_asset_paths(paths, skip=out_dir)
+        # MMD files are read here; every other path goes the Blender way, which names an unknown suffix
+        self.mmd_assets = [a for a in assets if loader_for(a) is not None and not loader_for(a).in_blender]
+        self.assets = [a for a in assets if a not in set(self.mmd_assets)]
+        self.empty_folders = empty_folders
+        self.statuses = [StatusRecord(f, "ingest", "failed", f"folder holds no asset files (expected "
+                                      f"{', '.join(WALKED_SUFFIXES)})", 0.0) for f in empty_folders]
+        self.plan: dict[Path, tuple[str, str]] = {}  # Blender asset -> (cache key, character ID)
+        todo = []
+        for a in self.assets:
+            problem = _blender_problem(a, opts)
+            if problem:
+                self.statuses.append(StatusRecord(str(a), "ingest", "failed", problem, 0.0))
+                continue
+            key = cache_key(a, file_sha256(a), opts.child_options(a))
+            cid = character_id_for(a, taken)
+            taken[cid] = str(a)
+            self.plan[a] = (key, cid)
+            if status_of(self.cache / f"{key}.json") == "ok" and (self.cache / f"{key}.npz").exists():
+                self.reused.append(StatusRecord(str(a), "ingest", "skipped", "already ingested", 0.0))
             else:
-                motions.append(rec)
-    mmd = ingest_mmd(mmd_assets, lambda a: category_from_map(a, opts.category_map) or "unknown",
-                     scale=float(opts.mmd_unit), progress=progress and bool(mmd_assets), run=run, taken=taken,
-                     max_frames=opts.max_clip_frames, split_for=split_for)
-    chars, motions, statuses = chars + mmd.characters, motions + mmd.motions, statuses + mmd.statuses
+                todo.append(a)
+        self.items = [(BLENDER.name, (str(a), str(self.cache / f"{self.plan[a][0]}.npz"), opts.child_options(a),
+                                      opts.timeout, opts.assets_per_process)) for a in todo]
+        mmd_items, lone = model_items(self.mmd_assets, lambda a: category_from_map(a, self.categories) or "unknown",
+                                      scale=float(opts.mmd_unit), taken=taken, max_frames=opts.max_clip_frames,
+                                      split_for=self.split_for)
+        self.items += [(MMD_MODEL.name, item) for item in mmd_items]
+        self.lone_motions = lone
+        self.returned: dict[str, object] = {}  # asset -> what its loader returned
+
+    def start(self, run) -> None:
+        self.cache.mkdir(parents=True, exist_ok=True)
+
+    def function(self):
+        return ingest_item
+
+    def name_of(self, item) -> str:
+        return item[1][0]
+
+    def engine(self, engine):
+        if engine.name == "local":
+            return BlenderThreads(self.opts.jobs, self.opts.assets_per_process)
+        self.resources = TASK_RESOURCES
+        return engine
+
+    def done(self, run, item, ok, result) -> None:
+        if ok:
+            self.returned[item[1][0]] = result
+
+    def nothing_made(self, statuses) -> bool:
+        return False  # additive: a run whose every asset failed still records why
+
+    def write(self, run, statuses):
+        opts, cache = self.opts, self.cache
+        mmd = MMDIngest()
+        rows = []
+        for s in statuses:  # a loader's own rows stand for the driver's row of its item
+            got = self.returned.get(s.asset)
+            if isinstance(got, MMDIngest):
+                for name in ("characters", "motions", "rigid_bodies", "joints", "statuses"):
+                    getattr(mmd, name).extend(getattr(got, name))
+            else:
+                rows.append(got if got is not None else s)
+        statuses = rows + self.reused
+        chars, motions = [], []
+        for a, (key, cid) in self.plan.items():
+            if status_of(cache / f"{key}.json") != "ok":
+                continue
+            c, m = records_from_cache(a, cache, key, cid, self.split_for(cid), self.categories,
+                                      opts.bvh_scale_for(a) if a.suffix.lower() == ".bvh" else None, opts.mesh_unit)
+            bad = nonfinite_arrays(c, ("vertices", "keypoints", "weight_values"))
+            if bad:
+                statuses = [s for s in statuses if s.asset != str(a)] + [StatusRecord(  # the asset's own rows
+                    str(a), "ingest", "failed", f"non-finite values (NaN or inf) in {', '.join(bad)}: not stored", 0.0)]
+                continue
+            for e in json.loads((cache / f"{key}.json").read_text()).get("clip_errors", []):
+                statuses.append(StatusRecord(f"{a}#{e['name']}", "ingest", "failed",
+                                             f"clip {e['name']!r}: {e['reason']}", 0.0))
+            chars.append(c)
+            for rec in m:
+                if bad := nonfinite_arrays(rec, ("transforms", "scale")):
+                    statuses.append(StatusRecord(f"{a}#{rec.name}", "ingest", "failed", f"clip {rec.name!r}: "
+                                                 f"non-finite values (NaN or inf) in {', '.join(bad)}: not stored", 0.0))
+                else:
+                    motions.append(rec)
+        mmd.statuses += self.lone_motions
+        chars, motions, statuses = chars + mmd.characters, motions + mmd.motions, statuses + mmd.statuses
+        warnings = _unit_warnings(chars)
+        old_chars = self.old["characters"]
+        chars = carry_labels(old_chars, chars)  # labels of `datagen roles` survive a re-ingest of the same bones
+        new_ids = {c.character_id for c in chars}
+        chars = [c for c in old_chars if c.character_id not in new_ids] + chars
+        motions = [m for m in self.old["motions"] if m.character_id not in new_ids] + motions
+        this_run = ({str(a) for a in self.assets} | {str(a) for a in self.mmd_assets} | {s.asset for s in mmd.statuses}
+                    | set(self.empty_folders))
+        statuses = [s for s in self.old["status"] if asset_of_row(s.asset, this_run) is None] + statuses
+        splits = {c.split for c in chars} | {c.split for c in old_chars}
+        run.write_splits("characters", chars, splits)
+        run.write_splits("motions", motions, splits)
+        if mmd.characters:
+            write_physics(run, mmd)
+        write_card(run.out_dir, chars, motions, run.config)
+        self.chars, self.motions = chars, motions
+        run_status = [s for s in statuses if asset_of_row(s.asset, this_run) is not None]
+        is_clip = [asset_of_row(s.asset, this_run) != s.asset for s in run_status]
+        self.reported = run_status
+        self.failed = sum(s.status == "failed" and not c for s, c in zip(run_status, is_clip))
+        return statuses, {
+            "assets": len(self.assets) + len(self.mmd_assets), "ingested": sum(s.status == "ok" for s in run_status),
+            "skipped": len(self.reused), "failed": self.failed,
+            "failed_clips": sum(s.status == "failed" and c for s, c in zip(run_status, is_clip)),
+            "characters": len(chars), "motions": len(motions),
+            "character_ids": {str(a): self.plan[a][1] for a in self.plan}, "warnings": warnings}
+
+    def after(self, run) -> None:
+        if self.opts.export:
+            from mimicbench.datagen.ingest.export import export_dataset
+
+            export_dataset(run.out_dir, self.chars, self.motions, self.opts.export)
+
+    def counts(self, statuses) -> tuple[int, int]:
+        return len(self.chars), self.failed
+
+
+def _unit_warnings(chars: list) -> list[str]:
+    """A line for each character whose size suggests a wrong ``--bvh-scale`` or ``--mesh-unit``."""
     warnings = []
     for c in chars:
         info = (c.meta or {}).get("ingest") or {}
@@ -393,32 +358,64 @@ def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options)
         if extent is not None and not PLAUSIBLE_EXTENT_M[0] <= extent <= PLAUSIBLE_EXTENT_M[1]:
             warnings.append(f"{c.character_id}: {extent:.3g} m across at rest at {unit:g} m per file unit; if the file "
                             f"is authored in another unit, pass --mesh-unit (metres per unit: 0.01 for centimetres)")
-    from mimicbench.datagen.roles.attach import carry_labels
+    return warnings
 
-    chars = carry_labels(old_chars, chars)  # labels of `datagen roles` survive a re-ingest of the same bones
-    new_ids = {c.character_id for c in chars}
-    chars = [c for c in old_chars if c.character_id not in new_ids] + chars
-    motions = [m for m in old_motions if m.character_id not in new_ids] + motions
-    this_run = ({str(a) for a in assets} | {str(a) for a in mmd_assets} | {s.asset for s in mmd.statuses}
-                | set(empty_folders))
-    statuses = [s for s in old_status if asset_of_row(s.asset, this_run) is None] + statuses
-    run.begin()  # until every table below is written
-    splits = {c.split for c in chars} | {c.split for c in old_chars}
-    run.write_splits("characters", chars, splits)
-    run.write_splits("motions", motions, splits)
-    run.write_status(statuses, config=None)
-    from mimicbench.datagen.ingest.card import write_card
 
-    write_card(out_dir, chars, motions, run.config)
-    run.finish()
-    if opts.export:
-        from mimicbench.datagen.ingest.export import export_dataset
+STAGE = Stage("ingest", IngestParams, inputs=(), item=ingest_item, outputs=("characters", "motions", "status"),
+              out_name="--out folder", plan=IngestPlan, out_key="out", check=IngestParams.check,
+              info=lambda params: {"cache_key": "<stem>-<content sha256[:16]>-<options digest[:8]>"}, what="asset",
+              command=("datagen", "ingest"), function="mimicbench.datagen.ingest.runner:run_command",
+              step_reads=(("paths", None),), step_writes=("characters", "motions"))
 
-        export_dataset(out_dir, chars, motions, opts.export)
-    run_status = [s for s in statuses if asset_of_row(s.asset, this_run) is not None]
-    is_clip = [asset_of_row(s.asset, this_run) != s.asset for s in run_status]
-    return {"assets": len(assets) + len(mmd_assets), "ingested": sum(s.status == "ok" for s in run_status), "skipped": skipped,
-            "failed": sum(s.status == "failed" and not c for s, c in zip(run_status, is_clip)),
-            "failed_clips": sum(s.status == "failed" and c for s, c in zip(run_status, is_clip)),
-            "characters": len(chars), "motions": len(motions), "seconds": time.perf_counter() - start,
-            "statuses": run_status, "character_ids": {str(a): plan[a][1] for a in plan}, "warnings": warnings}
+
+def ingest_assets(paths, out_dir, progress: bool = True, engine=None, **options) -> dict:
+    """Ingest ``paths`` into ``out_dir`` (keeping what earlier runs put there): :func:`drive` with
+    :data:`STAGE`; return the summary's details with ``seconds`` and ``statuses`` (this run's rows).
+
+    Args:
+        paths: asset files (.glb, .gltf, .fbx, .bvh, .obj, .blend through Blender; .pmx, .pmd, .vmd
+            through :mod:`mimicbench.datagen.mmd`) or folders, walked for them (:mod:`.asset_paths`; never
+            ``out_dir``); glob patterns are expanded.
+        engine: a Ray engine (:mod:`mimicbench.engines`) runs each asset as a task with its worker's
+            own Blender (:mod:`.engine_task`); None or a local engine: ``jobs`` Blender processes here.
+        options: the other fields of :class:`.params.IngestParams` (``category_map`` may be the mapping itself).
+
+    A character or clip with a NaN or infinite value is not stored: the asset or the clip
+    (``<asset>#<clip>``) gets a failed status row.
+
+    Raises:
+        ValueError: an option out of range (the message says what is allowed).
+        UserError: ``out_dir`` holds files but no manifest (:func:`check_output_folder`).
+    """
+    params = IngestParams(paths=tuple(str(p) for p in paths), out=str(out_dir), quiet=not progress, **options)
+    s = drive(STAGE, params, engine=engine)
+    return {**s.details, "seconds": s.seconds, "statuses": list(s.statuses)}
+
+
+def run_command(params: IngestParams) -> StageSummary:
+    """``mimicbench datagen ingest``: the stage on ``params`` and its report (what the command line and a
+    pipeline step call)."""
+    from mimicbench.datagen.stage_runner import summarize_statuses
+    from mimicbench.schemas.dataset import Dataset
+
+    s = drive(STAGE, params)
+    d = s.details
+    if params.quiet:
+        print(summarize_statuses([x for x in s.statuses if x.status != "skipped"]))
+    for w in d["warnings"]:
+        print(f"warning: {w}")
+    print(f"{d['characters']} characters and {d['motions']} clips in {params.out} ({d['skipped']} already done, "
+          f"{d['failed']} failed, {d['failed_clips']} clips unreadable) in {s.seconds:.1f} s")
+    if not Dataset.of(params.out).has_table("characters"):  # every asset failed: nothing to label or report
+        return s
+    if params.roles:
+        from mimicbench.datagen.roles.attach import attach_roles, print_warnings, summary_lines
+
+        labels = attach_roles(params.out, params.roles)
+        print_warnings(labels)
+        print("\n".join(summary_lines(labels)))
+    from mimicbench.datagen.roles.categories import inferred_lines
+
+    for line in inferred_lines(params.out):
+        print(line)
+    return s

@@ -21,7 +21,7 @@ from mimicbench.schemas.status import StatusRecord
 
 @dataclass
 class MMDIngest:
-    """What :func:`ingest_mmd` made: records by table, and one status row per file."""
+    """What :func:`load_model` (or :func:`ingest_mmd`) made: records by table, and one status row per file."""
 
     characters: list = field(default_factory=list)
     motions: list = field(default_factory=list)
@@ -62,80 +62,105 @@ def motions_for(model: Path, models: list[Path], given: list[Path]) -> list[tupl
     return sorted(out.items(), key=lambda kv: str(kv[0]))
 
 
-def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, progress: bool = False,
-               run=None, taken: dict | None = None, max_frames: int | None = None, split_for=split_of) -> MMDIngest:
-    """Read MMD models and their motions into records.
+def load_model(item: tuple) -> MMDIngest:
+    """One model and the motions that play on it: the MMD loader's per-item function.
 
     Args:
-        paths: .pmx/.pmd/.vmd files.
-        category_for: ``Path -> category`` (``unknown`` keeps the MMD guess: ``humanoid`` when the
-            standard humanoid bones are present).
-        scale: metres per MMD unit (default 0.08).
-        run: the ingest's :class:`~mimicbench.datagen.stage_runner.StageRun`; when given, the ``rigid_bodies``
-            and ``joints`` tables are written to its folder (per split).
-        taken: character ID -> source path already holding it (the dataset's and this run's other
-            formats); updated with the IDs given here, so no two sources share an ID.
-        max_frames: the most frames a motion may have (default
-            :data:`mimicbench.datagen.ingest.clip_length.MAX_CLIP_FRAMES`); a longer one is a failed row.
-        split_for: character ID -> split (default the hashed split).
-    """
-    from tqdm.auto import tqdm
+        item: ``(model path, character ID, split, category, metres per MMD unit, the most frames a
+            motion may have (None: the default), ((.vmd path, clip name), ...))``; ``unknown`` as
+            the category keeps the MMD guess (``humanoid`` when the standard humanoid bones are present).
 
-    from mimicbench.datagen.ingest.identity import character_id_for
+    Returns:
+        Its records by table and a status row for the model and each motion (a malformed file is
+        a failed row naming it, not an exception).
+    """
     from mimicbench.datagen.mmd.motion import motion_from_vmd
     from mimicbench.datagen.mmd.physics import physics_records
     from mimicbench.datagen.mmd.vmd import read_vmd
 
+    path, cid, split, category, scale, max_frames, motions = item
+    path = Path(path)
     out = MMDIngest()
-    models = [Path(p) for p in paths if Path(p).suffix.lower() in MODEL_SUFFIXES]
-    given = [Path(p) for p in paths if Path(p).suffix.lower() in MOTION_SUFFIXES]
-    taken = {} if taken is None else taken
-    for path in tqdm(models, desc="ingest mmd", unit="model", disable=not progress):
+    start = time.perf_counter()
+    try:
+        model = read_model(path)
+        char = character_from_mmd(model, cid, str(path), split, category, scale)
+        new_index = np.empty(len(model.bones), np.int64)
+        new_index[char.meta["mmd"]["file_bone_index"]] = np.arange(len(model.bones))
+        bodies, joints = physics_records(model, cid, new_index, scale)
+    except (ValueError, OSError) as e:  # MMDFormatError is a ValueError
+        out.statuses.append(StatusRecord(str(path), "ingest", "failed", _reason(e, path), time.perf_counter() - start))
+        return out
+    out.characters.append(char)
+    out.rigid_bodies += bodies
+    out.joints += joints
+    out.statuses.append(StatusRecord(str(path), "ingest", "ok", "", time.perf_counter() - start))
+    reports = char.meta["mmd"].setdefault("motions", {})
+    for vmd_path, name in motions:
         start = time.perf_counter()
-        cid = character_id_for(path, taken)
-        taken[cid] = str(path)
+        vmd_path = Path(vmd_path)
         try:
-            model = read_model(path)
-            category = category_for(path) if category_for else "unknown"
-            char = character_from_mmd(model, cid, str(path), split_for(cid), category, scale)
-            new_index = np.empty(len(model.bones), np.int64)
-            new_index[char.meta["mmd"]["file_bone_index"]] = np.arange(len(model.bones))
-            bodies, joints = physics_records(model, cid, new_index, scale)
-        except (ValueError, OSError) as e:  # MMDFormatError is a ValueError
-            out.statuses.append(StatusRecord(str(path), "ingest", "failed", _reason(e, path), time.perf_counter() - start))
+            rec, report = motion_from_vmd(read_vmd(vmd_path), model, char, name, str(vmd_path), scale,
+                                          max_frames=max_frames)
+        except (ValueError, OSError) as e:
+            out.statuses.append(StatusRecord(str(vmd_path), "ingest", "failed", _reason(e, vmd_path),
+                                             time.perf_counter() - start))
             continue
-        out.characters.append(char)
-        out.rigid_bodies += bodies
-        out.joints += joints
-        out.statuses.append(StatusRecord(str(path), "ingest", "ok", "", time.perf_counter() - start))
-        reports = char.meta["mmd"].setdefault("motions", {})
-        for vmd_path, name in motions_for(path, models, given):
-            start = time.perf_counter()
-            try:
-                rec, report = motion_from_vmd(read_vmd(vmd_path), model, char, name, str(vmd_path), scale,
-                                              max_frames=max_frames)
-            except (ValueError, OSError) as e:
-                out.statuses.append(StatusRecord(str(vmd_path), "ingest", "failed", _reason(e, vmd_path),
-                                                 time.perf_counter() - start))
-                continue
-            out.motions.append(rec)
-            reports[name] = report
-            note = f"on {cid}: {report['matched']} bones matched, {len(report['unmatched'])} unmatched" \
-                   + (f" ({', '.join(report['unmatched'][:5])})" if report["unmatched"] else "") \
-                   + f"; {report['ignored_morph_keys']} morph keys ignored"
-            out.statuses.append(StatusRecord(str(vmd_path), "ingest", "ok", note, time.perf_counter() - start))
-    if not models:
-        for p in given:
-            out.statuses.append(StatusRecord(str(p), "ingest", "failed",
-                                             f"{p}: a .vmd motion needs a .pmx/.pmd model in the same run", 0.0))
-    if run is not None and out.characters:
-        _write_physics(run, out)
+        out.motions.append(rec)
+        reports[name] = report
+        note = f"on {cid}: {report['matched']} bones matched, {len(report['unmatched'])} unmatched" \
+               + (f" ({', '.join(report['unmatched'][:5])})" if report["unmatched"] else "") \
+               + f"; {report['ignored_morph_keys']} morph keys ignored"
+        out.statuses.append(StatusRecord(str(vmd_path), "ingest", "ok", note, time.perf_counter() - start))
     return out
 
 
-def _write_physics(run, out: MMDIngest) -> None:
-    """Write this run's rigid bodies and joints, keeping the rows of characters that earlier runs
-    ingested into the same dataset (ingest merges characters across runs)."""
+def model_items(paths, category_for=None, scale: float = MMD_UNIT_METRES, taken: dict | None = None,
+                max_frames: int | None = None, split_for=split_of) -> tuple[list[tuple], list[StatusRecord]]:
+    """The :func:`load_model` items of the MMD files ``paths`` (.pmx/.pmd/.vmd), and failed rows
+    for .vmd motions given without any model.
+
+    Args:
+        category_for: ``Path -> category`` (default ``unknown``).
+        taken: character ID -> source path already holding it (the dataset's and this run's other
+            formats); updated with the IDs given here, so no two sources share an ID.
+        split_for: character ID -> split (default the hashed split).
+    """
+    from mimicbench.datagen.ingest.identity import character_id_for
+
+    models = [Path(p) for p in paths if Path(p).suffix.lower() in MODEL_SUFFIXES]
+    given = [Path(p) for p in paths if Path(p).suffix.lower() in MOTION_SUFFIXES]
+    taken = {} if taken is None else taken
+    items = []
+    for path in models:
+        cid = character_id_for(path, taken)
+        taken[cid] = str(path)
+        items.append((str(path), cid, split_for(cid), category_for(path) if category_for else "unknown", scale,
+                      max_frames, tuple((str(v), name) for v, name in motions_for(path, models, given))))
+    lone = [] if models else [StatusRecord(str(p), "ingest", "failed",
+                                           f"{p}: a .vmd motion needs a .pmx/.pmd model in the same run", 0.0)
+                              for p in given]
+    return items, lone
+
+
+def ingest_mmd(paths, category_for=None, scale: float = MMD_UNIT_METRES, taken: dict | None = None,
+               max_frames: int | None = None, split_for=split_of) -> MMDIngest:
+    """Read MMD models and their motions into records, here (:func:`model_items`, :func:`load_model`);
+    ``datagen ingest`` runs the same items through its stage driver."""
+    items, lone = model_items(paths, category_for, scale, taken, max_frames, split_for)
+    out = MMDIngest()
+    for item in items:
+        one = load_model(item)
+        for name in ("characters", "motions", "rigid_bodies", "joints", "statuses"):
+            getattr(out, name).extend(getattr(one, name))
+    out.statuses += lone
+    return out
+
+
+def write_physics(run, out: MMDIngest) -> None:
+    """Write this run's rigid bodies and joints into ``run``'s folder (after its ``begin()``),
+    keeping the rows of characters that earlier runs ingested into the same dataset (ingest merges
+    characters across runs)."""
     split = {c.character_id: c.split for c in out.characters}
     for table, rows in (("rigid_bodies", out.rigid_bodies), ("joints", out.joints)):
         earlier = splits_of(run.out_dir, table, allow_incomplete=True) if run.manifest() is not None else []

@@ -28,15 +28,6 @@ def register(subparsers) -> None:
 
 
 def run(params: ResampleParams) -> StageSummary:
-    from mimicbench.datagen.resample.stage import STAGE
-    from mimicbench.datagen.stage_runner import drive
+    from mimicbench.datagen.resample.stage import run_command
 
-    s = drive(STAGE, params)
-    d = s.details
-    for note in d["notes"]:
-        print(f"resample: {note}")
-    h, t = d["hausdorff_pct_mean"], d["transfer_error_pct_mean"]
-    print(f"{d['resampled']} resampled, {d['already_done']} already done, {s.failed} failed in {s.seconds:.1f} s; "
-          f"mean Hausdorff {h if h is None else round(h, 3)} %, mean transfer error {t if t is None else round(t, 3)} % "
-          f"of height -> {params.out_dataset}")
-    return s
+    return run_command(params)

@@ -47,7 +47,9 @@ STAGE = Stage("resample", ResampleParams, inputs=("characters", "motions"), item
               outputs=("characters", "status"), copies=("motions", "pairs", *PHYSICS_TABLES),
               plan=lambda run: ResamplePlan(run), out_key="out_dataset", in_key="in_dataset",
               constants=(("version", RESAMPLE_VERSION),), check=_check,
-              info=lambda params: {"source": str(params.in_dataset)}, what="character")
+              info=lambda params: {"source": str(params.in_dataset)}, what="character",
+              command=("datagen", "resample"), function="mimicbench.datagen.resample.stage:run_command",
+              versions=("mimicbench.datagen.resample:RESAMPLE_VERSION",), step_writes=("characters", "motions"))
 
 
 def _reusable_rows(run: StageRun) -> tuple[dict, list[str], list[tuple[str, str]]]:
@@ -139,10 +141,11 @@ class ResamplePlan(StagePlan):
 
     resources = TASK_RESOURCES
     configs = ("characters",)
-    flush_every, flush_seconds = 8, 60.0  # write finished characters after this many, or this long
 
-    def __init__(self, run: StageRun):
+    def __init__(self, run: StageRun, flush_every: int = 8, flush_seconds: float = 60.0):
         super().__init__(run.stage)
+        expect(flush_every >= 1, "flush_every", ">= 1", flush_every)
+        self.flush_every, self.flush_seconds = flush_every, flush_seconds
         params, in_dir = run.params, run.in_dir
         self.order, self.meshless = [], {}  # (character ID, split, has a mesh) in input order; skeleton-only records
         for _, _, group in iter_row_groups(in_dir, "characters"):  # DatasetError when IN is not a dataset
@@ -223,7 +226,8 @@ class ResamplePlan(StagePlan):
 
 
 def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", jobs: int = 1,
-                     progress: bool = True, engine: Engine | None = None) -> StageSummary:
+                     progress: bool = True, flush_every: int = 8, flush_seconds: float = 60.0,
+                     engine: Engine | None = None) -> dict:
     """Resample every character of ``in_dir`` into ``out_dir`` (:func:`drive` with :data:`STAGE`),
     writing finished work as it goes.
 
@@ -232,12 +236,13 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
     any) are copied unchanged (verified against the input's manifest).
 
     Args:
+        flush_every, flush_seconds: write finished characters after this many, or this long.
         engine: where characters are resampled (:mod:`mimicbench.engines`; default the local engine
             with ``jobs`` processes); one character a task of 1 CPU and 2 GiB.
 
     Returns:
-        The summary; its ``details``: ``characters``, ``resampled``, ``already_done``, mean
-        Hausdorff and transfer error (% of height), ``notes`` (why earlier rows in ``out_dir``
+        The summary's ``details`` with ``failed``, ``seconds`` and ``statuses``: counts, failures,
+        mean Hausdorff and transfer error (% of height), ``notes`` (why earlier rows in ``out_dir``
         were not reused).
 
     Raises:
@@ -246,4 +251,20 @@ def resample_dataset(in_dir, out_dir, faces: int = 5000, backend: str = "fast", 
             stage's dataset; every character failed (``out_dir`` is then left as it was).
     """
     params = ResampleParams(str(in_dir), str(out_dir), faces=faces, backend=backend, jobs=jobs, quiet=not progress)
-    return drive(STAGE, params, engine=engine)
+    stage = dataclasses.replace(STAGE, plan=lambda run: ResamplePlan(run, flush_every, flush_seconds))
+    s = drive(stage, params, engine=engine)
+    return {**s.details, "failed": s.failed, "seconds": s.seconds, "statuses": list(s.statuses)}
+
+
+def run_command(params: ResampleParams) -> StageSummary:
+    """``mimicbench datagen resample``: the stage on ``params`` and its report (what the command line and a
+    pipeline step call)."""
+    s = drive(STAGE, params)
+    d = s.details
+    for note in d["notes"]:
+        print(f"resample: {note}")
+    h, t = d["hausdorff_pct_mean"], d["transfer_error_pct_mean"]
+    print(f"{d['resampled']} resampled, {d['already_done']} already done, {s.failed} failed in {s.seconds:.1f} s; "
+          f"mean Hausdorff {h if h is None else round(h, 3)} %, mean transfer error {t if t is None else round(t, 3)} % "
+          f"of height -> {params.out_dataset}")
+    return s

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from mimicbench.datagen.retarget.params import RetargetParams
+from mimicbench.runtime.options import add_options
 from mimicbench.runtime.summary import StageSummary
 
 
@@ -20,21 +22,11 @@ def register(subparsers) -> None:
         "  mimicbench datagen ingest mmd/*.pmx --out data/mmd\n"
         "  mimicbench datagen retarget data/cmu data/mmd data/mmd_cmu",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("motions", help="dataset whose clips are retargeted (its characters and motions)")
-    p.add_argument("characters", help="dataset whose characters receive the clips")
-    p.add_argument("out", help="output dataset folder")
-    p.add_argument("--sources", default="*", help="glob on source character IDs (default: all)")
-    p.add_argument("--targets", default="*", help="glob on target character IDs (default: all)")
-    p.add_argument("--quiet", action="store_true")
+    add_options(p, RetargetParams)
     p.set_defaults(func=run)
 
 
-def run(args) -> StageSummary:
-    from mimicbench.datagen.retarget.stage import retarget_datasets
-    from mimicbench.datagen.stage_runner import summarize_statuses
+def run(params: RetargetParams) -> StageSummary:
+    from mimicbench.datagen.retarget.stage import run_command
 
-    s = retarget_datasets(args.motions, args.characters, args.out, args.sources, args.targets, not args.quiet)
-    print(summarize_statuses(s["statuses"]))
-    print(f"{s['clips']} clips on {s['characters']} characters ({s['pairs']} pairs) in {args.out} in "
-          f"{s['seconds']:.1f} s; report: {args.out}/retarget_report.json")
-    return StageSummary(s["clips"], s["failed"], s["seconds"], str(args.out))
+    return run_command(params)

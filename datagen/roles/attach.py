@@ -21,16 +21,17 @@ import sys
 from pathlib import Path
 
 from mimicbench.datagen.roles.labels import CharacterLabels, RoleLabelError, load_labels
+from mimicbench.datagen.roles.params import RolesParams
+from mimicbench.datagen.stage_runner import Stage, StagePlan, StageRun, drive
+from mimicbench.runtime.summary import StageSummary
 from mimicbench.schemas.character import CharacterRecord
 from mimicbench.schemas.errors import DatasetError
 from mimicbench.schemas.fingerprint import stale_inputs
-from mimicbench.schemas.folder_lock import hold
-from mimicbench.schemas.manifest import is_complete, load_manifest, load_manifest_for_write, mark_complete, mark_incomplete
+from mimicbench.schemas.manifest import is_complete, load_manifest, load_manifest_for_write
 from mimicbench.schemas.shards import read_records, write_records
 from mimicbench.schemas.tables import rows_per_shard
-from mimicbench.schemas.validate import validate_dataset
 
-STAGE = "datagen roles"
+STAGE = "datagen roles"  # the stage's name in the manifest's ``pending`` while it writes
 
 
 def keys_of(record: CharacterRecord) -> list[str]:
@@ -117,8 +118,81 @@ def _same(a: CharacterRecord, b: CharacterRecord) -> bool:
     return a.bone_roles == b.bone_roles and a.category == b.category and a.meta == b.meta
 
 
-def attach_roles(dataset, label_files, validate: bool = True) -> dict:
-    """Attach ``label_files`` (paths of ``.toml``/``.json`` role-label files) to ``dataset``.
+class RolesPlan(StagePlan):
+    """The labels matched and resolved while planning (a label that does not fit any character is an
+    error before anything is written); no per-item work; :meth:`write` rewrites the splits whose rows
+    changed. A run that changes nothing (and finds the dataset complete) writes nothing."""
+
+    status_config = None
+
+    def __init__(self, run: StageRun):
+        super().__init__(run.stage)
+        root = run.out_dir
+        manifest = load_manifest(root)
+        if not is_complete(manifest) and (manifest.get("pending") or {}).get("stage") != STAGE:
+            raise DatasetError(f"{root}: the dataset is incomplete ({(manifest.get('pending') or {}).get('stage')} "
+                               f"did not finish); re-run that stage before attaching roles")
+        files = [load_labels(p) for p in run.params.labels]
+        digests = {f.path: file_digest(f.path) for f in files}
+        records = read_records(root, "characters", allow_incomplete=True)
+        found, self.warnings = match_labels(records, files)
+        new, problems = [], []
+        for r in records:
+            if r.character_id not in found:
+                new.append(r)
+                continue
+            entry, f = found[r.character_id]
+            try:
+                new.append(labelled_record(r, entry, f.path, digests[f.path]))
+            except RoleLabelError as exc:
+                problems.append(f"{f.path}: {exc}")
+        if problems:
+            raise RoleLabelError("labels that do not fit the dataset (nothing written):\n  " + "\n  ".join(problems))
+        self.new, self.found = new, found
+        self.changed = {r.split for r, n in zip(records, new) if not _same(r, n)}
+        self.unchanged = not self.changed and is_complete(manifest)  # a killed run's re-run still marks it complete
+        if self.unchanged:
+            self.details = self.summary(root)
+
+    def summary(self, root: Path) -> dict:
+        manifest = load_manifest_for_write(root)
+        stale = sorted({m for t in manifest["tables"] if (m := stale_inputs(root, manifest, t))})
+        labelled = {}
+        for n in self.new:
+            if n.character_id in self.found:
+                labelled[n.character_id] = {"bones": n.num_joints, "labelled": sum(bool(x) for x in n.bone_roles),
+                                            "category": n.category,
+                                            "category_source": ((n.meta or {}).get("category") or {}).get("source")}
+        unlabelled = [n.character_id for n in self.new if not n.bone_roles or not any(n.bone_roles)]
+        return {"labelled": labelled, "unlabelled": unlabelled, "warnings": self.warnings,
+                "written_splits": sorted(self.changed), "stale": stale}
+
+    def nothing_made(self, statuses) -> bool:
+        return False
+
+    def write(self, run, statuses):
+        for split in sorted(self.changed):
+            write_records(run.out_dir, "characters", [n for n in self.new if n.split == split], split,
+                          rows_per_shard("characters"))
+        self.details = {}
+        return None, self.details
+
+    def after(self, run) -> None:
+        self.details.update(self.summary(run.out_dir))  # the summary's details, filled after finish()
+
+    def counts(self, statuses) -> tuple[int, int]:
+        return len(self.found), 0
+
+
+STAGE_DECL = Stage(STAGE, RolesParams, inputs=("characters",), item=labelled_record, outputs=("characters",),
+                   plan=RolesPlan, out_key="dataset", in_key="dataset", refuse_foreign=False, what="character",
+                   command=("datagen", "roles"), function="mimicbench.datagen.roles.attach:run_command",
+                   step_writes=("characters",))
+
+
+def attach_roles(dataset, label_files) -> dict:
+    """Attach ``label_files`` (paths of ``.toml``/``.json`` role-label files) to ``dataset``
+    (:func:`drive` with the roles stage).
 
     Returns:
         ``{"labelled": {character_id: {"bones": K, "labelled": n, "category": c, "category_source": s}},
@@ -129,54 +203,7 @@ def attach_roles(dataset, label_files, validate: bool = True) -> dict:
         RoleLabelError: a malformed file, or labels that do not fit a character (nothing written).
         DatasetError: the dataset is unreadable, or left incomplete by another stage.
     """
-    root = Path(dataset)
-    with hold(root):  # one writer of the dataset at a time, from before its manifest is read
-        return _attach(root, label_files, validate)
-
-
-def _attach(root: Path, label_files, validate: bool) -> dict:
-    manifest = load_manifest(root)
-    if not is_complete(manifest) and (manifest.get("pending") or {}).get("stage") != STAGE:
-        raise DatasetError(f"{root}: the dataset is incomplete ({(manifest.get('pending') or {}).get('stage')} "
-                           f"did not finish); re-run that stage before attaching roles")
-    files = [load_labels(p) for p in label_files]
-    digests = {f.path: file_digest(f.path) for f in files}
-    records = read_records(root, "characters", allow_incomplete=True)
-    found, warnings = match_labels(records, files)
-    new, problems = [], []
-    for r in records:
-        if r.character_id not in found:
-            new.append(r)
-            continue
-        entry, f = found[r.character_id]
-        try:
-            new.append(labelled_record(r, entry, f.path, digests[f.path]))
-        except RoleLabelError as exc:
-            problems.append(f"{f.path}: {exc}")
-    if problems:
-        raise RoleLabelError("labels that do not fit the dataset (nothing written):\n  " + "\n  ".join(problems))
-    changed = {r.split for r, n in zip(records, new) if not _same(r, n)}
-    if changed or not is_complete(manifest):  # a run killed after its last split still marks it complete
-        mark_incomplete(root, STAGE)
-        for split in sorted(changed):
-            write_records(root, "characters", [n for n in new if n.split == split], split,
-                          rows_per_shard("characters"))
-        mark_complete(root)
-    manifest = load_manifest_for_write(root)
-    stale = sorted({m for t in manifest["tables"] if (m := stale_inputs(root, manifest, t))})
-    if validate:
-        bad = [p for p in validate_dataset(root) if p not in stale]
-        if bad:
-            raise RuntimeError(f"{STAGE} left an invalid dataset:\n" + "\n".join(bad))
-    labelled = {}
-    for n in new:
-        if n.character_id in found:
-            labelled[n.character_id] = {"bones": n.num_joints, "labelled": sum(bool(x) for x in n.bone_roles),
-                                        "category": n.category,
-                                        "category_source": ((n.meta or {}).get("category") or {}).get("source")}
-    unlabelled = [n.character_id for n in new if not n.bone_roles or not any(n.bone_roles)]
-    return {"labelled": labelled, "unlabelled": unlabelled, "warnings": warnings, "written_splits": sorted(changed),
-            "stale": stale}
+    return drive(STAGE_DECL, RolesParams(str(dataset), tuple(str(f) for f in label_files)), progress=False).details
 
 
 def summary_lines(s: dict) -> list[str]:
@@ -195,3 +222,12 @@ def summary_lines(s: dict) -> list[str]:
 def print_warnings(s: dict) -> None:
     for w in s["warnings"] + s["stale"]:
         print(f"warning: {w}", file=sys.stderr)
+
+
+def run_command(params: RolesParams) -> StageSummary:
+    """``mimicbench datagen roles``: the stage on ``params`` and its report (what the command line and a
+    pipeline step call)."""
+    s = drive(STAGE_DECL, params, progress=False)
+    print_warnings(s.details)
+    print("\n".join(summary_lines(s.details)))
+    return s

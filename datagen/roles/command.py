@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from mimicbench.datagen.roles.params import RolesParams
+from mimicbench.runtime.options import add_options
 from mimicbench.runtime.summary import StageSummary
 
 
@@ -22,19 +24,11 @@ def register(subparsers) -> None:
         "  mimicbench datagen ingest assets/ --out data/mine\n"
         "  mimicbench datagen roles data/mine --labels examples/roles/shared_assets.toml",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("dataset", help="dataset folder whose characters get the labels")
-    p.add_argument("--labels", nargs="+", required=True, metavar="FILE",
-                   help="role-label files (.toml or .json); a character may be labelled in one of them only")
+    add_options(p, RolesParams)
     p.set_defaults(func=run)
 
 
-def run(args) -> StageSummary:
-    import time
+def run(params: RolesParams) -> StageSummary:
+    from mimicbench.datagen.roles.attach import run_command
 
-    from mimicbench.datagen.roles.attach import attach_roles, print_warnings, summary_lines
-
-    start = time.perf_counter()
-    s = attach_roles(args.dataset, args.labels)
-    print_warnings(s)
-    print("\n".join(summary_lines(s)))
-    return StageSummary(len(s["labelled"]), 0, time.perf_counter() - start, str(args.dataset))
+    return run_command(params)

@@ -1,16 +1,15 @@
 """Build a whole zoo dataset: plan, build every character (failures become status rows), write shards."""
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from mimicbench.engines import Engine
 from mimicbench.geometry.validation import expect, is_whole
-from mimicbench.datagen.stage_runner import Stage, StageRun, omitted_unless_set, run_stage
+from mimicbench.datagen.stage_runner import Stage, StagePlan, StageRun, drive
+from mimicbench.runtime.summary import StageSummary
+from mimicbench.datagen.zoo.params import EXPORT_FORMATS, ZooParams
 from mimicbench.datagen.zoo.build import ZOO_VERSION, BuiltCharacter, build_character
 from mimicbench.datagen.zoo.clips import CLIP_SETS
 from mimicbench.datagen.zoo.card import character_summary, render_card, zoo_stats_from_summaries
@@ -22,7 +21,6 @@ from mimicbench.datagen.zoo.templates.humanoid import H2H_SKELETON_ID
 from mimicbench.schemas.manifest import atomic_write_bytes
 from mimicbench.schemas.shards import SPLITS
 
-EXPORT_FORMATS = ("obj", "bvh", "pmx")
 SPLIT_RULE = ("Split rule (stratified, deterministic; datagen/zoo/plan.py): per stratum (each category, the H2H "
               "family its own), IDs sorted by sha256; the first max(1, round(0.1 n)) go to test (the H2H family at "
               "least min(3, n - 1)), the next round(0.1 n) to val, the rest to train.")
@@ -60,11 +58,96 @@ def clips_per_character_for(specs: list, clips_per_character: int, motions: int 
     return [(i + 1) * motions // n - i * motions // n for i in range(n)]
 
 
+class ZooPlan(StagePlan):
+    """Every planned character one item, built in plan order and streamed into the shards of its
+    split as it comes (:meth:`done`), so memory holds a few hundred clips."""
+
+    ordered = True
+
+    def __init__(self, run: StageRun):
+        super().__init__(run.stage)
+        p = run.params
+        self.specs = plan_zoo(p.num_characters, p.seed, p.categories)
+        if not self.specs:
+            raise ValueError(f"num_characters: expected >= 1, got {p.num_characters}")
+        splits = assign_splits(self.specs)
+        counts = clips_per_character_for(self.specs, p.clips_per_character, p.motions)
+        self.items = [(spec, splits[spec.character_id], count) for spec, count in zip(self.specs, counts)]
+        self.kwargs = {"out": run.out_dir, "export": p.export, "frames_per_clip": int(p.frames_per_clip),
+                       "clip_set": p.clip_set}
+        self.characters, self.clips = [], []  # small summaries for the card, not the arrays
+
+    @property
+    def what(self) -> str:
+        return f"one of the {len(self.specs)} characters"
+
+    def name_of(self, item) -> str:
+        return item[0].character_id
+
+    def start(self, run) -> None:
+        self.streams = run.open_streams([(table, split) for table in ("characters", "motions") for split in SPLITS])
+
+    def done(self, run, item, ok, result) -> None:
+        if not ok:
+            return
+        record, motions_of = result
+        self.streams["characters", record.split].add([record])
+        self.streams["motions", record.split].add(motions_of)
+        self.characters.append(character_summary(record))
+        self.clips.extend((m.character_id, int(m.num_frames)) for m in motions_of)
+
+    def nothing_made(self, statuses) -> bool:
+        return not self.characters
+
+    def abort(self, run, exc) -> None:
+        for stream in getattr(self, "streams", {}).values():
+            stream.abort()  # drops what it wrote
+
+    def write(self, run, statuses):
+        for stream in self.streams.values():
+            stream.close()  # names its shards and lists them
+        for s in statuses:
+            s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
+        characters, clips = self.characters, self.clips
+        split_counts = {s: sum(1 for c in characters if c["split"] == s) for s in SPLITS}
+        family = sum(1 for c in characters if c["skeleton_id"] == H2H_SKELETON_ID)
+        self.stats = zoo_stats_from_summaries(characters, clips)
+        self.card = (split_counts, family)
+        failed = [s for s in statuses if s.status != "ok"]
+
+        def spread(key: str) -> list:  # min, mean, max over the characters
+            v = np.array([c[key] for c in characters])
+            return [int(v.min()), float(v.mean()), int(v.max())]
+
+        return statuses, {
+            "out": str(run.out_dir), "characters": len(characters), "motions": len(clips),
+            "frames": int(sum(f for _, f in clips)), "failed": len(failed),
+            "failures": [f"{s.asset}: {s.reason}" for s in failed],
+            "by_category": {k: v["characters"] for k, v in self.stats.items() if k != "all"}, "splits": split_counts,
+            "h2h_family": family, "joints": spread("joints"), "faces": spread("faces")}
+
+    def after(self, run) -> None:
+        split_counts, family = self.card
+        atomic_write_bytes(run.out_dir / "CARD.md", render_card(self.stats, run.config, split_counts, family).encode())
+
+    def counts(self, statuses) -> tuple[int, int]:
+        return len(self.characters), sum(s.status != "ok" for s in statuses)
+
+
+def _check(p: ZooParams) -> None:
+    expect(all(e in EXPORT_FORMATS for e in p.export), "export", f"some of {EXPORT_FORMATS}", p.export)
+    expect(p.clips_per_character >= 1, "clips_per_character", ">= 1", p.clips_per_character)
+    expect(is_whole(p.frames_per_clip) and RAMP_FRAMES < p.frames_per_clip <= MAX_FRAMES, "frames_per_clip",
+           f"an integer from {RAMP_FRAMES + 1} to {MAX_FRAMES}", p.frames_per_clip)
+    expect(is_whole(p.seed) and p.seed >= 0, "seed", "an integer >= 0", p.seed)
+    expect(p.clip_set in CLIP_SETS, "clip_set", f"one of {list(CLIP_SETS)}", p.clip_set)
+
+
 def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str] | None = None,
               clips_per_character: int = 3, export: tuple[str, ...] = (), progress: bool = True,
               motions: int | None = None, frames_per_clip: int = NUM_FRAMES, engine: Engine | None = None,
               jobs: int = 1, clip_set: str = "default") -> dict:
-    """Generate a procedural zoo into ``out_dir``.
+    """Generate a procedural zoo into ``out_dir`` (:func:`drive` with :data:`STAGE`).
 
     Writes ``characters/`` and ``motions/`` shards (one set per split; an empty split gets an
     empty shard so a rebuild replaces older data), a ``status`` table (split ``zoo``, seconds 0 so
@@ -82,61 +165,12 @@ def build_zoo(out_dir, num_characters: int, seed: int = 0, categories: list[str]
         A summary dict: ``characters``, ``motions``, ``frames``, ``failed``, ``by_category``,
         ``splits``, ``h2h_family``, ``joints`` and ``faces`` (min, mean, max), ``seconds``, ``out``.
     """
-    start = time.perf_counter()
-    export = tuple(export or ())
-    expect(all(e in EXPORT_FORMATS for e in export), "export", f"some of {EXPORT_FORMATS}", export)
-    expect(clips_per_character >= 1, "clips_per_character", ">= 1", clips_per_character)
-    expect(is_whole(frames_per_clip) and RAMP_FRAMES < frames_per_clip <= MAX_FRAMES, "frames_per_clip",
-           f"an integer from {RAMP_FRAMES + 1} to {MAX_FRAMES}", frames_per_clip)
-    expect(is_whole(seed) and seed >= 0, "seed", "an integer >= 0", seed)
-    expect(clip_set in CLIP_SETS, "clip_set", f"one of {list(CLIP_SETS)}", clip_set)
-    out = Path(out_dir)
-    specs = plan_zoo(num_characters, seed, categories)
-    if not specs:
-        raise ValueError(f"num_characters: expected >= 1, got {num_characters}")
-    clip_counts = clips_per_character_for(specs, clips_per_character, motions)
-    splits = assign_splits(specs)
-    run = StageRun(STAGE, ZooParams(seed=int(seed), num_characters=int(num_characters),
-                                    categories=list(categories) if categories else None,
-                                    clips_per_character=int(clips_per_character), frames_per_clip=int(frames_per_clip),
-                                    motions=None if motions is None else int(motions), clip_set=clip_set), out)
-    items = [(spec, splits[spec.character_id], count) for spec, count in zip(specs, clip_counts)]
-    work = partial(STAGE.item, out=out, export=export, frames_per_clip=int(frames_per_clip), clip_set=clip_set)
-    characters, clips = [], []  # small summaries for the card, not the arrays
-    with run.streams([(table, split) for table in ("characters", "motions") for split in SPLITS]) as streams:
-
-        def on_done(i: int, ok: bool, result) -> None:
-            if not ok:
-                return
-            record, motions_of = result
-            streams["characters", record.split].add([record])
-            streams["motions", record.split].add(motions_of)
-            characters.append(character_summary(record))
-            clips.extend((m.character_id, int(m.num_frames)) for m in motions_of)
-
-        _, statuses = run_stage(items, work, "zoo", name_of=lambda it: it[0].character_id, jobs=jobs,
-                                progress=progress, on_done=on_done, engine=engine, ordered=True, keep_results=False)
-        if not characters:
-            raise run.abandon(statuses, f"one of the {len(specs)} characters")  # begin() has not run: nothing written
-        for s in statuses:
-            s.seconds = 0.0  # timings vary run to run; keep the shards byte-identical
-        run.begin()  # the streams are named and listed when the block ends
-    run.write_status(statuses)
-    run.finish()
-    split_counts = {s: sum(1 for c in characters if c["split"] == s) for s in SPLITS}
-    family = sum(1 for c in characters if c["skeleton_id"] == H2H_SKELETON_ID)
-    stats = zoo_stats_from_summaries(characters, clips)
-    atomic_write_bytes(out / "CARD.md", render_card(stats, run.config, split_counts, family).encode())
-    failed = [s for s in statuses if s.status != "ok"]
-
-    def spread(key: str) -> list:  # min, mean, max over the characters
-        v = np.array([c[key] for c in characters])
-        return [int(v.min()), float(v.mean()), int(v.max())]
-
-    return {"out": str(out), "characters": len(characters), "motions": len(clips),
-            "frames": int(sum(f for _, f in clips)), "failed": len(failed), "failures": [f"{s.asset}: {s.reason}" for s in failed],
-            "by_category": {k: v["characters"] for k, v in stats.items() if k != "all"}, "splits": split_counts,
-            "h2h_family": family, "joints": spread("joints"), "faces": spread("faces"), "seconds": time.perf_counter() - start}
+    params = ZooParams(str(out_dir), num_characters=int(num_characters), seed=seed, categories=categories,
+                       clips_per_character=clips_per_character, frames_per_clip=frames_per_clip,
+                       motions=None if motions is None else int(motions), clip_set=clip_set, jobs=jobs,
+                       export=tuple(export or ()), quiet=not progress)
+    s = drive(STAGE, params, engine=engine)
+    return {**s.details, "seconds": s.seconds}
 
 
 def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int, clip_set: str = "default"):
@@ -148,23 +182,29 @@ def _build_one(item, out: Path, export: tuple[str, ...], frames_per_clip: int, c
     return built.record, built.motions
 
 
-@dataclass(frozen=True)
-class ZooParams:
-    """What a zoo is built from (:func:`build_zoo`), in the order of its config."""
-
-    generator: str = "mimicbench.zoo"
-    zoo_version: int = ZOO_VERSION
-    seed: int = 0
-    num_characters: int = 1
-    categories: list | None = None
-    clips_per_character: int = 3
-    fps: int = FPS
-    frames_per_clip: int = NUM_FRAMES
-    h2h_skeleton_id: str = H2H_SKELETON_ID
-    split_rule: str = SPLIT_RULE
-    motions: int | None = omitted_unless_set(None)
-    clip_set: str = omitted_unless_set("default")
-
-
 STAGE = Stage("zoo", ZooParams, inputs=(), item=_build_one, outputs=("characters", "motions", "status"),
-              out_name="--out folder", generator="mimicbench.zoo", title="the zoo")
+              out_name="--out folder", generator="mimicbench.zoo", title="the zoo", plan=ZooPlan, check=_check,
+              constants=(("generator", "mimicbench.zoo"), ("zoo_version", ZOO_VERSION), ("fps", FPS),
+                         ("h2h_skeleton_id", H2H_SKELETON_ID), ("split_rule", SPLIT_RULE)),
+              what="character", command=("zoo",), function="mimicbench.datagen.zoo.dataset:run_command",
+              versions=("mimicbench.datagen.zoo.build:ZOO_VERSION",), step_writes=("characters", "motions"))
+
+
+def run_command(params: ZooParams) -> StageSummary:
+    """``mimicbench zoo``: the stage on ``params`` and its report (what the command line and a
+    pipeline step call)."""
+    s = drive(STAGE, params)
+    d = s.details
+    for f in d["failures"] if params.quiet else ():  # else the driver listed them
+        print(f"  FAILED {f}")
+    if not params.no_contact_sheet:
+        from mimicbench.datagen.zoo.card import add_contact_sheet
+
+        sheet = add_contact_sheet(params.out)
+        print(f"contact sheet: {sheet['path'] or 'not rendered: ' + sheet['error']}")
+    cats_txt = ", ".join(f"{k} {v}" for k, v in d["by_category"].items())
+    print(f"zoo: {d['characters']} characters ({cats_txt}), {d['motions']} clips, {d['frames']} frames; "
+          f"joints {d['joints'][0]}-{d['joints'][2]}, faces {d['faces'][0]}-{d['faces'][2]}; "
+          f"H2H family {d['h2h_family']}; splits {d['splits']}; {d['failed']} failed; "
+          f"{s.seconds:.1f} s -> {d['out']} (see CARD.md)")
+    return s

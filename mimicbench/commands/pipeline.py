@@ -22,7 +22,8 @@ The file (TOML):
   workdir = "data/demo"    # step folders are relative to it
   engine = "local"         # or "ray" (ray_address = "...", jobs = N)
   [[steps]]
-  run = "zoo"              # zoo, ingest, resample, apparel, correspond, cases, bench, leaderboard
+  run = "zoo"              # zoo, ingest, retarget, roles, resample, apparel, correspond, cases, bench,
+                           # validity, leaderboard
   out = "zoo"
   characters = 16          # any option of the command, with _ for -
 """

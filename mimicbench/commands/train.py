@@ -34,7 +34,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="run folder for checkpoints, loss logs and config.json")
     p.add_argument("--stage", default="all",
                    help="stage to train (mimicat: shape, prior, corr, transfer, transfer_no_prior; mmdmc: seg, body, "
-                   "apparel, refine; npt, cgt, sfpt: one stage of their own name), or 'all' in order (default)")
+                   "apparel; npt, cgt, sfpt: one stage of their own name), or 'all' in order (default)")
     p.add_argument("--config", default="small",
                    help="config preset: small (2 CPU cores, minutes) or paper (the paper's sizes, for GPUs); npt and cgt "
                         "also small_cycle, large (one GPU, minutes; npt's shipped weights) and large_cycle")

@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 from tqdm.auto import tqdm
 
-from mimicbench.cli import USER_ERRORS, build_parser, error_text, exit_code
 from mimicbench.pipeline.spec import Pipeline, step_argv, step_options
 from mimicbench.pipeline.state import PipelineState, outputs_digest, step_fingerprint
-from mimicbench.runtime.summary import StageSummary
+from mimicbench.runtime.errors import USER_ERRORS, error_text
+from mimicbench.runtime.summary import StageSummary, exit_code
 
 
 @dataclass
@@ -42,8 +42,7 @@ def run_pipeline(pipeline: Pipeline, progress: bool = True, force: tuple[str, ..
     unknown = sorted(set(force) - {s.name for s in pipeline.steps})
     if unknown:
         raise ValueError(f"--force: no step named {unknown}; steps: {[s.name for s in pipeline.steps]}")
-    parser = build_parser()
-    calls = [step_options(step, pipeline, parser) for step in pipeline.steps]  # all checked before any runs
+    calls = [step_options(step, pipeline) for step in pipeline.steps]  # all checked before any runs
     pipeline.workdir.mkdir(parents=True, exist_ok=True)
     state = PipelineState(pipeline)
     results: list[StepResult] = []

@@ -7,7 +7,7 @@ workdir = "data/demo"   # folders of the steps are relative to it (itself relati
 engine = "local"        # or "ray"; ray_address = "ray://head:10001"; jobs = 2
 
 [[steps]]
-run = "zoo"             # zoo | ingest | retarget | resample | apparel | correspond | cases | bench | leaderboard
+run = "zoo"             # zoo | ingest | retarget | roles | resample | apparel | correspond | cases | bench | ...
 out = "zoo"
 characters = 16
 ```
@@ -23,10 +23,14 @@ without ``out`` writes beside its results, into ``<results>-leaderboard``, never
 results folder it reads (that would change the bench step's output and its own input, so a
 finished pipeline would redo both on every run). :data:`STEP_KINDS` says, per kind, which keys are
 the command's folders (positional arguments or ``--out``), which tables of which folder the step
-reads (its fingerprint) and what it writes (checked before a step is skipped).
+reads (its fingerprint) and what it writes (checked before a step is skipped): the datagen stages'
+kinds come from their declarations (:func:`stage_kind`), the bench steps' are declared here.
 """
 from __future__ import annotations
 
+import argparse
+import functools
+import importlib
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -52,6 +56,10 @@ class StepKind:
         jobs: the command takes ``--jobs``.
         versions: ``"module:NAME"`` version constants of the code that makes the step's output; a
             finished step runs again when one of them (or the toolkit's version) changed.
+        params: a datagen stage's params dataclass (its fields are the step's keys), else None.
+        function: ``"module:attr"`` the step calls with its params (a stage's command function).
+        module: for a command that is not a stage, the module whose ``register`` declares its parser.
+        required: option keys (not positional) a step must give.
     """
 
     command: tuple[str, ...]
@@ -62,37 +70,59 @@ class StepKind:
     engine: bool = False
     jobs: bool = False
     versions: tuple[str, ...] = ()
+    params: type | None = None
+    function: str = ""
+    module: str = ""
+    required: tuple[str, ...] = ()
+
+    @property
+    def needs(self) -> tuple[str, ...]:
+        """The keys a step must give: the positional folders and the required options."""
+        return self.positional + tuple(k for k in self.required if k not in self.positional)
+
+
+BENCH = "mimicbench.benchmark.command"  # declares the bench steps' parsers
+
+
+def stage_kind(stage) -> StepKind:
+    """The step kind of a datagen stage, from its declaration (:class:`~mimicbench.datagen.stage_runner.Stage`):
+    its params dataclass gives the keys (positional and folder fields, ``engine``/``jobs``), its
+    tables what the step reads and writes."""
+    from mimicbench.runtime.options import option_fields
+
+    fields = option_fields(stage.params)
+    key = {f.name: f.metadata.get("key") or f.name for f in fields}
+    positional = tuple(key[f.name] for f in fields if f.metadata.get("positional"))
+    folders = positional + tuple(key[f.name] for f in fields if f.metadata.get("folder") and key[f.name] not in positional)
+    reads = stage.step_reads if stage.step_reads is not None else \
+        (((stage.in_key, stage.inputs),) if stage.in_key else ())
+    writes = ((stage.out_key, stage.step_writes or tuple(t for t in stage.outputs if t != "status")),)
+    names = {f.name for f in fields}
+    return StepKind(stage.command, positional, folders, tuple((key[k], t) for k, t in reads),
+                    tuple((key[k], t) for k, t in writes), engine="engine" in names, jobs="jobs" in names,
+                    versions=stage.versions, params=stage.params, function=stage.function,
+                    required=tuple(key[f.name] for f in fields if f.metadata.get("required")))
+
+
+def _stage_kinds() -> dict[str, StepKind]:
+    from mimicbench.datagen.stages import STAGES
+
+    return {name: stage_kind(STAGES.get(name)) for name in STAGES.names()}
 
 
 STEP_KINDS = {
-    "zoo": StepKind(("zoo",), folders=("out",), writes=(("out", ("characters", "motions")),), engine=True, jobs=True,
-                   versions=("mimicbench.datagen.zoo.build:ZOO_VERSION",)),
-    "ingest": StepKind(("datagen", "ingest"), positional=("paths",), folders=("out", "paths"),
-                       reads=(("paths", None),), writes=(("out", ("characters", "motions")),),
-                       engine=True, jobs=True),
-    "retarget": StepKind(("datagen", "retarget"), positional=("motions", "characters", "out"),
-                         folders=("motions", "characters", "out"),
-                         reads=(("motions", ("characters", "motions")), ("characters", ("characters",))),
-                         writes=(("out", ("characters", "motions")),)),
-    "resample": StepKind(("datagen", "resample"), positional=("in", "out"), folders=("in", "out"),
-                         reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
-                         engine=True, jobs=True, versions=("mimicbench.datagen.resample:RESAMPLE_VERSION",)),
-    "apparel": StepKind(("datagen", "apparel"), positional=("in", "out"), folders=("in", "out"),
-                        reads=(("in", ("characters", "motions")),), writes=(("out", ("characters", "motions")),),
-                        engine=True, jobs=True, versions=("mimicbench.datagen.apparel.setup:SIM_VERSION",
-                                                            "mimicbench.datagen.apparel.file_physics:FILE_PHYSICS_VERSION")),
-    "correspond": StepKind(("datagen", "correspond"), positional=("dataset",), folders=("dataset",),
-                           reads=(("dataset", ("characters",)),), writes=(("dataset", ("pairs",)),), engine=True,
-                           jobs=True),
+    **_stage_kinds(),
     "cases": StepKind(("bench", "cases"), positional=("dataset",), folders=("dataset",),
                       reads=(("dataset", ("characters", "motions")),), writes=(("dataset", ("cases",)),),
-                      versions=("mimicbench.benchmark.protocols.apparel:CASES_VERSION",)),
+                      versions=("mimicbench.benchmark.protocols.apparel:CASES_VERSION",), module=BENCH),
     "bench": StepKind(("bench", "run"), positional=("dataset",), folders=("dataset", "out"),
-                      reads=(("dataset", ("characters", "motions", "cases")),), writes=(("out", None),), engine=True),
+                      reads=(("dataset", ("characters", "motions", "cases")),), writes=(("out", None),), engine=True,
+                      module=BENCH),
     "validity": StepKind(("bench", "validity"), positional=("dataset",), folders=("dataset", "out"),
-                         reads=(("dataset", ("characters", "motions", "cases")),), writes=(("out", None),)),
+                         reads=(("dataset", ("characters", "motions", "cases")),), writes=(("out", None),),
+                         module=BENCH),
     "leaderboard": StepKind(("bench", "leaderboard"), positional=("results",), folders=("results", "out"),
-                            reads=(("results", None),), writes=(("out", None),)),
+                            reads=(("results", None),), writes=(("out", None),), module=BENCH),
 }
 ENGINE_KEYS = ("engine", "ray_address", "jobs")  # where, not what: never part of a fingerprint
 HELP = "help"  # --help, or an abbreviation argparse expands to it, prints and runs nothing
@@ -170,7 +200,7 @@ def load_pipeline(path, workdir=None) -> Pipeline:
         if name in names:
             raise ValueError(f"{path}: step {i}: name {name!r} used twice; give each step its own name = \"...\"")
         names.add(name)
-        for key in STEP_KINDS[kind].positional + (("out",) if kind in ("zoo", "ingest") else ()):
+        for key in STEP_KINDS[kind].needs:
             if key not in raw:
                 raise ValueError(f"{path}: step {i} ({name}): missing {key} = \"...\" (a folder)")
         for key in ENGINE_KEYS:
@@ -200,11 +230,8 @@ def load_pipeline(path, workdir=None) -> Pipeline:
         _check_step_folders(path, i, step, root)
     _check_shared_outputs(path, steps, root)
     pipeline = Pipeline(name, root, steps, engine, head.get("ray_address"), jobs, path)
-    from mimicbench.cli import build_parser
-
-    parser = build_parser()
     for step in steps:
-        _, options = step_options(step, pipeline, parser)  # every option typed and checked before anything runs
+        _, options = step_options(step, pipeline)  # every option typed and checked before anything runs
         if step.kind == "bench":
             _check_methods(step, pipeline, options)
     return pipeline
@@ -291,20 +318,39 @@ def _check_step_folders(path: Path, i: int, step: Step, workdir: Path) -> None:
                                  f"<results>{LEADERBOARD_SUFFIX})")
 
 
-def step_options(step: Step, pipeline: Pipeline, parser=None) -> tuple[Callable, object]:
-    """The command function of ``step`` and its options dataclass (folders resolved, engine settings added).
+@functools.lru_cache(maxsize=None)
+def command_parser(module: str, words: tuple[str, ...]) -> argparse.ArgumentParser:
+    """The parser of the command ``words`` that ``module``'s ``register`` declares (only that
+    module's commands are built, not the whole command line; a group word such as ``datagen``,
+    which the command line adds around the module's own, is skipped)."""
+    root = argparse.ArgumentParser(add_help=False)
+    sub = root.add_subparsers()
+    importlib.import_module(module).register(sub)
+    parser = root
+    for word in words[list(words).index(next(w for w in words if w in sub.choices)):]:
+        parser = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[word]
+    return parser
 
-    ``parser``: the toolkit's parser (:func:`mimicbench.cli.build_parser`; built when None).
+
+def step_options(step: Step, pipeline: Pipeline) -> tuple[Callable, object]:
+    """The function ``step`` calls and its options dataclass (folders resolved, engine settings
+    added): a datagen stage's params dataclass, checked through the options it declares
+    (:func:`mimicbench.runtime.options.params_parser`), or the options of another command's parser.
 
     Raises:
         ValueError: naming the file and the step: an unknown option, a wrong-typed or out-of-range value.
     """
-    from mimicbench.cli import command_parser
-    from mimicbench.runtime.options import from_mapping
+    from mimicbench.runtime.options import from_mapping, params_parser, toml_keys
+    from mimicbench.runtime.registry import load_target
 
     spec = step.spec
-    command = command_parser(spec.command, parser)
-    positional = [a.dest for a in command._actions if not a.option_strings]
+    if spec.params is not None:
+        parser, names, func = params_parser(spec.params), toml_keys(spec.params), load_target(spec.function)
+    else:
+        parser = command_parser(spec.module, spec.command)
+        positional = [a.dest for a in parser._actions if not a.option_strings]
+        names = {key: positional[spec.positional.index(key)] for key in spec.positional}
+        func = parser.get_default("func")
     options = dict(step.options)
     if step.kind == "leaderboard":
         options.setdefault("out", None)  # beside the results (step.folder), never into them
@@ -313,14 +359,14 @@ def step_options(step: Step, pipeline: Pipeline, parser=None) -> tuple[Callable,
         if key in spec.folders:
             folders = [str(p) for p in step.folder(key, pipeline.workdir)]
             value = folders if isinstance(value, list) or key == "paths" else folders[0]
-        values[positional[spec.positional.index(key)] if key in spec.positional else key] = value
+        values[names.get(key, key)] = value
     if spec.engine:
         values.update(engine=pipeline.engine, **{"ray_address": pipeline.ray_address} if pipeline.ray_address else {})
     if spec.jobs and pipeline.jobs > 1:
         values["jobs"] = pipeline.jobs
     index = pipeline.steps.index(step) + 1
     where = f"{pipeline.source}: step {index} ({step.name})" if pipeline.source else f"step {index} ({step.name})"
-    return command.get_default("func"), from_mapping(command, values, where)
+    return func, from_mapping(parser, values, where)
 
 
 def step_argv(step: Step, pipeline: Pipeline) -> list[str]:

@@ -68,7 +68,7 @@ def options_class(parser: argparse.ArgumentParser) -> type:
 
 def option(default=_UNSET, *, help: str = "", flag: str | None = None, type=None, choices=None, nargs=None,
            metavar: str | None = None, positional: bool = False, required: bool = False, group: str | None = None,
-           key: str | None = None, param: bool = True, omit=_UNSET, cli: bool = True):
+           key: str | None = None, folder: bool = False, param: bool = True, omit=_UNSET, cli: bool = True):
     """A params field with its command-line form.
 
     Args:
@@ -81,6 +81,8 @@ def option(default=_UNSET, *, help: str = "", flag: str | None = None, type=None
         required: a flag that must be given.
         group: fields of the same group are mutually exclusive.
         key: the pipeline file's key when it differs from the name (``in`` for ``in_dataset``).
+        folder: the value is a folder (or file) a pipeline resolves against its workdir (a
+            positional field always is).
         param: False for a field that does not change the output (folders, processes, progress):
             left out of the stage's config.
         omit: left out of the config while it holds this value (old configs keep their fingerprint).
@@ -88,7 +90,7 @@ def option(default=_UNSET, *, help: str = "", flag: str | None = None, type=None
     """
     meta = {"cli": cli, "help": help, "flag": flag, "type": type, "choices": choices, "nargs": nargs,
             "metavar": metavar, "positional": positional, "required": required, "group": group, "key": key,
-            "param": param}
+            "folder": folder or positional, "param": param}
     if omit is not _UNSET:
         meta["omit"] = omit
     if isinstance(default, (list, dict, set)):
@@ -128,7 +130,9 @@ def add_options(parser: argparse.ArgumentParser, cls: type) -> argparse.Argument
             kw["type"] = m["type"]
         target = parser
         if m.get("group"):
-            target = groups.setdefault(m["group"], parser.add_mutually_exclusive_group())
+            if m["group"] not in groups:
+                groups[m["group"]] = parser.add_mutually_exclusive_group()
+            target = groups[m["group"]]
         if m.get("positional"):
             target.add_argument(f.name, **kw)
             continue
@@ -160,7 +164,7 @@ def config_values(params) -> dict:
 def from_namespace(parser: argparse.ArgumentParser, args: argparse.Namespace):
     """The options ``argparse`` parsed (``args``) as an instance of :func:`options_class`."""
     cls = options_class(parser)
-    return cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(cls)})
+    return cls(**{f.name: getattr(args, f.name) for f in option_fields(cls)})
 
 
 def _parse(action: argparse.Action, value):

@@ -26,4 +26,9 @@ class StageSummary:
             object.__setattr__(self, "exit_code", 1 if self.failed else 0)
 
 
-__all__ = ["StageSummary"]
+def exit_code(result) -> int:
+    """A command function's exit status: its :class:`StageSummary`'s, or the int it returned."""
+    return result.exit_code if isinstance(result, StageSummary) else int(result or 0)
+
+
+__all__ = ["StageSummary", "exit_code"]
