@@ -9,6 +9,7 @@ is the wheel's copy and nothing else.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -21,8 +22,22 @@ ROOT = Path(__file__).resolve().parents[1]
 OTHER_BASELINES = "an unrelated distribution's module"
 
 
+def source_copy(dest: Path) -> Path:
+    """The checkout's files that git tracks or would track, copied to ``dest`` (setuptools builds in the
+    source folder's ``build/``, whose leftovers from an earlier build would enter the wheel)."""
+    listed = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, check=True,
+                            capture_output=True).stdout.decode().split("\0")
+    for name in filter(None, listed):
+        src = ROOT / name
+        if src.is_file():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / name)
+    return dest
+
+
 def build_wheel(out: Path) -> Path:
-    subprocess.run([sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "--no-build-isolation",
+    source = source_copy(out / "source")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", str(source), "--no-deps", "--no-build-isolation",
                     "--quiet", "--wheel-dir", str(out)], check=True, cwd=out)
     (wheel,) = out.glob("mimicbench-*.whl")
     return wheel
