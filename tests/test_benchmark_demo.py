@@ -25,7 +25,7 @@ def test_demo_prints_a_leaderboard_with_nine_methods_and_its_protocols(tmp_path,
     # the apparel table: the bundled apparel methods on every case of the zoo's 2 apparel characters;
     # lbs_kinematic moves body vertices exactly as the ground truth does (PMD_b = 0) but not apparel
     from mimicbench.benchmark.aggregate import aggregate
-    from mimicbench.benchmark.demo import BUNDLED_APPAREL
+    from mimicbench.commands.demo import BUNDLED_APPAREL
 
     from mimicbench.benchmark.registry import get_method
 
