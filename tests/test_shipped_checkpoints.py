@@ -19,15 +19,15 @@ from mimicbench.baselines.sfpt.method import Sfpt, SfptKabschOnly
 # version of every method reading the folder -> sha256 over its .safetensors files (sorted by name,
 # each as name + NUL + bytes)
 SHIPPED = {
-    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior, MimicatInitOnly), "10",
+    "mimicat": (BUNDLED, (Mimicat, MimicatNaiveAvg, MimicatNoPrior, MimicatInitOnly), "11",
                 "f46b59fcc13c4bf0224244f17e1bac9b87c4f70c56c46bdafb6ff5c8e416b3ff"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoApparel, MmdmcGtMask), "10",
               "dc0d47f4b628021125659154d214ce3732bc043c8f252b475592a8c6cca472aa"),
     "cgt": (Cgt.shipped, (Cgt, CgtNoAttention), "4", "e7f2475c1ab545fd77731100d52c1d6832458eaf52cb1ad8c3e5ce3edacaede3"),
     "npt": (Npt.shipped, (Npt, NptConstantCode), "5",
             "2d8db86fb21597b375cade060c7926ba302417a28da4d437df4bb48f6f62b8e3"),
-    "sfpt": (Sfpt.shipped, (Sfpt, SfptKabschOnly), "3",
-             "372ac8aa20fb1b006aca386c1ce5717cd00a29f13d1d93b200de3f2276abec82"),
+    "sfpt": (Sfpt.shipped, (Sfpt, SfptKabschOnly), "4",
+             "73c2993129ee17d21afd8367e2efb615ca142e0b3b0f7a79f2f52d0dfa502d66"),
 }
 
 

@@ -1,7 +1,8 @@
 """``mimicat`` and its ablations behind the adapter API.
 
 The cascade of MimiCAT: the source's pose is read off its posed vertices (the joint fit of all
-bones, :func:`mimicbench.baselines.posing.source_pose`); the frozen shape encoder E gives shape tokens; G
+bones, :func:`mimicbench.baselines.posing.source_pose`), its keypoints re-placed where the mesh does not
+determine a parent (:mod:`mimicbench.baselines.mimicat.source_anchor`); the frozen shape encoder E gives shape tokens; G
 the soft correspondence M (at the Sinkhorn temperature ``transfer.m_temperature`` of the transfer
 checkpoint's config, 1 for checkpoints without it), read as ``transfer.m_decode`` says (``soft``
 for checkpoints without it, ``hungarian``: one to one, ``hungarian_sym``: one to one from G's M
@@ -66,7 +67,7 @@ class Mimicat(PoseTransferMethod):
         batch_size: requests run through the networks at once.
     """
 
-    metadata = MethodMetadata(name="mimicat", version="10", licence="MIT", needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="mimicat", version="11", licence="MIT", needs_training=True, citation=CITATION,
                               description="MimiCAT cascade: shape encoder, correspondence transformer G, "
                                           "pose-transfer transformer H, range model from shape, LBS (bundled checkpoint)")
     transfer_stage = "transfer"
@@ -87,6 +88,14 @@ class Mimicat(PoseTransferMethod):
     """True: each target bone's local rotation is projected into the range predicted from the
     target's shape (:mod:`mimicbench.baselines.mimicat.range_model`, the ``range`` file of the
     checkpoint folder, else the bundled one) before skinning."""
+    anchor_source = True
+    """True: the source keypoints are re-placed where the mesh does not determine a parent before
+    the initialisation reads translations from them
+    (:func:`mimicbench.baselines.mimicat.source_anchor.anchor_source_keypoints`)."""
+    determined_only = False
+    """True: G's decoded M pairs a bone the mesh determines only with a bone the mesh determines,
+    and a bone it does not determine only with one it does not
+    (:func:`mimicbench.baselines.mimicat.transfer.determined_pairs`); off by default."""
     range_exclude_self = False
     """True: the range model leaves the target's own character id out of its neighbours
     (leave-one-out checks on the zoo the range model was fitted on; never for a benchmark run)."""
@@ -100,6 +109,7 @@ class Mimicat(PoseTransferMethod):
         self._modules = None
         self._chars: dict = {}
         self._m_cache: dict = {}
+        self._det: dict = {}
         self._refiner = None
 
     def weights_fingerprint(self) -> str:
@@ -165,13 +175,12 @@ class Mimicat(PoseTransferMethod):
         import torch
 
         from mimicbench.baselines.mimicat.transfer import pose_mesh, transfer_batch
-        from mimicbench.baselines.posing import source_pose
 
         src = [self._character(r.source) for r in requests]
         tgt = [self._character(r.target) for r in requests]
         q_s, t_s = [], []
         for r in requests:
-            q, t = source_pose(r)
+            q, t = self._source_pose(r)
             q_s.append(torch.as_tensor(q, dtype=torch.float32, device=self.device))
             t_s.append(torch.as_tensor(t, dtype=torch.float32, device=self.device))
         posed = [torch.tensor(np.asarray(r.source_posed, np.float32), device=self.device) for r in requests]
@@ -189,6 +198,31 @@ class Mimicat(PoseTransferMethod):
             verts = [self._refiner.refine(r.target.character_id, r.target.vertices, r.target.faces,
                                           r.target.weights.values, v) for r, v in zip(requests, verts)]
         return verts
+
+    def _determined(self, rig) -> np.ndarray:
+        """(K,) bool, the bones of ``rig`` its posed mesh determines (skin weight spread in two
+        directions, :func:`mimicbench.geometry.transform_estimation.weight_support`), cached per character."""
+        from mimicbench.geometry.transform_estimation import weight_support
+
+        key = (rig.character_id, len(rig.vertices), len(rig.parents))
+        if key not in self._det:
+            self._det[key] = np.asarray(weight_support(rig.vertices, rig.weights), bool)
+        return self._det[key]
+
+    def _source_pose(self, request) -> tuple[np.ndarray, np.ndarray]:
+        """The source's global rotations (Ks, 4) and keypoints (Ks, 3): the shared read-off
+        (:func:`mimicbench.geometry.pose_readoff.read_rig_pose`, as
+        :func:`mimicbench.baselines.posing.source_pose`), its keypoints re-placed where the mesh
+        does not determine a parent (:func:`mimicbench.baselines.mimicat.source_anchor.anchor_source_keypoints`)."""
+        from mimicbench.baselines.mimicat.source_anchor import anchor_source_keypoints
+        from mimicbench.geometry.pose_readoff import read_rig_pose
+
+        pose = read_rig_pose(request.source, request.source_posed)
+        if not self.anchor_source or pose.supported.all():
+            return pose.rotations, pose.positions
+        rig = request.source
+        return pose.rotations, anchor_source_keypoints(pose.rotations, pose.positions, rig.keypoints, rig.parents,
+                                                       pose.supported, _weight_below(rig))
 
     def _refine(self, rig, q, p, m):
         """H's answer q (Kt, 4), p (Kt, 3) (tensors) refined for ``rig`` with the decoded M (Ks, Kt):
@@ -223,13 +257,34 @@ class Mimicat(PoseTransferMethod):
         """G's correspondence M (Ks, Kt) of each request's characters (prepared ``src``, ``tgt``),
         the soft M cached per pair, decoded as ``self.decode``; a diagnostic subclass may supply
         other matches (benchmarks/mimicat_decomposition.py)."""
-        from mimicbench.baselines.mimicat.transfer import NEEDS_REVERSE, correspondences, decode_correspondence
+        from mimicbench.baselines.mimicat.transfer import (NEEDS_REVERSE, correspondences, decode_correspondence,
+                                                           determined_pairs)
 
         m = self._modules
         forward = correspondences(m["shape"], m["corr"], src, tgt, self._m_cache, self.m_temperature)
         reverse = (correspondences(m["shape"], m["corr"], tgt, src, self._m_cache, self.m_temperature)
                    if self.decode in NEEDS_REVERSE else [None] * len(forward))
-        return [decode_correspondence(mm, self.decode, r) for mm, r in zip(forward, reverse)]
+        if not self.determined_only:
+            return [decode_correspondence(mm, self.decode, r) for mm, r in zip(forward, reverse)]
+        allowed = [determined_pairs(self._determined(r.source), self._determined(r.target)) for r in requests]
+        return [decode_correspondence(mm, self.decode, r, None if a.all() else a)
+                for mm, r, a in zip(forward, reverse, allowed)]
+
+
+def _weight_below(rig) -> np.ndarray:
+    """(K,) total skin weight of each bone of ``rig`` and its descendants."""
+    below = np.asarray(rig.weights.to_dense(), np.float64).sum(axis=0)
+    parents = np.asarray(rig.parents)
+    depth = np.zeros(len(parents), int)
+    for k in range(len(parents)):
+        a = parents[k]
+        while a >= 0:
+            depth[k] += 1
+            a = parents[a]
+    for k in np.argsort(-depth, kind="stable"):
+        if parents[k] >= 0:
+            below[parents[k]] += below[k]
+    return below
 
 
 def range_path(folder: Path) -> Path:
@@ -248,14 +303,14 @@ def _header_config(path: Path) -> dict:
 
 
 class MimicatNaiveAvg(Mimicat):
-    metadata = MethodMetadata(name="mimicat_naive_avg", version="10", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_naive_avg", version="11", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT ablation A1: plain weighted quaternion sum instead of Eq. 4")
     average = "naive"
 
 
 class MimicatNoPrior(Mimicat):
-    metadata = MethodMetadata(name="mimicat_no_prior", version="10", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_no_prior", version="11", licence="MIT", needs_training=True,
                               citation=CITATION, description="MimiCAT ablation A2: H trained without the prior L_reg, "
                                                               "no range model")
     transfer_stage = "transfer_no_prior"
@@ -263,7 +318,7 @@ class MimicatNoPrior(Mimicat):
 
 
 class MimicatInitOnly(Mimicat):
-    metadata = MethodMetadata(name="mimicat_init_only", version="10", licence="MIT", needs_training=True,
+    metadata = MethodMetadata(name="mimicat_init_only", version="11", licence="MIT", needs_training=True,
                               citation=CITATION,
                               description="MimiCAT without H: G's correspondences of both directions decoded as "
                                           "one one-to-one assignment and the structured initialisation, LBS")

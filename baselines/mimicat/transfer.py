@@ -217,7 +217,8 @@ NEEDS_REVERSE = ("hungarian_sym",)
 """Decodings that read G's correspondence of the reversed pair too."""
 
 
-def decode_correspondence(m: torch.Tensor, decode: str = "soft", m_reverse: torch.Tensor | None = None) -> torch.Tensor:
+def decode_correspondence(m: torch.Tensor, decode: str = "soft", m_reverse: torch.Tensor | None = None,
+                          allowed: np.ndarray | None = None) -> torch.Tensor:
     """The M (Ks, Kt) that H's initialisation reads from G's soft correspondence m (Ks, Kt)
     (config ``transfer.m_decode``).
 
@@ -238,6 +239,10 @@ def decode_correspondence(m: torch.Tensor, decode: str = "soft", m_reverse: torc
     symmetric: on a training zoo's cycles a third of the bones matched going out came back to
     another source bone, and those bones carried 42% of the initialisation's cycle error, an
     error of the pair, not of the pose, that H could only memorise pair by pair.
+
+    ``allowed`` (Ks, Kt) bool, for the one-to-one decodings only: the pairs the assignment may use
+    (:func:`determined_pairs`); the best assignment over them, a bone whose every allowed partner
+    is taken left unmatched. None: every pair.
     """
     if decode not in DECODES:
         raise ValueError(f"transfer.m_decode: expected one of {DECODES}, got {decode!r}")
@@ -252,8 +257,27 @@ def decode_correspondence(m: torch.Tensor, decode: str = "soft", m_reverse: torc
         scores = (m + m_reverse.T.to(m.dtype)).detach().cpu().numpy()
     else:
         scores = m.detach().cpu().numpy()
+    if allowed is not None:
+        allowed = np.asarray(allowed, bool)
+        if allowed.shape != scores.shape:
+            raise ValueError(f"allowed: expected shape {scores.shape}, got {allowed.shape}")
+        scores = np.where(allowed, scores, scores.min() - 1.0 - np.abs(scores).max() * scores.size)
     _, onehot = hungarian_match(scores, maximize=True)
+    if allowed is not None:
+        onehot = onehot * allowed
     return torch.as_tensor(onehot, dtype=m.dtype, device=m.device)
+
+
+def determined_pairs(determined_src: np.ndarray, determined_tgt: np.ndarray) -> np.ndarray:
+    """(Ks, Kt) bool: the pairs whose bones the mesh either determines on both sides or on
+    neither (:func:`mimicbench.geometry.transform_estimation.weight_support`). A bone without
+    skin weight (an artist rig's IK target, twist helper or control bone) has no pose on the
+    posed mesh, only one completed from its neighbours, and moves no vertex: matched to a bone
+    that owns vertices it hands that bone a rotation the source's mesh never showed, and the
+    return leg cannot read it back. The rule is symmetric, so the reversed pair allows the
+    transposed pairs and ``hungarian_sym`` stays one assignment of the pair."""
+    s, t = np.asarray(determined_src, bool), np.asarray(determined_tgt, bool)
+    return s[:, None] == t[None, :]
 
 
 def as_numpy_transforms(q: torch.Tensor, t: torch.Tensor) -> np.ndarray:

@@ -69,6 +69,9 @@ class FileWorld:
             kinematic bodies: contacts see the limb's speed. False: mass-0 bodies teleported to their
             poses, which contacts take as standing still. Static bodies never collide with each other
             (kinematic pairs in Bullet make no contact).
+        duplicate_ranges: each tree joint's range is the overlap of its own and those of the other
+            joints between the same two bodies, which the scene drops as duplicates
+            (:func:`~mimicbench.datagen.apparel.file_plan.build_chain`); False: its own range.
     Use as a context manager (the client is disconnected on exit).
     """
 
@@ -77,7 +80,8 @@ class FileWorld:
                  gravity: float = FILE_GRAVITY, apparel: np.ndarray | None = None,
                  max_speed: float = SimParams.max_speed,
                  contact_frequency: float = SimParams.file_contact_frequency, erp: float | None = None,
-                 sleeping: bool = False, body_velocity: bool = False):
+                 sleeping: bool = False, body_velocity: bool = False,
+                 duplicate_ranges: bool = SimParams.file_duplicate_ranges):
         import pybullet
 
         self.pb, pb = pybullet, pybullet
@@ -118,7 +122,7 @@ class FileWorld:
         self.link_of: dict[int, tuple[int, int]] = {}  # body -> (multibody id, link index)
         with tempfile.TemporaryDirectory(prefix="mimicbench-file-physics-") as tmp:
             for c, plan in enumerate(self.plan.chains):
-                build = build_chain(plan, bodies, joints, dt, metres_per_unit)
+                build = build_chain(plan, bodies, joints, dt, metres_per_unit, duplicate_ranges=duplicate_ranges)
                 path = Path(tmp) / f"chain{c}.urdf"
                 path.write_text(build.urdf)
                 mb = pb.loadURDF(str(path), basePosition=build.anchor_pos.tolist(),
@@ -345,7 +349,8 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
     with FileWorld(bodies, joints, record.keypoints, record.parents, 1.0 / (motion.fps * steps),
                    sim.file_solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed,
                    contact_frequency=sim.file_contact_frequency, erp=sim.file_erp,
-                   sleeping=sim.file_sleeping, body_velocity=sim.file_body_velocity) as world:
+                   sleeping=sim.file_sleeping, body_velocity=sim.file_body_velocity,
+                   duplicate_ranges=sim.file_duplicate_ranges) as world:
         simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles, warmup=sim.file_warmup)
         plan = world.plan
     pieces = body_pieces(record.vertices, record.keypoints, dominant_bone(record.weights, record.num_joints),
@@ -356,6 +361,7 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
         "step_rate": motion.fps * steps, "erp": sim.file_erp, "solver_iterations": sim.file_solver_iterations,
         "sleeping": sim.file_sleeping, "warmup": sim.file_warmup,
         **({"body_velocity": True} if sim.file_body_velocity else {}),  # recorded only when on
+        **({"duplicate_ranges": True} if sim.file_duplicate_ranges else {}),
         "links": sum(len(c.links) for c in plan.chains), "chains": len(plan.chains),
         "static_bodies": sum(b.mode == "static" for b in bodies), "loop_constraints": len(plan.loops),
         "dropped_joints": len(plan.dropped), "unanchored_bodies": len(plan.unanchored)})

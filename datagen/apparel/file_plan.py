@@ -208,17 +208,38 @@ def _depth(b: int, parent_of: dict) -> tuple[int, int]:
     return d, b
 
 
-def cone_of(jr: JointRecord, reverse: bool) -> tuple[Rotation, np.ndarray, bool]:
+def joint_bounds(jr: JointRecord, reverse: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A joint's rotation range (lower (3,), upper (3,)) rad on the MMD joint's axes, of its child
+    relative to its parent, the file's convention kept (lower above upper: a free axis).
+    ``reverse``: the child is body A, so the child-relative rotation is the inverse and every
+    range is negated."""
+    lo, hi = np.asarray(jr.rotation_min, np.float64), np.asarray(jr.rotation_max, np.float64)
+    return (-hi, -lo) if reverse else (lo, hi)
+
+
+def intersect_bounds(first: tuple[np.ndarray, np.ndarray], second: tuple[np.ndarray, np.ndarray]
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The range both of two joints between the same bodies allow (MMD's Bullet enforces both):
+    per axis the overlap of the two ranges, a free axis (lower above upper) taking the other's
+    range; an axis whose ranges do not overlap keeps ``first``'s."""
+    (lo1, hi1), (lo2, hi2) = first, second
+    free1, free2 = lo1 > hi1, lo2 > hi2
+    lo, hi = np.maximum(lo1, lo2), np.minimum(hi1, hi2)
+    keep = free2 | (lo > hi)  # the second is free, or the two do not overlap
+    return np.where(free1, lo2, np.where(keep, lo1, lo)), np.where(free1, hi2, np.where(keep, hi1, hi))
+
+
+def cone_of(jr: JointRecord, reverse: bool, bounds: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> tuple[Rotation, np.ndarray, bool]:
     """The spherical limit of a joint in Bullet's joint frame.
 
     Returns (C, (swing X, swing Y, twist) half-widths in radians, locked): C is the rotation from
     the joint's rest frame to the cone's centre (Euler XYZ of the range midpoints, in Bullet's
     frame); ``locked`` when all three ranges are locked (a fixed joint). ``reverse``: the child is
     body A, so the child-relative rotation is the inverse and every range is negated.
+    ``bounds``: the child-relative range to use instead of the joint's own (:func:`joint_bounds`).
     """
-    lo, hi = np.asarray(jr.rotation_min, np.float64), np.asarray(jr.rotation_max, np.float64)
-    if reverse:
-        lo, hi = -hi, -lo
+    lo, hi = joint_bounds(jr, reverse) if bounds is None else bounds
     free = lo > hi
     mid = np.where(free, 0.0, 0.5 * (lo + hi))
     half = np.where(free, FREE_HALF_WIDTH, np.minimum(0.5 * (hi - lo), FREE_HALF_WIDTH))
@@ -285,8 +306,11 @@ class ChainBuild:
 
 
 def build_chain(plan: ChainPlan, bodies: list[RigidBodyRecord], joints: list[JointRecord], dt: float,
-                metres_per_unit: float) -> ChainBuild:
-    """The URDF of one chain (see the module docstring); ``dt`` the physics step (seconds)."""
+                metres_per_unit: float, duplicate_ranges: bool = False) -> ChainBuild:
+    """The URDF of one chain (see the module docstring); ``dt`` the physics step (seconds).
+    ``duplicate_ranges``: a joint's range is the overlap of its own and those of the other joints
+    between the same two bodies (dropped from the scene as duplicates, :func:`plan_scene`; MMD's
+    Bullet enforces every one of them, :func:`intersect_bounds`); False: the tree joint's own range."""
     anchor = bodies[plan.anchor]
     a_pos, a_rot = np.asarray(anchor.position, np.float64), wxyz_rotation(anchor.rotation)
     masses = [max(float(bodies[b].mass), MIN_MASS) for b in plan.links]
@@ -302,7 +326,13 @@ def build_chain(plan: ChainPlan, bodies: list[RigidBodyRecord], joints: list[Joi
         body, jr = bodies[b], joints[j]
         pos = np.asarray(jr.position, np.float64)
         rot = wxyz_rotation(jr.rotation) * JOINT_TO_BULLET  # link frame = Bullet's joint frame at rest
-        centre, widths, locked = cone_of(jr, rev)
+        bounds = joint_bounds(jr, rev)
+        if duplicate_ranges:
+            pair = {b, plan.anchor if parent < 0 else plan.links[parent]}
+            for k, other in enumerate(joints):
+                if k != j and {int(other.body_a), int(other.body_b)} == pair:
+                    bounds = intersect_bounds(bounds, joint_bounds(other, int(other.body_a) == b))
+        centre, widths, locked = cone_of(jr, rev, bounds)
         p_pos, p_rot = (a_pos, a_rot) if parent < 0 else (link_pos[parent], link_rot[parent])
         origin_rot = p_rot.inv() * rot * centre  # the joint's zero: the cone's centre
         origin_pos = p_rot.inv().apply(pos - p_pos)

@@ -134,7 +134,13 @@ class SimParams:
     False (the default) teleports mass-0 bodies, which contacts take as
     standing still: a contact spring's damping then drags what a limb pushes, which sinks 2 v / w
     into it (27 mm at 1 m/s and 75 rad/s) and springs out when the limb slows (the strand on top
-    of Gene's head on `walk-left`; measurements in ``docs/physics-mmd.md``)."""
+    of Gene's head on `walk-left`; measurements in ``docs/physics-mmd.md``).
+    ``file_duplicate_ranges``: True limits a joint to the overlap of its own range and those of the
+    other joints between the same two bodies (MMD's Bullet enforces all of them; the scene keeps one
+    joint a pair, :func:`mimicbench.datagen.apparel.file_plan.intersect_bounds`); False (the default)
+    keeps the range of the joint the scene keeps (Gene's head strand and side hair have a second,
+    reversed joint a pair, the strand's narrower: x [-0.087, 0.175] rad where the kept joint allows
+    [-0.087, 0.524]; measurements in ``docs/notes/issue-52.md``)."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -153,6 +159,7 @@ class SimParams:
     file_sleeping: bool = False
     file_warmup: bool = True
     file_body_velocity: bool = False
+    file_duplicate_ranges: bool = False
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -182,7 +189,7 @@ _RANGES = {  # field: (low, high, low_open)
 }
 
 
-RECORDED_WHEN_ON = ("file_body_velocity",)
+RECORDED_WHEN_ON = ("file_body_velocity", "file_duplicate_ranges")
 """Opt-in :class:`SimParams` switches that enter a run's record only when true."""
 
 
