@@ -18,11 +18,12 @@ RADIUS = 0.05  # the bob, a solid sphere of 1 kg
 RATE = 240.0
 
 
-def _limited_pendulum(half_width, reverse_upper=None):
+def _limited_pendulum(half_width, reverse_upper=None, reverse_frame=(1, 0, 0, 0)):
     """A static sphere at the pivot and a 1 kg sphere bob hanging ARM below it on a joint whose X range
     is +-``half_width`` (its other axes free), no spring, no damping; with ``reverse_upper``, a second
     joint between the same bodies from the bob to the pivot whose x range is [-``reverse_upper``,
-    ``half_width``] (the bob's x relative to the pivot: [-``half_width``, ``reverse_upper``])."""
+    ``half_width``] (the bob's x relative to the pivot: [-``half_width``, ``reverse_upper``]) on the
+    axes of ``reverse_frame`` (w, x, y, z; the identity: the first joint's axes)."""
     z = np.zeros(3, np.float32)
 
     def body(i, size, pos, mode, group, mask, bone):
@@ -37,16 +38,16 @@ def _limited_pendulum(half_width, reverse_upper=None):
     joints = [JointRecord("toy", 0, "j", "", "spring_6dof", 0, 1, np.float32(PIVOT), np.float32([1, 0, 0, 0]), z, z,
                           lower, upper, z, z)]
     if reverse_upper is not None:
-        joints.append(JointRecord("toy", 1, "j-", "", "spring_6dof", 1, 0, np.float32(PIVOT), np.float32([1, 0, 0, 0]),
+        joints.append(JointRecord("toy", 1, "j-", "", "spring_6dof", 1, 0, np.float32(PIVOT), np.float32(reverse_frame),
                                   z, z, np.float32([-reverse_upper, 1.0, 1.0]), np.float32([half_width, -1.0, -1.0]),
                                   z, z))
     return bodies, joints, np.array([PIVOT, bob])
 
 
-def _swing(half_width, spin, seconds, reverse_upper=None, duplicate_ranges=False):
+def _swing(half_width, spin, seconds, reverse_upper=None, duplicate_ranges=False, reverse_frame=(1, 0, 0, 0)):
     """The bob's angle about world X (rad, minus the joint's x angle) after each step, gravity off,
     started at rest turning about the joint's x at ``spin`` rad/s."""
-    bodies, joints, keypoints = _limited_pendulum(half_width, reverse_upper)
+    bodies, joints, keypoints = _limited_pendulum(half_width, reverse_upper, reverse_frame)
     rest = rest_transforms(keypoints).astype(np.float64)
     angles = []
     with FileWorld(bodies, joints, keypoints, np.array([-1, 0]), 1.0 / RATE, 30, 0.08, gravity=0.0,
@@ -95,6 +96,11 @@ def test_a_pendulum_stops_where_the_narrower_of_two_duplicate_joints_ends():
     assert 0.2 <= both.max() < 0.2 + 2 * 3.0 / RATE
     own = -_swing(0.5, 3.0, 0.4, reverse_upper=0.2, duplicate_ranges=False)
     assert 0.5 - 1e-3 <= own.max() < 0.5 + 2 * 3.0 / RATE
+    # a duplicate whose frame is turned (a quarter turn about y, its x the tree joint's z) limits
+    # other axes: its ranges are not overlapped with the tree joint's, the bob reaches 0.5 rad
+    turned = -_swing(0.5, 3.0, 0.4, reverse_upper=0.2, duplicate_ranges=True,
+                     reverse_frame=(np.cos(np.pi / 4), 0.0, np.sin(np.pi / 4), 0.0))
+    assert 0.5 - 1e-3 <= turned.max() < 0.5 + 2 * 3.0 / RATE
 
 
 def test_duplicate_ranges_enter_the_record_only_when_on():

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from mimicbench.geometry.kinematics import (
-    array_to_transforms, forward_kinematics, local_from_global, rest_transforms, transforms_to_array,
+    array_to_transforms, forward_kinematics, local_from_global, rest_transforms, subtree_sums, transforms_to_array,
 )
 from mimicbench.geometry.quaternion import quat_angle, quat_normalize, quat_to_matrix
 
@@ -66,3 +66,10 @@ def test_transform_array_round_trip_and_unit_quaternions():
 def test_parents_must_be_topological():
     with pytest.raises(ValueError, match="topological"):
         forward_kinematics(np.tile([1.0, 0, 0, 0], (3, 1)), np.zeros((3, 3)), np.array([-1, 2, 0]))
+
+
+def test_subtree_sums_by_hand():
+    # 0 -> 1 -> 2, 0 -> 3, and a second root 4 -> 5
+    parents = np.array([-1, 0, 1, 0, -1, 4])
+    values = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    np.testing.assert_allclose(subtree_sums(values, parents), [10.0, 5.0, 3.0, 4.0, 11.0, 6.0])

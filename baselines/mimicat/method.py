@@ -215,14 +215,17 @@ class Mimicat(PoseTransferMethod):
         :func:`mimicbench.baselines.posing.source_pose`), its keypoints re-placed where the mesh
         does not determine a parent (:func:`mimicbench.baselines.mimicat.source_anchor.anchor_source_keypoints`)."""
         from mimicbench.baselines.mimicat.source_anchor import anchor_source_keypoints
+        from mimicbench.geometry.kinematics import subtree_sums
         from mimicbench.geometry.pose_readoff import read_rig_pose
+        from mimicbench.schemas.weights import as_dense
 
         pose = read_rig_pose(request.source, request.source_posed)
         if not self.anchor_source or pose.supported.all():
             return pose.rotations, pose.positions
         rig = request.source
+        weight_below = subtree_sums(as_dense(rig.weights, len(rig.parents)).sum(axis=0), rig.parents)
         return pose.rotations, anchor_source_keypoints(pose.rotations, pose.positions, rig.keypoints, rig.parents,
-                                                       pose.supported, _weight_below(rig))
+                                                       pose.supported, weight_below)
 
     def _refine(self, rig, q, p, m):
         """H's answer q (Kt, 4), p (Kt, 3) (tensors) refined for ``rig`` with the decoded M (Ks, Kt):
@@ -269,22 +272,6 @@ class Mimicat(PoseTransferMethod):
         allowed = [determined_pairs(self._determined(r.source), self._determined(r.target)) for r in requests]
         return [decode_correspondence(mm, self.decode, r, None if a.all() else a)
                 for mm, r, a in zip(forward, reverse, allowed)]
-
-
-def _weight_below(rig) -> np.ndarray:
-    """(K,) total skin weight of each bone of ``rig`` and its descendants."""
-    below = np.asarray(rig.weights.to_dense(), np.float64).sum(axis=0)
-    parents = np.asarray(rig.parents)
-    depth = np.zeros(len(parents), int)
-    for k in range(len(parents)):
-        a = parents[k]
-        while a >= 0:
-            depth[k] += 1
-            a = parents[a]
-    for k in np.argsort(-depth, kind="stable"):
-        if parents[k] >= 0:
-            below[parents[k]] += below[k]
-    return below
 
 
 def range_path(folder: Path) -> Path:

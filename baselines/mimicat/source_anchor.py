@@ -29,21 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from mimicbench.geometry.quaternion import quat_apply
-
-
-def _order(parents: np.ndarray) -> list[int]:
-    """Bone indices with every parent before its children."""
-    children: dict[int, list[int]] = {}
-    for k, p in enumerate(parents):
-        children.setdefault(int(p), []).append(k)
-    out, stack = [], list(reversed(children.get(-1, [])))
-    while stack:
-        k = stack.pop()
-        out.append(k)
-        stack.extend(reversed(children.get(k, [])))
-    if len(out) != len(parents):
-        raise ValueError(f"parents: expected a forest of {len(parents)} bones, reached {len(out)} from the roots")
-    return out
+from mimicbench.geometry.validation import check_parents
 
 
 def anchor_source_keypoints(q: np.ndarray, t: np.ndarray, rest: np.ndarray, parents: np.ndarray,
@@ -54,13 +40,14 @@ def anchor_source_keypoints(q: np.ndarray, t: np.ndarray, rest: np.ndarray, pare
         q: (K, 4) read-off global rotations (w, x, y, z), rest-relative.
         t: (K, 3) read-off posed keypoints, metres.
         rest: (K, 3) rest keypoints, metres.
-        parents: (K,) parent indices, -1 for a root.
+        parents: (K,) parent indices, -1 for a root, in the data contract's topological order
+            (``parents[k] < k``), so index order visits every parent before its children.
         supported: (K,) bool, the bones the mesh determines (``PoseReadOff.supported``).
         weight_below: (K,) total skin weight of each bone and its descendants (vertices), the
             weight of a topmost determined bone in its root's displacement.
     """
     q, t, rest = (np.asarray(a, np.float64) for a in (q, t, rest))
-    parents = np.asarray(parents)
+    parents = check_parents(parents)
     supported = np.asarray(supported, bool)
     k_bones = len(parents)
     for name, a, shape in (("q", q, (k_bones, 4)), ("t", t, (k_bones, 3)), ("rest", rest, (k_bones, 3)),
@@ -69,7 +56,6 @@ def anchor_source_keypoints(q: np.ndarray, t: np.ndarray, rest: np.ndarray, pare
             raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
     if supported.all():
         return t.copy()
-    order = _order(parents)
     has_parent = parents >= 0
     par = np.where(has_parent, parents, 0)
     # each bone's local translation in its parent's frame, as the initialisation reads it
@@ -78,7 +64,7 @@ def anchor_source_keypoints(q: np.ndarray, t: np.ndarray, rest: np.ndarray, pare
     local[has_parent] = (quat_apply(rot_back, t - t[par]) - (rest - rest[par]))[has_parent]
     root_of = np.empty(k_bones, int)
     all_above_unsupported = np.zeros(k_bones, bool)  # every ancestor of the bone is undetermined
-    for k in order:
+    for k in range(k_bones):
         p = parents[k]
         root_of[k] = k if p < 0 else root_of[p]
         all_above_unsupported[k] = p >= 0 and not supported[p] and (parents[p] < 0 or all_above_unsupported[p])
@@ -92,7 +78,7 @@ def anchor_source_keypoints(q: np.ndarray, t: np.ndarray, rest: np.ndarray, pare
             moved = quat_apply(q[parents[top]], local[top])  # (T, 3) world offset of each from rigid
             disp[r] = (w[:, None] * moved).sum(axis=0) / w.sum()
     out = np.empty_like(t)
-    for k in order:
+    for k in range(k_bones):
         p = parents[k]
         if p < 0:
             out[k] = t[k] + disp.get(k, 0.0)

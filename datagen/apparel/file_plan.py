@@ -229,6 +229,12 @@ def intersect_bounds(first: tuple[np.ndarray, np.ndarray], second: tuple[np.ndar
     return np.where(free1, lo2, np.where(keep, lo1, lo)), np.where(free1, hi2, np.where(keep, hi1, hi))
 
 
+def same_frame(first: JointRecord, second: JointRecord, tol: float = 1e-4) -> bool:
+    """Whether two joints' ranges are on the same axes (equal joint rotations, radians): only then
+    can :func:`intersect_bounds` overlap them axis by axis."""
+    return bool(np.allclose(np.asarray(first.rotation, np.float64), np.asarray(second.rotation, np.float64), atol=tol))
+
+
 def cone_of(jr: JointRecord, reverse: bool, bounds: tuple[np.ndarray, np.ndarray] | None = None
             ) -> tuple[Rotation, np.ndarray, bool]:
     """The spherical limit of a joint in Bullet's joint frame.
@@ -309,8 +315,9 @@ def build_chain(plan: ChainPlan, bodies: list[RigidBodyRecord], joints: list[Joi
                 metres_per_unit: float, duplicate_ranges: bool = False) -> ChainBuild:
     """The URDF of one chain (see the module docstring); ``dt`` the physics step (seconds).
     ``duplicate_ranges``: a joint's range is the overlap of its own and those of the other joints
-    between the same two bodies (dropped from the scene as duplicates, :func:`plan_scene`; MMD's
-    Bullet enforces every one of them, :func:`intersect_bounds`); False: the tree joint's own range."""
+    between the same two bodies on the same axes (:func:`same_frame`; dropped from the scene as
+    duplicates, :func:`plan_scene`; MMD's Bullet enforces every one of them, :func:`intersect_bounds`);
+    False: the tree joint's own range."""
     anchor = bodies[plan.anchor]
     a_pos, a_rot = np.asarray(anchor.position, np.float64), wxyz_rotation(anchor.rotation)
     masses = [max(float(bodies[b].mass), MIN_MASS) for b in plan.links]
@@ -330,7 +337,7 @@ def build_chain(plan: ChainPlan, bodies: list[RigidBodyRecord], joints: list[Joi
         if duplicate_ranges:
             pair = {b, plan.anchor if parent < 0 else plan.links[parent]}
             for k, other in enumerate(joints):
-                if k != j and {int(other.body_a), int(other.body_b)} == pair:
+                if k != j and {int(other.body_a), int(other.body_b)} == pair and same_frame(jr, other):
                     bounds = intersect_bounds(bounds, joint_bounds(other, int(other.body_a) == b))
         centre, widths, locked = cone_of(jr, rev, bounds)
         p_pos, p_rot = (a_pos, a_rot) if parent < 0 else (link_pos[parent], link_rot[parent])

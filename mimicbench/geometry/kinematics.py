@@ -83,3 +83,14 @@ def rest_transforms(rest_keypoints: np.ndarray) -> np.ndarray:
     q = np.zeros((rest.shape[0], 4))
     q[:, 0] = 1
     return transforms_to_array(q, rest)
+
+
+def subtree_sums(values: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """(K,) float64: each bone's ``values`` (K,) plus those of every bone below it. ``parents``
+    (K,) in the data contract's topological order (``parents[k] < k``), so one backward pass
+    adds every child before its parent is read."""
+    out = np.array(values, dtype=np.float64)
+    for k in range(len(parents) - 1, -1, -1):
+        if parents[k] >= 0:
+            out[parents[k]] += out[k]
+    return out

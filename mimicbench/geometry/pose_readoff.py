@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimicbench.geometry.kinematics import array_to_transforms, transforms_to_array
+from mimicbench.geometry.kinematics import array_to_transforms, subtree_sums, transforms_to_array
 from mimicbench.geometry.quaternion import quat_angle, quat_apply
 from mimicbench.geometry.rotation_average import weighted_quaternion_average
 from mimicbench.geometry.transform_estimation import estimate_transforms
@@ -91,10 +91,7 @@ def _rotations_from_skeleton(q: np.ndarray, supported: np.ndarray, parents: np.n
                              weight: np.ndarray) -> np.ndarray:
     """Rotations (K, 4) with the unsupported bones' completed (module docstring) from the read-off
     ``q`` (K, 4) of the others; ``weight`` (K,) each bone's own total skin weight."""
-    below = np.array(weight, dtype=np.float64)  # skin weight at and below each bone
-    for k in range(len(parents) - 1, -1, -1):  # parents come before children
-        if parents[k] >= 0:
-            below[parents[k]] += below[k]
+    below = subtree_sums(weight, parents)  # skin weight at and below each bone
     q = np.array(q, dtype=np.float64)
     known, from_children = supported.copy(), np.zeros(len(parents), bool)
     for k in range(len(parents) - 1, -1, -1):
