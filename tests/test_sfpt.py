@@ -253,34 +253,19 @@ def test_fitted_rotations_recover_each_handles_rotation():
                                [v[:30].mean(0), v[30:].mean(0)], atol=1e-12)
 
 
-def after_descent(st, module, batch, ctx, term: str, size: float = 1e-4) -> tuple[float, float, float, float]:
-    """``term`` before and after one gradient step of norm ``size`` on all parameters, with the gradient's norm
-    over all parameters and over the pose decoder's."""
-    loss = st.loss(module, batch, ctx)[term]
-    named = list(module.named_parameters())
-    grads = torch.autograd.grad(loss, [p for _, p in named], allow_unused=True)
-    sq = {n: float(g.pow(2).sum()) if g is not None else 0.0 for (n, _), g in zip(named, grads)}
-    norm = sum(sq.values()) ** 0.5
-    with torch.no_grad():
-        for (_, p), g in zip(named, grads):
-            if g is not None:
-                p -= size * g / norm
-    after = float(st.loss(module, batch, ctx)[term])
-    return float(loss), after, norm, sum(v for n, v in sq.items() if n.startswith("decoder.")) ** 0.5
-
-
 @pytest.mark.parametrize("term", ["total", "rec", "cross", "cycle"])
 def test_each_loss_reaches_the_decoder_and_falls_along_its_gradient(small_zoo, term):
     """A step of norm 1e-4 against the gradient lowers the term by at least half of what the gradient's norm
     predicts (Armijo's condition): a term that a few optimiser steps lower on one machine can rise on another
     (the cycle term is steep), while the first-order decrease holds everywhere."""
+    from tests.test_mmdmc_training import after_descent
     from tests.test_npt import first_batch, tiny
 
     cfg = {**tiny("sfpt"), "residual": False}
     st, module, batch, ctx = first_batch("sfpt", small_zoo, cfg)
     assert set(st.loss(module, batch, ctx)) == {"total", "rec", "cycle", "trans", "cross", "skin", "aug", "fps",
                                                 "arap"}
-    before, after, norm, decoder_norm = after_descent(st, module, batch, ctx, term)
+    before, after, norm, decoder_norm = after_descent(st, module, batch, ctx, term, part="decoder.")
     assert decoder_norm > 0.1 * norm, (decoder_norm, norm)
     assert after < before - 0.5 * 1e-4 * norm, (before, after, norm)
 

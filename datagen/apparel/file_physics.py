@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from mimicbench.datagen.apparel.file_plan import (CAPSULE_Z_TO_Y, ChainBuild, ChainPlan, bones_from_bodies, build_chain,
                                        collision_filter, plan_scene, rotation_xyzw, wxyz_rotation)
+from mimicbench.datagen.apparel.body_damping import chain_jacobian, damped_joint_velocities, differs, keep_factors
 from mimicbench.datagen.apparel.body_shapes import body_pieces
 from mimicbench.datagen.apparel.params import SimParams
 from mimicbench.datagen.apparel.selection import dominant_bone
@@ -72,6 +73,10 @@ class FileWorld:
         duplicate_ranges: each tree joint's range is the overlap of its own and those of the other
             joints between the same two bodies, which the scene drops as duplicates
             (:func:`~mimicbench.datagen.apparel.file_plan.build_chain`); False: its own range.
+        body_damping: each body of a chain whose bodies' dampings differ is damped by its own
+            linear and angular damping after every step (:mod:`mimicbench.datagen.apparel.body_damping`,
+            MMD's Bullet's per-body damping), that chain's multibody damping 0; False: every chain
+            takes one damping, its bodies' rates averaged by mass.
     Use as a context manager (the client is disconnected on exit).
     """
 
@@ -81,7 +86,8 @@ class FileWorld:
                  max_speed: float = SimParams.max_speed,
                  contact_frequency: float = SimParams.file_contact_frequency, erp: float | None = None,
                  sleeping: bool = False, body_velocity: bool = False,
-                 duplicate_ranges: bool = SimParams.file_duplicate_ranges):
+                 duplicate_ranges: bool = SimParams.file_duplicate_ranges,
+                 body_damping: bool = SimParams.file_body_damping):
         import pybullet
 
         self.pb, pb = pybullet, pybullet
@@ -156,6 +162,15 @@ class FileWorld:
                                                  physicsClientId=cid)
                 pb.changeConstraint(constraint, maxForce=ANCHOR_ACCEL * build.mass, physicsClientId=cid)
                 self.chains.append((plan, build, mb, constraint))
+        self.damped = []  # (chain, masses (L,), local inertias (L, 3), keep (L, 2)) per body-damped chain
+        for c, (plan, build, mb, _) in enumerate(self.chains):
+            lin = [float(bodies[b].linear_damping) for b in plan.links]
+            ang = [float(bodies[b].angular_damping) for b in plan.links]
+            if body_damping and differs(lin, ang):
+                pb.changeDynamics(mb, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=cid)
+                info = [pb.getDynamicsInfo(mb, li, physicsClientId=cid) for li in range(len(plan.links))]
+                self.damped.append((c, np.array([i[0] for i in info]), np.array([i[2] for i in info]),
+                                    keep_factors(lin, ang, self.dt)))
         static_index = {b: k for k, b in enumerate(self.static)}
         frames = {b: (mb, li, build.link_pos[li], build.link_rot[li])
                   for plan, build, mb, _ in self.chains for li, b in enumerate(plan.links)}
@@ -275,6 +290,29 @@ class FileWorld:
 
     def step(self) -> None:
         self.pb.stepSimulation(physicsClientId=self.client)
+        for c, masses, inertia, keep in self.damped:
+            self._damp_bodies(c, masses, inertia, keep)
+
+    def _damp_bodies(self, c: int, masses: np.ndarray, inertia: np.ndarray, keep: np.ndarray) -> None:
+        """Scale chain ``c``'s bodies' world velocities by their own factors ``keep`` (L, 2)
+        (:func:`~mimicbench.datagen.apparel.body_damping.damped_joint_velocities`; masses (L,) kg,
+        inertia (L, 3) the principal moments, kg m^2)."""
+        pb, cid = self.pb, self.client
+        plan, build, mb, _ = self.chains[c]
+        links = list(range(len(plan.links)))
+        states = pb.getLinkStates(mb, links, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=cid)
+        joints = pb.getJointStatesMultiDof(mb, links, physicsClientId=cid)
+        free = np.array([not f for f in build.fixed])
+        frames = Rotation.from_quat([s[1] for s in states]).as_matrix()
+        jac = chain_jacobian(plan.link_parents, free, np.array([s[0] for s in states]),
+                             np.array([s[4] for s in states]), frames)
+        qd = np.concatenate([np.asarray(j[1], np.float64) if f else np.zeros(3) for j, f in zip(joints, free)])
+        world_inertia = np.einsum("lab,lb,lcb->lac", frames, inertia, frames)
+        new = damped_joint_velocities(jac, np.array([s[6] + s[7] for s in states]), qd, masses, world_inertia, keep)
+        for li in links:
+            if free[li]:
+                pb.resetJointStateMultiDof(mb, li, joints[li][0], targetVelocity=new[3 * li:3 * li + 3].tolist(),
+                                           physicsClientId=cid)
 
     def start(self) -> None:
         """Nothing to ready: the joints' motors were set when the world was built."""
@@ -350,7 +388,7 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
                    sim.file_solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed,
                    contact_frequency=sim.file_contact_frequency, erp=sim.file_erp,
                    sleeping=sim.file_sleeping, body_velocity=sim.file_body_velocity,
-                   duplicate_ranges=sim.file_duplicate_ranges) as world:
+                   duplicate_ranges=sim.file_duplicate_ranges, body_damping=sim.file_body_damping) as world:
         simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles, warmup=sim.file_warmup)
         plan = world.plan
     pieces = body_pieces(record.vertices, record.keypoints, dominant_bone(record.weights, record.num_joints),
@@ -362,6 +400,7 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
         "sleeping": sim.file_sleeping, "warmup": sim.file_warmup,
         **({"body_velocity": True} if sim.file_body_velocity else {}),  # recorded only when on
         **({"duplicate_ranges": True} if sim.file_duplicate_ranges else {}),
+        **({"body_damping": True} if sim.file_body_damping else {}),
         "links": sum(len(c.links) for c in plan.chains), "chains": len(plan.chains),
         "static_bodies": sum(b.mode == "static" for b in bodies), "loop_constraints": len(plan.loops),
         "dropped_joints": len(plan.dropped), "unanchored_bodies": len(plan.unanchored)})

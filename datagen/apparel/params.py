@@ -140,7 +140,12 @@ class SimParams:
     joint a pair, :func:`mimicbench.datagen.apparel.file_plan.intersect_bounds`); False (the default)
     keeps the range of the joint the scene keeps (Gene's head strand and side hair have a second,
     reversed joint a pair, the strand's narrower: x [-0.087, 0.175] rad where the kept joint allows
-    [-0.087, 0.524]; measurements in ``docs/notes/issue-52.md``)."""
+    [-0.087, 0.524]; measurements in ``docs/notes/issue-52.md``).
+    ``file_body_damping``: True damps each body of a chain whose bodies' dampings differ by its own
+    linear and angular damping, in world velocity, as MMD's Bullet does
+    (:mod:`mimicbench.datagen.apparel.body_damping`); False (the default) gives every chain one
+    Bullet multibody damping, its bodies' rates averaged by mass (pybullet damps a multibody as a
+    whole; Gene's head strand then whips its 50 g tip, whose own damping is 1)."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -160,6 +165,7 @@ class SimParams:
     file_warmup: bool = True
     file_body_velocity: bool = False
     file_duplicate_ranges: bool = False
+    file_body_damping: bool = False
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -189,7 +195,7 @@ _RANGES = {  # field: (low, high, low_open)
 }
 
 
-RECORDED_WHEN_ON = ("file_body_velocity", "file_duplicate_ranges")
+RECORDED_WHEN_ON = ("file_body_velocity", "file_duplicate_ranges", "file_body_damping")
 """Opt-in :class:`SimParams` switches that enter a run's record only when true."""
 
 
