@@ -36,7 +36,11 @@ class CheckpointedMethod(PoseTransferMethod):
     def weights_fingerprint(self) -> str:
         from mimicbench.schemas.fingerprint import files_fingerprint
 
-        return files_fingerprint({self.stage: checkpoint_path(self.checkpoint, self.stage)})
+        return files_fingerprint({self.stage: self.weights_path()})
+
+    def weights_path(self) -> Path:
+        """The weights file this method loads (:func:`checkpoint_path` of ``stage``)."""
+        return checkpoint_path(self.checkpoint, self.stage)
 
     def setup(self, device: str = "cpu") -> None:
         """Build the stage's network from the checkpoint's config (``self.config``) and load its weights."""
@@ -45,6 +49,6 @@ class CheckpointedMethod(PoseTransferMethod):
 
         self.device = device
         stage = trainable(self.stage).stage(self.stage)
-        path = checkpoint_path(self.checkpoint, self.stage)
+        path = self.weights_path()
         self.module = load_module(path, lambda cfg: stage.build(cfg, None), device)
         self.config = read_header(path)["config"]

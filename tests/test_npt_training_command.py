@@ -34,6 +34,7 @@ def shipped_header(name: str) -> dict:
 def test_documented_commands_parse_and_match_the_shipped_headers():
     from mimicbench.cli import build_parser
     from mimicbench.training.config_overrides import apply_overrides
+    from mimicbench.training.loop import stage_setting
     from mimicbench.training.registry import trainable
 
     parser = build_parser()
@@ -47,9 +48,10 @@ def test_documented_commands_parse_and_match_the_shipped_headers():
     assert set(trained) == set(SHIPPED)
     for name, (config, args) in trained.items():
         header = shipped_header(name)
-        assert header["model"] == name and header["stage"] == name and header["seed"] == args.seed
+        last = trainable(name).stages[-1].name  # the stage whose weights ship (sfpt: its decoder stage)
+        assert header["model"] == name and header["stage"] == last and header["seed"] == args.seed
         assert header["config"] == config, name
-        epochs = args.epochs if args.epochs is not None else config["epochs"]  # --epochs trains past the preset's
+        epochs = args.epochs if args.epochs is not None else stage_setting(config, last, "epochs", 1)  # --epochs: every stage
         assert header["epoch"] == epochs and header["dataset"]["name"] == Path(args.dataset).name
         assert header["dataset"].get("tables"), f"{name}: the header records no dataset fingerprint"
 

@@ -26,8 +26,8 @@ SHIPPED = {
     "cgt": (Cgt.shipped, (Cgt, CgtNoAttention), "4", "e7f2475c1ab545fd77731100d52c1d6832458eaf52cb1ad8c3e5ce3edacaede3"),
     "npt": (Npt.shipped, (Npt, NptConstantCode), "5",
             "2d8db86fb21597b375cade060c7926ba302417a28da4d437df4bb48f6f62b8e3"),
-    "sfpt": (Sfpt.shipped, (Sfpt, SfptKabschOnly), "3",
-             "372ac8aa20fb1b006aca386c1ce5717cd00a29f13d1d93b200de3f2276abec82"),
+    "sfpt": (Sfpt.shipped, (Sfpt, SfptKabschOnly), "5",
+             "ef5c00014737bdf7de6f1bb815daf0cd848817ece02a9775268d9ad4ec634a5c"),
 }
 
 

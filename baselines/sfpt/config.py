@@ -12,6 +12,10 @@ character against its Kabsch-posed self, 0.3), ``skin`` (contrastive skinning, 0
 augmented target's weights), ``fps`` (Chamfer of handle centres to farthest-point samples), ``arap``
 (100, each of three deformed meshes); ``fps_per_handle`` samples per handle (4); ``residual`` (ours, ``cpu``
 only) the pose decoder answers corrections to the Kabsch fit (:class:`mimicbench.baselines.sfpt.model.PoseDecoder`).
+
+``decoder``: the settings of the second stage, the pose decoder alone on the centred reconstruction with the
+Kabsch translations (:mod:`mimicbench.baselines.sfpt.decoder_stage`; ``epochs`` 0 in ``paper``, which trains it
+jointly).
 """
 from __future__ import annotations
 
@@ -19,10 +23,14 @@ COMMON = {"handles": 40, "cross_share": 0.5, "aug_scale": 0.2, "fps_per_handle":
           "w_rec": 1.0, "w_cycle": 1.0, "w_trans": 1.0, "w_cross": 0.3, "w_skin": 0.03, "w_aug": 1.0,
           "w_fps": 1.0, "w_arap": 100.0}
 
+DECODER = {"examples": 1500, "pair_share": 0.5, "pool_seed": 11, "batch_size": 4, "batches_per_epoch": 300,
+           "w_rec": 1.0, "w_arap": 100.0, "w_trans": 0.0}
+
 CPU = {**COMMON, "hidden": 16, "code": 64, "residual": True, "batch_size": 1, "batches_per_epoch": 40, "epochs": 4,
-       "lr": 1e-3, "weight_decay": 1e-4, "grad_clip": 1.0}
+       "lr": 1e-3, "weight_decay": 1e-4, "grad_clip": 1.0,
+       "decoder": {**DECODER, "epochs": 6, "lr": 1e-3, "weight_decay": 1e-4, "grad_clip": None}}
 
 PAPER = {**COMMON, "hidden": 64, "code": 128, "residual": False, "batch_size": 4, "batches_per_epoch": 250, "epochs": 500,
-         "lr": 1e-4, "weight_decay": 1e-2}
+         "lr": 1e-4, "weight_decay": 1e-2, "decoder": {**DECODER, "epochs": 0}}
 
 CONFIGS = {"cpu": CPU, "paper": PAPER}

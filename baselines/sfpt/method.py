@@ -21,7 +21,8 @@ character's own rest mesh.
 ``sfpt_kabsch_only`` (:class:`SfptKabschOnly`) replaces step 3 by the Kabsch fit itself.
 
 Weights: ``checkpoints/sfpt.safetensors`` next to this file (shipped), or a training run given as
-``checkpoint=`` or by ``MIMICBENCH_SFPT_CHECKPOINT`` (``RUN/sfpt/model.safetensors``).
+``checkpoint=`` or by ``MIMICBENCH_SFPT_CHECKPOINT``: its last stage, ``RUN/decoder/model.safetensors``
+(the pose decoder trained on), else ``RUN/sfpt/model.safetensors``.
 """
 from __future__ import annotations
 
@@ -49,7 +50,7 @@ class Sfpt(CheckpointedMethod):
         arap: run the test-time ARAP refinement (step 5).
     """
 
-    metadata = MethodMetadata(name="sfpt", version="3", licence=LICENCE, needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="sfpt", version="5", licence=LICENCE, needs_training=True, citation=CITATION,
                               protocols=("h2h", "cct", "apparel"), reads_rig=False,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="Skeleton-free Pose Transfer (40 learned handles, EdgeConv over mesh "
@@ -66,13 +67,22 @@ class Sfpt(CheckpointedMethod):
         self._chars: dict = {}
         self._refiner = None
 
+    def weights_path(self) -> Path:
+        """``sfpt.safetensors`` (shipped), else a run's ``decoder`` stage, else its ``sfpt`` stage."""
+        from mimicbench.baselines.checkpointed import checkpoint_path
+
+        run_decoder = self.checkpoint / "decoder" / "model.safetensors"
+        if not (self.checkpoint / f"{self.stage}.safetensors").is_file() and run_decoder.is_file():
+            return run_decoder
+        return checkpoint_path(self.checkpoint, self.stage)
+
     def _character(self, vertices: np.ndarray, faces: np.ndarray, key) -> dict:
         """Cached tensors of a rest mesh in its unit-height frame: ``rest`` (N, 3), ``faces`` (M, 3),
         ``edges`` (E, 2), ``normals`` (N, 3), ``weights`` (N, H) and its shape ``code`` (H, code)."""
         import torch
 
         from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
-        from mimicbench.baselines.sfpt.training import unit_frame
+        from mimicbench.baselines.sfpt.frame import unit_frame
 
         if key not in self._chars:
             rest = torch.as_tensor(unit_frame(vertices, vertices), device=self.device)
@@ -92,7 +102,7 @@ class Sfpt(CheckpointedMethod):
 
         from mimicbench.baselines.sfpt.handles import deform, transform_matrices
         from mimicbench.baselines.sfpt.mesh_graph import vertex_normals
-        from mimicbench.baselines.sfpt.training import unit_frame
+        from mimicbench.baselines.sfpt.frame import unit_frame
         from mimicbench.geometry.mesh import unit_height_frame
 
         s = self._character(source.vertices, source.faces, (source.character_id, len(source.vertices)))
@@ -143,7 +153,7 @@ class SfptKabschOnly(Sfpt):
     """Ablation of ``sfpt``: the pose decoder replaced by the bare Kabsch fit of each source handle (the
     learned handle weights and test-time ARAP kept)."""
 
-    metadata = MethodMetadata(name="sfpt_kabsch_only", version="3", licence=LICENCE, needs_training=True,
+    metadata = MethodMetadata(name="sfpt_kabsch_only", version="5", licence=LICENCE, needs_training=True,
                               citation=CITATION, protocols=("h2h", "cct", "apparel"), reads_rig=False,
                               tags=("learned", "published", "ablation"),
                               description="sfpt with its pose decoder replaced by the handles' Kabsch fit")

@@ -163,3 +163,10 @@ class SkeletonFreePoseTransfer(nn.Module):
             return kabsch
         pose = self.pose_code(source_rest, source_posed, source_normals, source_weights, source_edges)
         return self.decoder(pose, target_code, kabsch)
+
+
+def build_sfpt(config: dict, context=None) -> SkeletonFreePoseTransfer:
+    """The network of a config (``hidden``, ``handles``, ``code``, ``residual``); ``context`` (a
+    training stage's, unused) lets it serve as a stage's builder."""
+    return SkeletonFreePoseTransfer(config["hidden"], config["handles"], config["code"],
+                                    config.get("residual", False))

@@ -1,6 +1,8 @@
-"""SFPT's training stage for the shared trainer (``mimicbench train sfpt DATASET --out RUN``).
+"""SFPT's training stages for the shared trainer (``mimicbench train sfpt DATASET --out RUN``).
 
-One stage, ``sfpt``. Each example has three characters, every vertex of each, in its own unit-height rest
+Two stages: ``sfpt`` (every network, the eight published terms; below) and ``decoder`` (the pose decoder
+alone on the centred reconstruction, the other networks frozen: :mod:`mimicbench.baselines.sfpt.decoder_stage`).
+Stage ``sfpt``: each example has three characters, every vertex of each, in its own unit-height rest
 frame: a source A posed by a frame of its clips, a target B with the ground truth of that pose (a
 same-skeleton pair, share ``cross_share``, else A itself: :class:`mimicbench.baselines.pose_pairs.PosePool`), and a
 third character C of any category (another character than B, unpaired). With the model's handle weights
@@ -29,22 +31,12 @@ from mimicbench.baselines.sfpt.config import CONFIGS
 from mimicbench.baselines.sfpt.handles import deform, handle_centres, kabsch_transforms, transform_matrices
 from mimicbench.baselines.sfpt.losses import arap_edges, chamfer, kl, l1, skinning_contrast, transformation_loss
 from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
-from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer
-from mimicbench.geometry.mesh import unit_height_frame
+from mimicbench.baselines.sfpt.decoder_stage import batches_decoder, build_decoder, loss_decoder
+from mimicbench.baselines.sfpt.frame import unit_frame
+from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer, build_sfpt
 from mimicbench.training.batching import rank_batches
 from mimicbench.training.registry import make_trainable
 from mimicbench.training.stage import StageContext, TrainStage
-
-
-def build_sfpt(config: dict, context: StageContext | None = None) -> SkeletonFreePoseTransfer:
-    return SkeletonFreePoseTransfer(config["hidden"], config["handles"], config["code"],
-                                    config.get("residual", False))
-
-
-def unit_frame(vertices: np.ndarray, rest: np.ndarray) -> np.ndarray:
-    """(N, 3) float32 ``vertices`` in the unit-height frame of ``rest`` (its box centre, its height)."""
-    centre, height = unit_height_frame(rest)
-    return ((np.asarray(vertices, np.float64) - centre) / height).astype(np.float32)
 
 
 def _item(pool: PosePool, source: str, target: str, third: str, config: dict, rng: np.random.Generator) -> dict:
@@ -153,6 +145,7 @@ def loss_sfpt(module, batch, context) -> dict:
     return {"total": total, **terms}
 
 
-STAGES = [TrainStage("sfpt", build_sfpt, batches_sfpt, loss_sfpt)]
+STAGES = [TrainStage("sfpt", build_sfpt, batches_sfpt, loss_sfpt),
+          TrainStage("decoder", build_decoder, batches_decoder, loss_decoder, needs=("sfpt",))]
 
 TRAINABLE = make_trainable("sfpt", STAGES, CONFIGS)
