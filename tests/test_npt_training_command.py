@@ -1,6 +1,6 @@
 """The documented training commands of the published baselines (docs/methods/published-deviations.md)
-parse, give the config and seed each shipped checkpoint's header holds, and (slow) build a dataset with
-the table fingerprints that header recorded: a change to the zoo or the resampling that makes the
+parse, give the config and seed each shipped checkpoint's header holds, and (slow) build the datasets
+they train on with the table fingerprints each header recorded: a change to the zoo or the resampling that makes the
 documented commands build other meshes than the shipped weights saw fails here."""
 from __future__ import annotations
 
@@ -61,15 +61,18 @@ def test_documented_commands_build_the_dataset_the_shipped_weights_saw(tmp_path)
     from mimicbench.cli import main
     from mimicbench.training.checkpoint import dataset_provenance
 
-    built = None
+    trains_on = {}  # model -> the dataset folder its documented `train` command reads
     for argv in doc_commands():
-        if argv[0] != "mimicbench" or argv[1] == "train":
+        if argv[0] != "mimicbench":
             continue
         argv = [a.replace("data/", f"{tmp_path}/") for a in argv[1:]]
+        if argv[0] == "train":
+            trains_on[argv[1]] = argv[2]
+            continue
         assert main(argv) in (0, None), argv
-        built = argv[-1]
-    tables = dataset_provenance(built)["tables"]
+    assert set(trains_on) == set(SHIPPED)
     for name in SHIPPED:
+        tables = dataset_provenance(trains_on[name])["tables"]
         recorded = shipped_header(name)["dataset"]["tables"]
         for table in TRAINED_ON:  # the tables the trainers read (``status`` holds run times, not data)
             assert recorded[table] == tables[table], (

@@ -23,9 +23,9 @@ SHIPPED = {
                 "f46b59fcc13c4bf0224244f17e1bac9b87c4f70c56c46bdafb6ff5c8e416b3ff"),
     "mmdmc": (CHECKPOINTS, (Mmdmc, MmdmcBodyOnly, MmdmcNoApparel, MmdmcGtMask), "10",
               "dc0d47f4b628021125659154d214ce3732bc043c8f252b475592a8c6cca472aa"),
-    "cgt": (Cgt.shipped, (Cgt, CgtNoAttention), "4", "e7f2475c1ab545fd77731100d52c1d6832458eaf52cb1ad8c3e5ce3edacaede3"),
-    "npt": (Npt.shipped, (Npt, NptConstantCode), "5",
-            "2d8db86fb21597b375cade060c7926ba302417a28da4d437df4bb48f6f62b8e3"),
+    "cgt": (Cgt.shipped, (Cgt, CgtNoAttention), "5", "a51c551865725fcc97ea667551970467e1f6ba8ffd0df215bcdfd76876f2186b"),
+    "npt": (Npt.shipped, (Npt, NptConstantCode), "6",
+            "6494bcdaf4a9aaf532ae62cd82cbaa4dc9801072ee960c6ffaf6e425cea8fc1c"),
     "sfpt": (Sfpt.shipped, (Sfpt, SfptKabschOnly), "5",
              "ef5c00014737bdf7de6f1bb815daf0cd848817ece02a9775268d9ad4ec634a5c"),
 }

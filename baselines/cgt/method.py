@@ -26,7 +26,7 @@ LICENCE = ("MIT (this re-implementation and its weights, trained here); the auth
 class Cgt(Npt):
     """CGT with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="cgt", version="4", licence=LICENCE, needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="cgt", version="5", licence=LICENCE, needs_training=True, citation=CITATION,
                               reads_rig=False,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="CGT (shared point encoder, a CGPBlock before each of four SPAdaIN blocks; "
@@ -54,7 +54,7 @@ class CgtNoAttention(Cgt):
     """Ablation of ``cgt``: every CGPBlock removed (the decoder stream never reads the pose), with the
     shipped (or a given) weights."""
 
-    metadata = MethodMetadata(name="cgt_no_attention", version="4", licence=LICENCE, needs_training=True,
+    metadata = MethodMetadata(name="cgt_no_attention", version="5", licence=LICENCE, needs_training=True,
                               citation=CITATION, reads_rig=False, tags=("learned", "published", "ablation"),
                               description="cgt with its attention (CGPBlocks) removed")
 

@@ -31,7 +31,7 @@ LICENCE = ("MIT (this re-implementation and its weights, trained here); the auth
 class Npt(CheckpointedMethod):
     """Neural Pose Transfer with the shipped (or a given) checkpoint."""
 
-    metadata = MethodMetadata(name="npt", version="5", licence=LICENCE, needs_training=True, citation=CITATION,
+    metadata = MethodMetadata(name="npt", version="6", licence=LICENCE, needs_training=True, citation=CITATION,
                               reads_rig=False,
                               tags=("learned", "published", "re-implemented from the paper"),
                               description="Neural Pose Transfer (max-pool pose code, SPAdaIN decoder whose first block has "
@@ -74,7 +74,7 @@ class NptConstantCode(Npt):
     """Ablation of ``npt``: the decoder conditioned on a constant code (zeros) instead of the source's pose
     code, with the shipped (or a given) weights; what is left is what the identity mesh alone gives."""
 
-    metadata = MethodMetadata(name="npt_constant_code", version="5", licence=LICENCE, needs_training=True,
+    metadata = MethodMetadata(name="npt_constant_code", version="6", licence=LICENCE, needs_training=True,
                               citation=CITATION, reads_rig=False, tags=("learned", "published", "ablation"),
                               description="npt with its pose code replaced by a constant (zeros)")
 
