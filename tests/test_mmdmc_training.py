@@ -86,8 +86,8 @@ def after_descent(st, module, batch, ctx, term: str = "total", size: float = 1e-
         for (_, p), g in zip(named, grads):
             if g is not None:
                 p -= size * g / norm
-    after = float(st.loss(module, batch, ctx)[term])
-    return float(loss), after, norm, sum(v for n, v in sq.items() if n.startswith(part)) ** 0.5
+    after = float(st.loss(module, batch, ctx)[term].detach())
+    return float(loss.detach()), after, norm, sum(v for n, v in sq.items() if n.startswith(part)) ** 0.5
 
 
 def descends(st, module, batch, ctx, term: str = "total", size: float = 1e-4) -> bool:
