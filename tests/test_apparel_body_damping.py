@@ -209,15 +209,3 @@ def test_each_body_keeps_its_own_damping_on_a_two_body_pendulum():
     moment = np.array([ARM ** 2, (2 * ARM) ** 2]) + 0.4 * 0.02 ** 2
     assert _pendulum_decay(True) == pytest.approx(0.5 * (moment * c).sum() / moment.sum(), rel=0.03)
     assert _pendulum_decay(False) == pytest.approx(0.5 * c.mean(), rel=0.03)
-
-
-def test_body_damping_enters_the_record_only_when_on():
-    import dataclasses
-
-    from mimicbench.datagen.apparel.params import ApparelParams, SimParams, params_from_json
-
-    off = ApparelParams()
-    on = ApparelParams(dataclasses.replace(SimParams(), file_body_damping=True))
-    assert "file_body_damping" not in off.to_json()["simulation"]
-    assert on.to_json()["simulation"]["file_body_damping"] is True
-    assert params_from_json(on.to_json()) == on

@@ -174,15 +174,16 @@ def test_a_moving_body_pushes_apparel_at_its_own_speed_when_contacts_see_it_move
     assert moving.min() > -speed / w and moving[-12:].mean() > -0.1 * 2 * speed / w
 
 
-def test_an_opt_in_switch_enters_the_record_only_when_on():
-    """Off, ``file_body_velocity`` is absent from the run's JSON (the fingerprint of a run made without the
+@pytest.mark.parametrize("switch", ["file_body_velocity", "file_duplicate_ranges", "file_body_damping"])
+def test_an_opt_in_switch_enters_the_record_only_when_on(switch):
+    """Off, an opt-in switch is absent from the run's JSON (the fingerprint of a run made without the
     switch); on, it is there; both read back to the same parameters."""
     import dataclasses
 
     from mimicbench.datagen.apparel.params import ApparelParams, SimParams, params_from_json
 
     off = ApparelParams()
-    on = ApparelParams(dataclasses.replace(SimParams(), file_body_velocity=True))
-    assert "file_body_velocity" not in off.to_json()["simulation"]
-    assert on.to_json()["simulation"]["file_body_velocity"] is True
+    on = ApparelParams(dataclasses.replace(SimParams(), **{switch: True}))
+    assert switch not in off.to_json()["simulation"]
+    assert on.to_json()["simulation"][switch] is True
     assert params_from_json(off.to_json()) == off and params_from_json(on.to_json()) == on

@@ -101,15 +101,3 @@ def test_a_pendulum_stops_where_the_narrower_of_two_duplicate_joints_ends():
     turned = -_swing(0.5, 3.0, 0.4, reverse_upper=0.2, duplicate_ranges=True,
                      reverse_frame=(np.cos(np.pi / 4), 0.0, np.sin(np.pi / 4), 0.0))
     assert 0.5 - 1e-3 <= turned.max() < 0.5 + 2 * 3.0 / RATE
-
-
-def test_duplicate_ranges_enter_the_record_only_when_on():
-    import dataclasses
-
-    from mimicbench.datagen.apparel.params import ApparelParams, params_from_json
-
-    off = ApparelParams()
-    on = ApparelParams(dataclasses.replace(SimParams(), file_duplicate_ranges=True))
-    assert "file_duplicate_ranges" not in off.to_json()["simulation"]
-    assert on.to_json()["simulation"]["file_duplicate_ranges"] is True
-    assert params_from_json(on.to_json()) == on
