@@ -7,7 +7,7 @@ only the pose decoder to pose the target like its ground truth, in a way that ca
 stands (the benchmark's h2h ranks by PMD after centring both meshes on their vertex means, so placement is
 not what a transfer is scored on):
 
-- the decoder's **translations are the source handles' Kabsch translations** (:func:`rotation_residual`):
+- the decoder's **translations are the source handles' Kabsch translations** (:func:`~mimicbench.baselines.sfpt.handles.with_translations`):
   it learns only each handle's rotation; the last layer's translation rows are zero at build and receive no
   gradient, so the trained decoder answers the Kabsch translation itself at test time too;
 - ``rec``: the mean Euclidean vertex distance between the deformed target and its ground truth, **both
@@ -36,7 +36,8 @@ import torch
 
 from mimicbench.baselines.pose_pairs import PosePool
 from mimicbench.baselines.sfpt.frame import unit_frame
-from mimicbench.baselines.sfpt.handles import deform, handle_centres, kabsch_transforms, transform_matrices
+from mimicbench.baselines.sfpt.handles import (deform, handle_centres, kabsch_transforms, transform_matrices,
+                                                with_translations)
 from mimicbench.baselines.sfpt.losses import arap_edges, quaternion_loss
 from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
 from mimicbench.baselines.sfpt.model import SkeletonFreePoseTransfer, build_sfpt
@@ -75,11 +76,6 @@ def build_decoder(config: dict, context: StageContext) -> SkeletonFreePoseTransf
             module.decoder.net[-1].weight[:3] = 0.0
             module.decoder.net[-1].bias[:3] = 0.0
     return module
-
-
-def rotation_residual(pred: torch.Tensor, kabsch: torch.Tensor) -> torch.Tensor:
-    """(H, 7) the predicted transforms (H, 7) with their translations replaced by the Kabsch fit's (H, 7)."""
-    return torch.cat([kabsch[..., :3], pred[..., 3:]], -1)
 
 
 def centred_distance(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -155,11 +151,11 @@ def batches_decoder(config: dict, context: StageContext, rng: np.random.Generato
 
 def decoder_terms(module: SkeletonFreePoseTransfer, it: dict) -> dict:
     """``rec``, ``arap`` and ``trans`` of one example (tensors as :func:`encode_example` makes them)."""
-    pred = rotation_residual(module.decoder(it["pose"], it["code"], it["kabsch"]), it["kabsch"])
+    pred = with_translations(module.decoder(it["pose"], it["code"], it["kabsch"]), it["kabsch"][:, :3])
     rest, truth, weights = it["rest"], it["truth"], it["weights"]
     moved = deform(rest, weights, *transform_matrices(pred))
     shift = handle_centres(truth, weights) - handle_centres(rest, weights)
-    with_shift = deform(rest, weights, *transform_matrices(torch.cat([shift, pred[:, 3:]], -1)))
+    with_shift = deform(rest, weights, *transform_matrices(with_translations(pred, shift)))
     return {"rec": 0.5 * (centred_distance(moved, truth) + centred_distance(with_shift, truth)),
             "arap": arap_edges(rest, moved, it["edges"]),
             "trans": 0.5 * quaternion_loss(pred[:, 3:], it["fit"][:, 3:])}

@@ -78,3 +78,9 @@ def transform_matrices(transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Te
 
     q = torch.nn.functional.normalize(transforms[..., 3:], dim=-1, eps=1e-12)
     return quat_to_matrix_torch(q), transforms[..., :3]
+
+
+def with_translations(transforms: torch.Tensor, translations: torch.Tensor) -> torch.Tensor:
+    """(..., H, 7) ``transforms`` (translation, then quaternion) with their translations replaced by
+    ``translations`` (..., H, 3)."""
+    return torch.cat([translations, transforms[..., 3:]], -1)

@@ -28,7 +28,8 @@ import torch
 from mimicbench.baselines.cgt.sampling import farthest_points
 from mimicbench.baselines.pose_pairs import PosePool
 from mimicbench.baselines.sfpt.config import CONFIGS
-from mimicbench.baselines.sfpt.handles import deform, handle_centres, kabsch_transforms, transform_matrices
+from mimicbench.baselines.sfpt.handles import (deform, handle_centres, kabsch_transforms, transform_matrices,
+                                                with_translations)
 from mimicbench.baselines.sfpt.losses import arap_edges, chamfer, kl, l1, skinning_contrast, transformation_loss
 from mimicbench.baselines.sfpt.mesh_graph import mesh_edges, vertex_normals
 from mimicbench.baselines.sfpt.decoder_stage import batches_decoder, build_decoder, loss_decoder
@@ -86,11 +87,6 @@ def _deformed(rest, weights, transforms):
     return deform(rest, weights, r, t)
 
 
-def _with_translations(transforms: torch.Tensor, translations: torch.Tensor) -> torch.Tensor:
-    """(H, 7) ``transforms`` with their translations replaced by ``translations`` (H, 3)."""
-    return torch.cat([translations, transforms[..., 3:]], -1)
-
-
 def example_losses(module: SkeletonFreePoseTransfer, it: dict) -> dict:
     """The eight terms of one example (tensors as :func:`_item` makes them)."""
     rng = np.random.default_rng(int(it["seed"]))
@@ -105,7 +101,7 @@ def example_losses(module: SkeletonFreePoseTransfer, it: dict) -> dict:
     def on_b(pred):
         """The two deformed B meshes of a prediction and their L1 term against B's ground truth."""
         out = _deformed(b_rest, w["b"], pred)
-        gtt = _deformed(b_rest, w["b"], _with_translations(pred, b_shift))
+        gtt = _deformed(b_rest, w["b"], with_translations(pred, b_shift))
         return out, 0.5 * (l1(out, b_truth) + l1(gtt, b_truth))
 
     a_normals = (normals["a"], vertex_normals(it["a_posed"], it["a_faces"]))
@@ -117,7 +113,7 @@ def example_losses(module: SkeletonFreePoseTransfer, it: dict) -> dict:
     cross_v = _deformed(c_rest, w["c"], cross_pred)
     superv = _deformed(c_rest, w["c"], fit_b).detach()
     c_shift = (handle_centres(superv, wd["c"]) - handle_centres(c_rest, wd["c"])).detach()
-    cross_gtt = _deformed(c_rest, w["c"], _with_translations(cross_pred, c_shift))
+    cross_gtt = _deformed(c_rest, w["c"], with_translations(cross_pred, c_shift))
     cross = 0.5 * (l1(cross_v, superv) + l1(cross_gtt, superv))
     c_normals = (normals["c"], vertex_normals(cross_v.detach(), it["c_faces"]))
     pred2 = module.predict(c_rest, cross_v, c_normals, wd["c"], it["c_edges"], code["b"])
