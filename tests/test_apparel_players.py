@@ -135,10 +135,11 @@ def test_chains_never_sleep():
         assert world.body_poses()[0][1][0] - start[0] > 0.1
 
 
-def _pushed_bob_gaps(speed, body_velocity):
+def _pushed_bob(speed, **world):
     """A bob hanging at rest, struck and pushed along +X by a static (bone-following) box moving at
-    ``speed`` m/s for 0.3 s: the gap (metres) between the bob's surface and the box's face after each
-    step, negative when the bob is sunk into the box."""
+    ``speed`` m/s for 0.3 s, in a FileWorld with the keyword arguments ``world``. Returns the gap
+    (metres) between the bob's surface and the box's face after each step, negative when the bob is
+    sunk into the box, and the bob's X (metres) after each step."""
     half = 0.05
     bodies, joints, keypoints = _pendulum(np.array([0.0, -ARM, 0.0]))
     start = PIVOT + [-0.2, -ARM, 0.0]  # the box's centre: its face 0.15 m - RADIUS from the bob
@@ -146,18 +147,18 @@ def _pushed_bob_gaps(speed, body_velocity):
     keypoints = np.concatenate([keypoints, start[None]])
     rate = PARAMS.file_step_rate
     rest = rest_transforms(keypoints).astype(np.float64)
-    gaps = []
+    gaps, xs = [], []
     with FileWorld(bodies, joints, keypoints, np.array([-1, 0, -1]), 1.0 / rate, PARAMS.file_solver_iterations,
-                   0.08, apparel=np.array([False, True, False]), erp=PARAMS.file_erp, gravity=G,
-                   body_velocity=body_velocity) as world:
+                   0.08, apparel=np.array([False, True, False]), erp=PARAMS.file_erp, gravity=G, **world) as world:
         world.reset(rest)
         for s in range(1, int(0.3 * rate) + 1):
             pose = rest.copy()
             pose[2, 4] += speed * s / rate
             world.set_body_pose(pose)
             world.step()
-            gaps.append(world.body_poses()[0][1][0] - RADIUS - (start[0] + speed * s / rate + half))
-    return np.array(gaps)
+            xs.append(world.body_poses()[0][1][0])
+            gaps.append(xs[-1] - RADIUS - (start[0] + speed * s / rate + half))
+    return np.array(gaps), np.array(xs)
 
 
 @pytest.mark.parametrize("speed", [0.5, 1.0])
@@ -168,13 +169,28 @@ def test_a_moving_body_pushes_apparel_at_its_own_speed_when_contacts_see_it_move
     # body's speed (the players' kinematic bodies), the contact only has to take the bob from rest to
     # v when struck: it sinks less than v / w, and is not dragged once it moves with the body.
     w = PARAMS.file_contact_frequency
-    still = _pushed_bob_gaps(speed, body_velocity=False)
+    still = _pushed_bob(speed, body_velocity=False)[0]
     assert -still[-12:].mean() == pytest.approx(2 * speed / w, rel=0.05)
-    moving = _pushed_bob_gaps(speed, body_velocity=True)
-    assert moving.min() > -speed / w and moving[-12:].mean() > -0.1 * 2 * speed / w
+    for world in ({"body_velocity": True}, {"contact_cap": 1000.0}):
+        moving = _pushed_bob(speed, **world)[0]
+        assert moving.min() > -speed / w and moving[-12:].mean() > -0.1 * 2 * speed / w, world
 
 
-@pytest.mark.parametrize("switch", ["file_body_velocity", "file_duplicate_ranges", "file_body_damping"])
+def test_a_capped_contact_limits_how_hard_a_body_pushes_a_link():
+    # the box strikes the bob at 1 m/s: through an uncapped contact the bob is thrown to the box's
+    # speed within a few steps (over 10 g); capped at 5 m/s^2 the contact accelerates it at most that
+    # much (within 15%: the pendulum's pull, (g + v^2 / L) x / L along X, is taken off as for a
+    # small swing) and the box passes into it instead
+    rate, cap = PARAMS.file_step_rate, 5.0
+    gaps, xs = _pushed_bob(1.0, contact_cap=1000.0)
+    assert (np.abs(np.diff(xs, 2)) * rate ** 2).max() > 100.0
+    gaps, xs = _pushed_bob(1.0, contact_cap=cap)
+    x, speed = xs[1:-1] - PIVOT[0], (xs[2:] - xs[:-2]) * rate / 2
+    from_contact = np.diff(xs, 2) * rate ** 2 + (G + speed ** 2 / ARM) * x / ARM
+    assert np.abs(from_contact).max() < 1.15 * cap and gaps.min() < -0.05
+
+
+@pytest.mark.parametrize("switch", ["file_body_velocity", "file_duplicate_ranges", "file_body_damping", "file_contact_cap"])
 def test_an_opt_in_switch_enters_the_record_only_when_on(switch):
     """Off, an opt-in switch is absent from the run's JSON (the fingerprint of a run made without the
     switch); on, it is there; both read back to the same parameters."""
@@ -183,7 +199,8 @@ def test_an_opt_in_switch_enters_the_record_only_when_on(switch):
     from mimicbench.datagen.apparel.params import ApparelParams, SimParams, params_from_json
 
     off = ApparelParams()
-    on = ApparelParams(dataclasses.replace(SimParams(), **{switch: True}))
+    value = 20.0 if switch == "file_contact_cap" else True
+    on = ApparelParams(dataclasses.replace(SimParams(), **{switch: value}))
     assert switch not in off.to_json()["simulation"]
-    assert on.to_json()["simulation"][switch] is True
+    assert on.to_json()["simulation"][switch] == value
     assert params_from_json(off.to_json()) == off and params_from_json(on.to_json()) == on

@@ -19,6 +19,7 @@ from mimicbench.datagen.apparel.file_plan import (CAPSULE_Z_TO_Y, ChainBuild, Ch
                                        collision_filter, plan_scene, rotation_xyzw, wxyz_rotation)
 from mimicbench.datagen.apparel.body_damping import chain_jacobian, damped_joint_velocities, differs, keep_factors
 from mimicbench.datagen.apparel.body_shapes import body_pieces
+from mimicbench.datagen.apparel.capped_contacts import CappedContacts
 from mimicbench.datagen.apparel.params import SimParams
 from mimicbench.datagen.apparel.selection import dominant_bone
 from mimicbench.datagen.apparel.setup import CharacterPhysics, simulated_record, substeps_for
@@ -77,6 +78,10 @@ class FileWorld:
             linear and angular damping after every step (:mod:`mimicbench.datagen.apparel.body_damping`,
             MMD's Bullet's per-body damping), that chain's multibody damping 0; False: every chain
             takes one damping, its bodies' rates averaged by mass.
+        contact_cap: m/s^2; above 0, the contacts between bone-following bodies and chain links are
+            :mod:`mimicbench.datagen.apparel.capped_contacts`' (one closest point a pair, the spring of
+            ``contact_frequency`` seeing the body's own speed, the force capped at the link's mass
+            times this), not Bullet's; 0: Bullet's. Needs ``contact_frequency`` above 0.
     Use as a context manager (the client is disconnected on exit).
     """
 
@@ -87,8 +92,13 @@ class FileWorld:
                  contact_frequency: float = SimParams.file_contact_frequency, erp: float | None = None,
                  sleeping: bool = False, body_velocity: bool = False,
                  duplicate_ranges: bool = SimParams.file_duplicate_ranges,
-                 body_damping: bool = SimParams.file_body_damping):
+                 body_damping: bool = SimParams.file_body_damping,
+                 contact_cap: float = SimParams.file_contact_cap):
         import pybullet
+
+        if contact_cap > 0 and contact_frequency <= 0:
+            raise ValueError(f"contact_cap {contact_cap} m/s^2 needs a contact spring: expected contact_frequency "
+                             f"above 0, got {contact_frequency}")
 
         self.pb, pb = pybullet, pybullet
         self.bodies, self.joints = bodies, joints
@@ -171,6 +181,11 @@ class FileWorld:
                 info = [pb.getDynamicsInfo(mb, li, physicsClientId=cid) for li in range(len(plan.links))]
                 self.damped.append((c, np.array([i[0] for i in info]), np.array([i[2] for i in info]),
                                     keep_factors(lin, ang, self.dt)))
+        self.contacts = None if contact_cap <= 0 else CappedContacts.attach(
+            pb, cid, bodies, self.static, self.static_ids, [(plan.links, mb) for plan, _, mb, _ in self.chains],
+            contact_frequency, contact_cap)
+        self._static_now = np.zeros((len(self.static), 3))  # (S, 3) centres this step, metres
+        self._static_speed = np.zeros((len(self.static), 2, 3))  # (S, 2, 3) linear m/s, angular rad/s
         static_index = {b: k for k, b in enumerate(self.static)}
         frames = {b: (mb, li, build.link_pos[li], build.link_rot[li])
                   for plan, build, mb, _ in self.chains for li, b in enumerate(plan.links)}
@@ -210,12 +225,14 @@ class FileWorld:
         pb, cid = self.pb, self.client
         positions, rotations = self.static_poses(np.asarray(pose, np.float64))
         xyzw = rotations[:, [1, 2, 3, 0]]
+        placed = np.concatenate([positions, xyzw], axis=1)
+        before = self._placed
+        self._placed = placed
+        self._static_now = positions
+        self._static_speed = piece_velocities(placed, before, self.dt, 0.0)
         if self.body_velocity:  # put where the last step left it, moving to this step's pose
-            placed = np.concatenate([positions, xyzw], axis=1)
-            before = self._placed
             speed = piece_velocities(placed, before, self.dt, self.gravity).tolist()  # (S, 2, 3)
             start = np.where(np.isnan(before), placed, before)
-            self._placed = placed
             for k, body in enumerate(self.static_ids):
                 pb.resetBasePositionAndOrientation(body, start[k, :3].tolist(), start[k, 3:].tolist(),
                                                    physicsClientId=cid)
@@ -289,6 +306,9 @@ class FileWorld:
         self.zero_velocities()
 
     def step(self) -> None:
+        if self.contacts is not None:
+            self.contacts.apply([mb for _, _, mb, _ in self.chains], self.static_ids, self._static_now,
+                                self._static_speed)
         self.pb.stepSimulation(physicsClientId=self.client)
         for c, masses, inertia, keep in self.damped:
             self._damp_bodies(c, masses, inertia, keep)
@@ -388,7 +408,8 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
                    sim.file_solver_iterations, unit, apparel=apparel_bones, max_speed=sim.max_speed,
                    contact_frequency=sim.file_contact_frequency, erp=sim.file_erp,
                    sleeping=sim.file_sleeping, body_velocity=sim.file_body_velocity,
-                   duplicate_ranges=sim.file_duplicate_ranges, body_damping=sim.file_body_damping) as world:
+                   duplicate_ranges=sim.file_duplicate_ranges, body_damping=sim.file_body_damping,
+                   contact_cap=sim.file_contact_cap) as world:
         simulated = simulate_clip(world, motion.transforms, steps, relax, sim.max_resettles, warmup=sim.file_warmup)
         plan = world.plan
     pieces = body_pieces(record.vertices, record.keypoints, dominant_bone(record.weights, record.num_joints),
@@ -401,6 +422,7 @@ def simulate_file_motion(record, bodies: list[RigidBodyRecord], joints: list[Joi
         **({"body_velocity": True} if sim.file_body_velocity else {}),  # recorded only when on
         **({"duplicate_ranges": True} if sim.file_duplicate_ranges else {}),
         **({"body_damping": True} if sim.file_body_damping else {}),
+        **({"contact_cap": sim.file_contact_cap} if sim.file_contact_cap > 0 else {}),
         "links": sum(len(c.links) for c in plan.chains), "chains": len(plan.chains),
         "static_bodies": sum(b.mode == "static" for b in bodies), "loop_constraints": len(plan.loops),
         "dropped_joints": len(plan.dropped), "unanchored_bodies": len(plan.unanchored)})

@@ -145,7 +145,13 @@ class SimParams:
     linear and angular damping, in world velocity, as MMD's Bullet does
     (:mod:`mimicbench.datagen.apparel.body_damping`); False (the default) gives every chain one
     Bullet multibody damping, its bodies' rates averaged by mass (pybullet damps a multibody as a
-    whole; Gene's head strand then whips its 50 g tip, whose own damping is 1)."""
+    whole; Gene's head strand then whips its 50 g tip, whose own damping is 1).
+    ``file_contact_cap`` (m/s^2, >= 0): above 0, a bone-following body touches a chain's link through
+    one closest point a pair, the contact spring of ``file_contact_frequency`` seeing the body's own
+    speed, its force capped at the link's mass times this
+    (:mod:`mimicbench.datagen.apparel.capped_contacts`): a link squeezed between two bodies that
+    overlap each other (hair between a raised arm and the head) yields into them instead of being
+    thrown out when Bullet's contact gains a point; 0 keeps Bullet's contacts for those pairs."""
 
     gravity: float = 9.8
     max_speed: float = 25.0
@@ -166,6 +172,7 @@ class SimParams:
     file_body_velocity: bool = False
     file_duplicate_ranges: bool = False
     file_body_damping: bool = False
+    file_contact_cap: float = 0.0
 
 
 DEFAULT_KINDS: dict[str, ChainParams] = {
@@ -192,10 +199,11 @@ _RANGES = {  # field: (low, high, low_open)
     "max_joint_velocity": (0.0, None, True), "constraint_erp": (0.0, 1.0, True), "max_resettles": (0, None, False),
     "file_contact_frequency": (0.0, None, False),
     "file_step_rate": (0.0, None, True), "file_erp": (0.0, 1.0, True), "file_solver_iterations": (1, None, False),
+    "file_contact_cap": (0.0, None, False),
 }
 
 
-RECORDED_WHEN_ON = ("file_body_velocity", "file_duplicate_ranges", "file_body_damping")
+RECORDED_WHEN_ON = ("file_body_velocity", "file_duplicate_ranges", "file_body_damping", "file_contact_cap")
 """Opt-in :class:`SimParams` switches that enter a run's record only when true."""
 
 
