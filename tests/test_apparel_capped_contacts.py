@@ -47,3 +47,39 @@ def test_bounding_radius_and_collision_masks():
     a, b = _record("sphere", [0.1, 0, 0], 1, 0xFFFF), _record("sphere", [0.1, 0, 0], 3, 0xFFFF & ~(1 << 1))
     assert not touches(a, b) and not touches(b, a)
     assert touches(a, _record("sphere", [0.1, 0, 0], 3, 0xFFFF))
+
+
+@pytest.mark.parametrize("past_centre", [0.0, 0.5])
+def test_pybullets_world_frame_force_on_a_link_turns_it_about_the_point_it_is_applied_at(past_centre):
+    # the contacts push a multibody link at a world point: a 1 kg bob 0.5 m from a Z hinge, pushed
+    # along Y with 1 N at its centre and 0.5 m past it, turns at torque / moment: (0.5 + past) / 0.25
+    # rad/s^2 (the bob's own moment, 2/5 m r^2 at r 1 cm, added)
+    import pybullet as pb
+
+    cid = pb.connect(pb.DIRECT)
+    try:
+        pb.setGravity(0, 0, 0, physicsClientId=cid)
+        dt = 1.0 / 240.0
+        pb.setPhysicsEngineParameter(fixedTimeStep=dt, physicsClientId=cid)
+        ball = pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.01, physicsClientId=cid)
+        body = pb.createMultiBody(0, -1, basePosition=[0, 0, 0], linkMasses=[1.0], linkCollisionShapeIndices=[ball],
+                                  linkVisualShapeIndices=[-1], linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                                  linkInertialFramePositions=[[0.5, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                                  linkParentIndices=[0], linkJointTypes=[pb.JOINT_REVOLUTE], linkJointAxis=[[0, 0, 1]],
+                                  physicsClientId=cid)
+        pb.setJointMotorControl2(body, 0, pb.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+        pb.applyExternalForce(body, 0, [0, 1, 0], [0.5 + past_centre, 0, 0], pb.WORLD_FRAME, physicsClientId=cid)
+        pb.stepSimulation(physicsClientId=cid)
+        turning = pb.getJointState(body, 0, physicsClientId=cid)[1] / dt
+    finally:
+        pb.disconnect(cid)
+    assert turning == pytest.approx((0.5 + past_centre) / (0.25 + 0.4 * 1e-4), rel=1e-3)
+
+
+def test_a_cap_without_a_contact_spring_is_refused_with_the_field_named():
+    from mimicbench.datagen.apparel.params import params_from_json
+    from mimicbench.schemas.errors import UserError
+
+    with pytest.raises(UserError, match="file_contact_cap.*file_contact_frequency above 0"):
+        params_from_json({"simulation": {"file_contact_cap": 20, "file_contact_frequency": 0}})
+    assert params_from_json({"simulation": {"file_contact_cap": 20}}).simulation.file_contact_cap == 20

@@ -16,7 +16,10 @@ pushes the link with :func:`contact_force`, an external force at that point:
   between two bodies that overlap each other (hair between a raised arm and the head) yields into
   them instead of being thrown out when a contact changes.
 
-Bullet's contacts between chains are unchanged.
+Bullet's contacts between chains are unchanged. The force is explicit (from the state before the
+step): at 240 Hz and 75 rad/s the spring's ``w dt`` is 0.31 and the damping's ``2 w dt`` 0.63 on
+the link's mass; a point far from a long link's centre shows less mass (a thin rod's end a
+quarter), where the damping may over-correct within a step, and the cap bounds the force either way.
 """
 from __future__ import annotations
 

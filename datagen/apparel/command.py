@@ -40,7 +40,7 @@ def register(subparsers) -> None:
         "simulation: gravity, max_speed, solver_iterations, anchor_force, contact_erp, max_joint_velocity, "
         "constraint_erp, piece_mass, piece_velocity, max_resettles, file_contact_frequency, file_step_rate, file_erp, "
         "file_solver_iterations, file_sleeping, file_warmup, file_body_velocity, file_duplicate_ranges, "
-        "file_body_damping "
+        "file_body_damping, file_contact_cap "
         "(datagen/apparel/params.py).",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_options(p, ApparelOptions)

@@ -228,8 +228,9 @@ class FileWorld:
         placed = np.concatenate([positions, xyzw], axis=1)
         before = self._placed
         self._placed = placed
-        self._static_now = positions
-        self._static_speed = piece_velocities(placed, before, self.dt, 0.0)
+        if self.contacts is not None:  # the capped contacts' damping sees each body's own speed
+            self._static_now = positions
+            self._static_speed = piece_velocities(placed, before, self.dt, 0.0)
         if self.body_velocity:  # put where the last step left it, moving to this step's pose
             speed = piece_velocities(placed, before, self.dt, self.gravity).tolist()  # (S, 2, 3)
             start = np.where(np.isnan(before), placed, before)

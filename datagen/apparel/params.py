@@ -263,6 +263,9 @@ def params_from_json(data: dict, where: str = "params") -> ApparelParams:
     if unknown:
         raise UserError(f"{where}: unknown section(s) {sorted(unknown)}; expected 'simulation' and/or 'kinds'")
     sim = _checked(SimParams, SimParams(), data.get("simulation", {}), f"{where}.simulation")
+    if sim.file_contact_cap > 0 and sim.file_contact_frequency <= 0:
+        raise UserError(f"{where}.simulation.file_contact_cap: {sim.file_contact_cap} needs a contact spring; expected "
+                        f"file_contact_frequency above 0, got {sim.file_contact_frequency}")
     kinds = dict(DEFAULT_KINDS)
     overrides = data.get("kinds", {})
     if not isinstance(overrides, dict):
