@@ -90,16 +90,18 @@ class CappedContacts:
     Args:
         pb, client: pybullet and the world's client id.
         pairs: the pairs that may touch (:meth:`attach` builds them).
+        link_counts: {chain index: links in its multibody} for the chains of ``pairs``.
         frequency: rad/s, the contact spring's. cap: m/s^2, the normal force's limit per kilogram
             of the link (0: none).
     """
 
-    def __init__(self, pb, client: int, pairs: list[ContactPair], frequency: float, cap: float):
+    def __init__(self, pb, client: int, pairs: list[ContactPair], link_counts: dict[int, int], frequency: float,
+                 cap: float):
         self.pb, self.client = pb, client
+        self.link_counts = link_counts
         self.pairs, self.frequency, self.cap = pairs, float(frequency), float(cap)
         self._rows = np.array([(p.static_row, p.chain, p.link) for p in pairs], int).reshape(-1, 3)
         self._reach = np.array([p.reach for p in pairs], np.float64)
-        self.chains = sorted({p.chain for p in pairs})
 
     @classmethod
     def attach(cls, pb, client: int, bodies: list[RigidBodyRecord], static: list[int], static_ids: list[int],
@@ -119,7 +121,8 @@ class CappedContacts:
                     pairs.append(ContactPair(row, c, li, mass,
                                              float(np.sqrt(max(bodies[s].friction, 0.0) * max(bodies[b].friction, 0.0))),
                                              bounding_radius(bodies[s]) + bounding_radius(bodies[b]) + REACH_SLACK))
-        return cls(pb, client, pairs, frequency, cap)
+        counts = {p.chain: len(chains[p.chain][0]) for p in pairs}
+        return cls(pb, client, pairs, counts, frequency, cap)
 
     def apply(self, multibodies: list[int], static_ids: list[int], static_positions: np.ndarray,
               static_velocities: np.ndarray) -> int:
@@ -132,10 +135,8 @@ class CappedContacts:
             return 0
         states = {}
         centres = {}
-        for c in self.chains:
-            mb = multibodies[c]
-            count = pb.getNumJoints(mb, physicsClientId=cid)
-            states[c] = pb.getLinkStates(mb, list(range(count)), computeLinkVelocity=1, physicsClientId=cid)
+        for c, count in self.link_counts.items():
+            states[c] = pb.getLinkStates(multibodies[c], list(range(count)), computeLinkVelocity=1, physicsClientId=cid)
             centres[c] = np.array([s[0] for s in states[c]], np.float64)
         link_centres = np.array([centres[c][li] for _, c, li in self._rows])
         near = np.linalg.norm(static_positions[self._rows[:, 0]] - link_centres, axis=1) < self._reach

@@ -204,7 +204,7 @@ _RANGES = {  # field: (low, high, low_open)
 
 
 RECORDED_WHEN_ON = ("file_body_velocity", "file_duplicate_ranges", "file_body_damping", "file_contact_cap")
-"""Opt-in :class:`SimParams` switches that enter a run's record only when true."""
+"""Opt-in :class:`SimParams` switches that enter a run's record only when on (true, or above 0)."""
 
 
 @dataclass(frozen=True)
